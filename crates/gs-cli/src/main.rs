@@ -1,0 +1,60 @@
+//! `vagsl`: posed photographs → surface mesh and Gaussian splats (VA-GS).
+//!
+//! A thin front end: every subcommand parses its arguments, calls the gs-* crates and prints
+//! a report. Errors are reported with their full cause chain and a non-zero exit status.
+
+mod commands;
+mod scene_path;
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+/// vagsl — view-aligned Gaussian splatting for accurate surface meshes.
+#[derive(Debug, Parser)]
+#[command(name = "vagsl", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Summarise a scene: cameras, images, points, resolutions, camera models, scene extent
+    /// and source-view neighbour statistics.
+    ///
+    /// SCENE is a folder with `images/` and `sparse/0` (COLMAP text or binary), or a model
+    /// folder itself. Without SCENE the built-in procedural scene is described.
+    Info {
+        /// Scene folder (or COLMAP model folder). Omit for the built-in scene.
+        scene: Option<PathBuf>,
+        /// Print the summary as JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Convert a COLMAP model between text and binary (lossless).
+    Convert {
+        /// Model folder (e.g. `SCENE/sparse/0`) or scene folder.
+        model: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum)]
+        to: commands::convert::Format,
+        /// Output folder (created if missing). Defaults to the input model folder.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Info { scene, json } => commands::info::run(scene.as_deref(), json),
+        Command::Convert { model, to, output } => commands::convert::run(&model, to, output.as_deref()),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,164 @@
+//! A loaded scene: posed views with their images, and sparse points.
+//!
+//! gs-io builds a [`Scene`] from a COLMAP model (undistorted to PINHOLE, optionally
+//! downscaled); gs-synth builds the built-in scene. The scene extent and the source-view
+//! candidates of method-spec §1 and §7 live here so every crate computes them the same way.
+
+use crate::camera::Camera;
+use crate::image::Image;
+use glam::DVec3;
+
+/// One posed training or test image.
+#[derive(Debug, Clone)]
+pub struct View {
+    /// Image name as in the COLMAP model (e.g. `0008.png`).
+    pub name: String,
+    /// Undistorted PINHOLE camera at the image's resolution.
+    pub camera: Camera,
+    /// RGB image, `[H][W][3]` in `[0, 1]`.
+    pub image: Image,
+    /// Optional object mask, `[H][W][1]`, 1 = object.
+    pub mask: Option<Image>,
+}
+
+/// A sparse 3D point (from SfM) with its colour.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScenePoint {
+    /// World position.
+    pub position: DVec3,
+    /// RGB colour in `[0, 1]`.
+    pub color: [f32; 3],
+}
+
+/// Posed images plus sparse points.
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    /// Views sorted by name (the 3DGS split protocol relies on this order).
+    pub views: Vec<View>,
+    /// Sparse points, possibly empty.
+    pub points: Vec<ScenePoint>,
+}
+
+/// Scene extent r = 1.1 × the largest distance of a camera centre from the mean centre
+/// (method-spec §1, as 3DGS). A single camera gives r = 1.1 × 1 so thresholds stay usable.
+pub fn scene_extent(cameras: &[&Camera]) -> f64 {
+    if cameras.is_empty() {
+        return 1.1;
+    }
+    let centres: Vec<DVec3> = cameras.iter().map(|c| c.center()).collect();
+    let mean = centres.iter().copied().sum::<DVec3>() / centres.len() as f64;
+    let radius = centres.iter().map(|c| (*c - mean).length()).fold(0.0, f64::max);
+    1.1 * if radius > 0.0 { radius } else { 1.0 }
+}
+
+/// Parameters of the source-view candidate rule of method-spec §7.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NeighbourRule {
+    /// Maximum angle between optical axes, degrees (30).
+    pub max_angle_deg: f64,
+    /// Minimum centre distance as a multiple of the scene extent r (0.01).
+    pub min_distance: f64,
+    /// Maximum centre distance as a multiple of r (1.5).
+    pub max_distance: f64,
+    /// How many nearest candidates are kept (8).
+    pub max_candidates: usize,
+}
+
+impl Default for NeighbourRule {
+    fn default() -> Self {
+        Self { max_angle_deg: 30.0, min_distance: 0.01, max_distance: 1.5, max_candidates: 8 }
+    }
+}
+
+/// For every camera, the indices of its source-view candidates: optical axis within
+/// `max_angle_deg`, centre distance in `(min·r, max·r)`, nearest `max_candidates` by centre
+/// distance (ties by index). Computed once per scene.
+pub fn source_view_candidates(cameras: &[&Camera], rule: &NeighbourRule) -> Vec<Vec<usize>> {
+    let r = scene_extent(cameras);
+    let cos_max = rule.max_angle_deg.to_radians().cos();
+    let centres: Vec<DVec3> = cameras.iter().map(|c| c.center()).collect();
+    let axes: Vec<DVec3> = cameras.iter().map(|c| c.optical_axis()).collect();
+    (0..cameras.len())
+        .map(|i| {
+            let mut cands: Vec<(f64, usize)> = (0..cameras.len())
+                .filter(|&j| j != i)
+                .filter_map(|j| {
+                    let d = (centres[j] - centres[i]).length();
+                    let ok = axes[i].dot(axes[j]) >= cos_max
+                        && d > rule.min_distance * r
+                        && d < rule.max_distance * r;
+                    ok.then_some((d, j))
+                })
+                .collect();
+            cands.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            cands.truncate(rule.max_candidates);
+            cands.into_iter().map(|(_, j)| j).collect()
+        })
+        .collect()
+}
+
+impl Scene {
+    /// The cameras of all views, in order.
+    pub fn cameras(&self) -> Vec<&Camera> {
+        self.views.iter().map(|v| &v.camera).collect()
+    }
+
+    /// Scene extent r of method-spec §1.
+    pub fn extent(&self) -> f64 {
+        scene_extent(&self.cameras())
+    }
+
+    /// Indices of `(train, test)` views: with `eval`, every 8th view (index % 8 == 0, views
+    /// sorted by name) is held out (3DGS protocol); without, all views train.
+    pub fn split(&self, eval: bool) -> (Vec<usize>, Vec<usize>) {
+        let mut order: Vec<usize> = (0..self.views.len()).collect();
+        order.sort_by(|&a, &b| self.views[a].name.cmp(&self.views[b].name));
+        let (mut train, mut test) = (Vec::new(), Vec::new());
+        for (k, &i) in order.iter().enumerate() {
+            if eval && k % 8 == 0 { test.push(i) } else { train.push(i) }
+        }
+        (train, test)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+
+    fn ring(n: usize) -> Vec<Camera> {
+        (0..n)
+            .map(|k| {
+                let a = k as f64 / n as f64 * std::f64::consts::TAU;
+                Camera::look_at(
+                    64,
+                    48,
+                    Intrinsics::new(60.0, 60.0, 32.0, 24.0),
+                    DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 1.0),
+                    DVec3::ZERO,
+                    DVec3::Z,
+                )
+                .unwrap()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn extent_of_a_ring() {
+        let cams = ring(12);
+        let refs: Vec<&Camera> = cams.iter().collect();
+        // Mean centre is (0, 0, 1); every centre is at distance 3.
+        assert!((scene_extent(&refs) - 3.3).abs() < 1e-9);
+    }
+
+    #[test]
+    fn neighbours_are_nearby_and_aligned() {
+        let cams = ring(24);
+        let refs: Vec<&Camera> = cams.iter().collect();
+        let nb = source_view_candidates(&refs, &NeighbourRule::default());
+        // 15° apart per step: neighbours within 30° are ±1 and ±2 steps.
+        assert_eq!(nb[0].len(), 4);
+        assert!(nb[0].contains(&1) && nb[0].contains(&23) && nb[0].contains(&2) && nb[0].contains(&22));
+        assert_eq!(&nb[0][..2].iter().map(|&j| j.min(24 - j)).collect::<Vec<_>>(), &[1, 1]);
+    }
+}

@@ -1,0 +1,157 @@
+//! Float OpenEXR depth and normal maps (via the `exr` crate).
+//!
+//! Channel naming: a 1-channel [`Image`] (depth = camera z, design.md) is written as the single
+//! f32 channel **`Z`** (the OpenEXR convention for depth); a 3-channel image (normals) as
+//! f32 `R G B`; a 4-channel image as `R G B A`. Compression: ZIP (lossless), one layer.
+//!
+//! Reading takes the first layer at its largest resolution and returns: `R G B` (+ `A` when
+//! present) as 3 (4) channels; else a channel `Z`, else `Y`, else the only channel, as 1
+//! channel. f16 and u32 samples are converted to f32. Values are returned as stored (NaN or
+//! infinite background included; callers decide). Sizes are checked against the
+//! [`gs_core::image::MAX_IMAGE_PIXELS`] cap before any pixel is decoded.
+
+use crate::atomic::write_atomic;
+use crate::error::{IoError, Result};
+use ::exr::prelude as x;
+use ::exr::prelude::{ReadChannels, ReadLayers};
+use gs_core::Image;
+use gs_core::image::MAX_IMAGE_PIXELS;
+use std::io::Cursor;
+use std::path::Path;
+
+/// Writes a 1-channel depth map as an EXR with the single f32 channel `Z`.
+pub fn write_depth_exr(path: &Path, depth: &Image) -> Result<()> {
+    if depth.channels() != 1 {
+        return Err(IoError::invalid(path, format!("a depth map has 1 channel, this image has {}", depth.channels())));
+    }
+    write_exr(path, depth)
+}
+
+/// Writes a 3-channel normal map as an EXR with f32 channels `R G B`.
+pub fn write_normal_exr(path: &Path, normal: &Image) -> Result<()> {
+    if normal.channels() != 3 {
+        return Err(IoError::invalid(path, format!("a normal map has 3 channels, this image has {}", normal.channels())));
+    }
+    write_exr(path, normal)
+}
+
+/// Writes a 1-, 3- or 4-channel image as a float EXR (channel names in the module docs),
+/// atomically.
+pub fn write_exr(path: &Path, image: &Image) -> Result<()> {
+    let bytes = encode_exr(image).map_err(|m| IoError::invalid(path, m))?;
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// Encodes `image` as EXR bytes in memory.
+fn encode_exr(image: &Image) -> std::result::Result<Vec<u8>, String> {
+    let names: &[&str] = match image.channels() {
+        1 => &["Z"],
+        3 => &["R", "G", "B"],
+        4 => &["R", "G", "B", "A"],
+        c => return Err(format!("cannot write a {c}-channel image as EXR (1, 3 or 4 channels)")),
+    };
+    let (w, h, c) = (image.width(), image.height(), image.channels());
+    let data = image.data();
+    let channels: x::SmallVec<[x::AnyChannel<x::FlatSamples>; 4]> = names
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let samples: Vec<f32> = data.iter().skip(k).step_by(c).copied().collect();
+            x::AnyChannel::new(*name, x::FlatSamples::F32(samples))
+        })
+        .collect();
+    let layer = x::Layer::new(
+        (w, h),
+        x::LayerAttributes::default(),
+        x::Encoding { compression: x::Compression::ZIP16, ..x::Encoding::default() },
+        x::AnyChannels::sort(channels),
+    );
+    let img = x::Image::from_layer(layer);
+    let mut out = Cursor::new(Vec::new());
+    x::WritableImage::write(&img).to_buffered(&mut out).map_err(|e| format!("EXR encoding failed: {e}"))?;
+    Ok(out.into_inner())
+}
+
+/// Reads a float EXR map (see the module docs for the channel rules).
+pub fn read_exr(path: &Path) -> Result<Image> {
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    parse_exr(&bytes, path)
+}
+
+/// Parses an EXR held in memory; `path` only names the file in errors.
+pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
+    let fmt = |m: String| IoError::format(path, m);
+    // Check the sizes in the headers before decoding any pixel.
+    let meta = ::exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
+        .map_err(|e| fmt(format!("not a readable EXR file: {e}")))?;
+    let first = meta.headers.first().ok_or_else(|| fmt("EXR file has no layer".into()))?;
+    for h in meta.headers.iter() {
+        let size = h.layer_size;
+        if size.width().checked_mul(size.height()).is_none_or(|p| p > MAX_IMAGE_PIXELS) {
+            return Err(fmt(format!("EXR layer of {}x{} exceeds the cap of {MAX_IMAGE_PIXELS} pixels", size.width(), size.height())));
+        }
+    }
+    if first.deep {
+        return Err(IoError::Unsupported { path: path.into(), message: "deep EXR data".into() });
+    }
+    let image = x::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| fmt(format!("EXR decoding failed: {e}")))?;
+    let layer = &image.layer_data;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let list = &layer.channel_data.list;
+    let find = |name: &str| list.iter().position(|c| c.name.to_string() == name);
+    let picked: Vec<usize> = if let (Some(r), Some(g), Some(b)) = (find("R"), find("G"), find("B")) {
+        let mut v = vec![r, g, b];
+        v.extend(find("A"));
+        v
+    } else if let Some(z) = find("Z").or_else(|| find("Y")) {
+        vec![z]
+    } else if list.len() == 1 {
+        vec![0]
+    } else {
+        let names: Vec<String> = list.iter().map(|c| c.name.to_string()).collect();
+        return Err(IoError::Unsupported {
+            path: path.into(),
+            message: format!("EXR channels {names:?}: expected R G B (normals) or a single Z / Y channel (depth)"),
+        });
+    };
+    let c = picked.len();
+    let mut data = vec![0f32; w * h * c];
+    for (k, &ci) in picked.iter().enumerate() {
+        let samples = &list[ci].sample_data;
+        if samples.len() != w * h {
+            return Err(fmt(format!("EXR channel '{}' has {} samples for {w}x{h} pixels", list[ci].name, samples.len())));
+        }
+        for (p, v) in samples.values_as_f32().enumerate() {
+            data[p * c + k] = v;
+        }
+    }
+    Image::from_vec(w, h, c, data).map_err(|source| IoError::Core { path: path.into(), source })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn in_memory_round_trip_keeps_bits_and_channel_names() {
+        let mut img = Image::new(5, 3, 3).unwrap();
+        for (i, v) in img.data_mut().iter_mut().enumerate() {
+            *v = (i as f32 * 0.37).sin() * 1e-3 + i as f32;
+        }
+        let bytes = encode_exr(&img).unwrap();
+        let back = parse_exr(&bytes, Path::new("n.exr")).unwrap();
+        assert_eq!(back.width(), 5);
+        assert_eq!(back.height(), 3);
+        let a: Vec<u32> = img.data().iter().map(|v| v.to_bits()).collect();
+        let b: Vec<u32> = back.data().iter().map(|v| v.to_bits()).collect();
+        assert_eq!(a, b);
+        assert!(encode_exr(&Image::new(2, 2, 2).unwrap()).is_err());
+    }
+}

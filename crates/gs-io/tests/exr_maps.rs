@@ -1,0 +1,55 @@
+//! EXR depth and normal maps: bit-exact round trips, channel names, bad input.
+
+use gs_core::Image;
+use gs_io::{read_exr, write_depth_exr, write_exr, write_normal_exr};
+
+fn ramp(w: usize, h: usize, c: usize) -> Image {
+    let data = (0..w * h * c).map(|i| ((i * 7919) % 1000) as f32 * 0.001234 - 0.3).collect();
+    Image::from_vec(w, h, c, data).unwrap()
+}
+
+#[test]
+fn depth_and_normal_round_trip_bit_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut depth = ramp(37, 23, 1);
+    depth.set(0, 0, 0, 0.0);
+    depth.set(5, 5, 0, 1e-30);
+    let p = dir.path().join("depth.exr");
+    write_depth_exr(&p, &depth).unwrap();
+    let back = read_exr(&p).unwrap();
+    assert_eq!((back.width(), back.height(), back.channels()), (37, 23, 1));
+    assert!(back.data().iter().zip(depth.data()).all(|(a, b)| a.to_bits() == b.to_bits()));
+
+    let normal = ramp(16, 9, 3);
+    let p = dir.path().join("normal.exr");
+    write_normal_exr(&p, &normal).unwrap();
+    let back = read_exr(&p).unwrap();
+    assert_eq!(back, normal);
+    // Channel names as documented: Z for depth, R G B for normals.
+    let meta = exr::meta::MetaData::read_from_file(dir.path().join("depth.exr"), false).unwrap();
+    let names: Vec<String> = meta.headers[0].channels.list.iter().map(|c| c.name.to_string()).collect();
+    assert_eq!(names, ["Z"]);
+    let meta = exr::meta::MetaData::read_from_file(&p, false).unwrap();
+    let names: Vec<String> = meta.headers[0].channels.list.iter().map(|c| c.name.to_string()).collect();
+    assert_eq!(names, ["B", "G", "R"]); // EXR stores channels sorted by name.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}
+
+#[test]
+fn wrong_channel_counts_and_bad_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("x.exr");
+    assert!(write_depth_exr(&p, &ramp(4, 4, 3)).unwrap_err().to_string().contains("x.exr"));
+    assert!(write_normal_exr(&p, &ramp(4, 4, 1)).is_err());
+    assert!(write_exr(&p, &ramp(4, 4, 2)).unwrap_err().to_string().contains("2-channel"));
+    assert!(!p.exists());
+    std::fs::write(&p, b"not an exr at all").unwrap();
+    let e = read_exr(&p).unwrap_err().to_string();
+    assert!(e.contains("x.exr") && e.contains("EXR"), "{e}");
+    // A truncated real file.
+    let good = dir.path().join("good.exr");
+    write_exr(&good, &ramp(64, 64, 3)).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    assert!(read_exr(&p).unwrap_err().to_string().contains("x.exr"));
+}

@@ -1,0 +1,39 @@
+//! The error type of gs-losses.
+
+use thiserror::Error;
+
+/// Errors raised by gs-losses for invalid input (never for internal invariants).
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum LossError {
+    /// Two maps that must have the same size (rendered vs ground truth, depth vs normal…) differ.
+    #[error("size mismatch: {0}")]
+    ShapeMismatch(String),
+    /// A map with the wrong channel count (e.g. a normal map that is not 3-channel).
+    #[error("wrong channel count: {0}")]
+    Channels(String),
+    /// A parameter outside its documented range (negative weight, non-finite τ, image too small for LPIPS…).
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+    /// A weights file that is truncated, has a wrong magic, size, layout or checksum.
+    #[error("weights {file}: {problem}")]
+    Weights {
+        /// The file (or "bundled") that failed to load.
+        file: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// A `.npy` file that cannot be read (I/O error, unsupported dtype, truncated data).
+    #[error("npy {file}: {problem}")]
+    Npy {
+        /// The file that failed to load.
+        file: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// An error from gs-core (e.g. building an output image).
+    #[error(transparent)]
+    Core(#[from] gs_core::CoreError),
+}
+
+/// Result alias of gs-losses.
+pub type Result<T> = std::result::Result<T, LossError>;

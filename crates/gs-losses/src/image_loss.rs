@@ -1,0 +1,141 @@
+//! The edge-aware image loss L_I = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L1(∇Ĩ, ∇I) (method-spec §5.1)
+//! over `gs_core::Image` buffers, and the per-view [`EdgeGuide`] (∇I and δ of the ground truth).
+
+use crate::error::{LossError, Result};
+use crate::gradient::{edge_l1, edge_weight, image_gradient, image_gradient_backward};
+use crate::l1::{l1, l1_backward};
+use crate::real::Dims;
+use crate::ssim::{SsimRegion, ssim_backward};
+use gs_core::Image;
+
+/// ∇I and δ = clamp((1 − ∇I)², 0, 1) of a ground-truth image; computed once per training view
+/// and shared by the edge term of L_I and by L_nc / L_ns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EdgeGuide {
+    /// ∇I (1 channel, border = 1).
+    pub gradient: Image,
+    /// δ (1 channel, border = 0).
+    pub delta: Image,
+}
+
+impl EdgeGuide {
+    /// The guide of a ground-truth image (any channel count; channels are averaged).
+    pub fn from_gt(gt: &Image) -> Result<Self> {
+        let dims = Dims::of(gt);
+        let g = image_gradient(gt.data(), dims);
+        let delta = edge_weight(&g.map);
+        Ok(Self {
+            gradient: Image::from_vec(dims.width, dims.height, 1, g.map)?,
+            delta: Image::from_vec(dims.width, dims.height, 1, delta)?,
+        })
+    }
+}
+
+/// Weights of L_I.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImageLossConfig {
+    /// β1, weight of D-SSIM (paper: 0.2); L1 gets 1 − β1.
+    pub beta1: f32,
+    /// β2, weight of the edge term (paper: 0.03).
+    pub beta2: f32,
+    /// Whether the edge term is on (off during the colour-only warm-up, method-spec §7).
+    pub edge: bool,
+}
+
+impl Default for ImageLossConfig {
+    fn default() -> Self {
+        Self {
+            beta1: 0.2,
+            beta2: 0.03,
+            edge: true,
+        }
+    }
+}
+
+/// Values of L_I and its gradient with respect to the rendered image.
+#[derive(Debug, Clone)]
+pub struct ImageLossOutput {
+    /// L1(Ĩ, I).
+    pub l1: f64,
+    /// SSIM(Ĩ, I) (so D-SSIM = 1 − ssim).
+    pub ssim: f64,
+    /// L1(∇Ĩ, ∇I), or `None` when the edge term is off.
+    pub edge: Option<f64>,
+    /// L_I.
+    pub total: f64,
+    /// ∂L_I/∂Ĩ, same size as the rendered image.
+    pub grad_rendered: Image,
+}
+
+/// L_I of a rendered image Ĩ against the ground truth I. `guide` must be
+/// [`EdgeGuide::from_gt`] of `gt` (required only when the edge term is on).
+pub fn image_loss(
+    rendered: &Image,
+    gt: &Image,
+    guide: Option<&EdgeGuide>,
+    cfg: &ImageLossConfig,
+) -> Result<ImageLossOutput> {
+    let dims = Dims::of(rendered);
+    if Dims::of(gt) != dims {
+        return Err(LossError::ShapeMismatch(format!(
+            "rendered image is {}×{}×{}, ground truth {}×{}×{}",
+            dims.width,
+            dims.height,
+            dims.channels,
+            gt.width(),
+            gt.height(),
+            gt.channels()
+        )));
+    }
+    for (name, v) in [("β1", cfg.beta1), ("β2", cfg.beta2)] {
+        if !v.is_finite() || v < 0.0 {
+            return Err(LossError::InvalidParameter(format!(
+                "{name} = {v} must be finite and ≥ 0"
+            )));
+        }
+    }
+    if cfg.beta1 > 1.0 {
+        return Err(LossError::InvalidParameter(format!(
+            "β1 = {} must be ≤ 1",
+            cfg.beta1
+        )));
+    }
+    let (a, b) = (rendered.data(), gt.data());
+    let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
+    let mut grad = vec![0.0f32; dims.len()];
+    let l1v = l1(a, b);
+    l1_backward(a, b, 1.0 - b1, &mut grad);
+    let s = ssim_backward(a, b, dims, SsimRegion::Full, -b1, &mut grad)?;
+    let mut total = (1.0 - b1) * l1v + b1 * (1.0 - s);
+    let edge = if cfg.edge {
+        let guide = guide.ok_or_else(|| {
+            LossError::InvalidParameter(
+                "the edge term is on but no EdgeGuide of the ground truth was given".into(),
+            )
+        })?;
+        if guide.gradient.width() != dims.width || guide.gradient.height() != dims.height {
+            return Err(LossError::ShapeMismatch(format!(
+                "edge guide is {}×{}, image {}×{}",
+                guide.gradient.width(),
+                guide.gradient.height(),
+                dims.width,
+                dims.height
+            )));
+        }
+        let gr = image_gradient(a, dims);
+        let mut up = vec![0.0f32; dims.pixels()];
+        let e = edge_l1(&gr.map, guide.gradient.data(), b2, Some(&mut up));
+        image_gradient_backward(a, dims, &gr, &up, &mut grad);
+        total += b2 * e;
+        Some(e)
+    } else {
+        None
+    };
+    Ok(ImageLossOutput {
+        l1: l1v,
+        ssim: s,
+        edge,
+        total,
+        grad_rendered: Image::from_vec(dims.width, dims.height, dims.channels, grad)?,
+    })
+}

@@ -1,0 +1,49 @@
+//! The error type of gs-tsdf.
+
+use thiserror::Error;
+
+/// Everything that can go wrong in fusion, extraction, clean-up and metrics.
+#[derive(Debug, Error)]
+pub enum TsdfError {
+    /// A parameter is out of its valid range (voxel size ≤ 0, NaN, …).
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+    /// An input image does not match its camera or has the wrong channel count.
+    #[error("invalid input for view {view}: {problem}")]
+    InvalidInput {
+        /// Index of the view in the caller's sequence (or 0 for a single call).
+        view: usize,
+        /// What is wrong.
+        problem: String,
+    },
+    /// Allocating the blocks a view touches would exceed the configured block cap.
+    #[error(
+        "TSDF block cap exceeded: {needed} blocks needed, cap is {cap} (voxel size {voxel_size}); \
+         raise max_blocks or use a larger voxel size"
+    )]
+    BlockCapExceeded {
+        /// Blocks that would exist after this view.
+        needed: usize,
+        /// The configured cap.
+        cap: usize,
+        /// The voxel size in use.
+        voxel_size: f64,
+    },
+    /// A point lies so far from the origin that its block index does not fit in 32 bits.
+    #[error("point {point:?} is too far from the origin for voxel size {voxel_size} (block index overflow)")]
+    OutOfRange {
+        /// The offending world point.
+        point: [f64; 3],
+        /// The voxel size in use.
+        voxel_size: f64,
+    },
+    /// A mesh or point set is empty or invalid where a non-empty one is required.
+    #[error("{0}")]
+    InvalidMesh(String),
+    /// An error reported by gs-core.
+    #[error(transparent)]
+    Core(#[from] gs_core::CoreError),
+}
+
+/// `Result` with [`TsdfError`].
+pub type Result<T> = std::result::Result<T, TsdfError>;
