@@ -41,5 +41,9 @@ fn bunny_gt_depth_at_voxel_0008_matches_open3d() {
     let so = EvalOptions { crop: None, tau: 0.01, ..opts };
     let s = evaluate_meshes(&mesh, &scene, &so).unwrap();
     eprintln!("scene: {}", serde_json::to_string(&s.metrics).unwrap());
-    assert!(s.metrics.chamfer < 0.02, "scene Chamfer {}", s.metrics.chamfer);
+    // Open3D 0.19 on the same inputs (same protocol, 200k samples each, 2026-11-23): scene
+    // accuracy 0.01185, completeness 0.06212, Chamfer 0.03698 (unobserved wall backs and
+    // floor under the bunny dominate completeness). Allow 0.5 % for the sampling noise.
+    assert!(s.metrics.accuracy <= 0.01185 * 1.005, "scene accuracy {}", s.metrics.accuracy);
+    assert!(s.metrics.chamfer <= 0.03698 * 1.005, "scene Chamfer {}", s.metrics.chamfer);
 }
