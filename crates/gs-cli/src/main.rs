@@ -4,6 +4,7 @@
 //! a report. Errors are reported with their full cause chain and a non-zero exit status.
 
 mod commands;
+mod run_dir;
 mod scene_path;
 
 use clap::{Parser, Subcommand};
@@ -42,6 +43,19 @@ enum Command {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
+    /// Train a VA-GS model: posed images → OUT/point_cloud.ply (3DGS layout).
+    ///
+    /// Without SCENE the built-in procedural scene is used. The schedule follows the paper
+    /// (colour warm-up, then edge + L_nc + L_ns + L_p, then L_f); `--iterations` scales it.
+    Train(Box<commands::train::TrainArgs>),
+    /// Fuse a trained run's rendered plane depths into a mesh (TSDF + marching cubes).
+    Mesh(commands::mesh::MeshArgs),
+    /// Render a trained run's views: colour PNG, plane depth EXR, world normal PNG.
+    Render(commands::render::RenderArgs),
+    /// PSNR / SSIM / LPIPS of a trained run's held-out views.
+    EvalImages(commands::eval_images::EvalImagesArgs),
+    /// Accuracy / completeness / Chamfer / F1 of a mesh against a ground-truth mesh.
+    EvalMesh(commands::eval_mesh::EvalMeshArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -49,6 +63,11 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Info { scene, json } => commands::info::run(scene.as_deref(), json),
         Command::Convert { model, to, output } => commands::convert::run(&model, to, output.as_deref()),
+        Command::Train(args) => commands::train::run(&args),
+        Command::Mesh(args) => commands::mesh::run(&args),
+        Command::Render(args) => commands::render::run(&args),
+        Command::EvalImages(args) => commands::eval_images::run(&args),
+        Command::EvalMesh(args) => commands::eval_mesh::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

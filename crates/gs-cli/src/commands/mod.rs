@@ -1,4 +1,9 @@
 //! One module per subcommand.
 
 pub mod convert;
+pub mod eval_images;
+pub mod eval_mesh;
 pub mod info;
+pub mod mesh;
+pub mod render;
+pub mod train;

@@ -1,0 +1,74 @@
+//! `vagsl render`: colour, plane depth (EXR) and world-space normal maps (PNG) of a run's views.
+
+use crate::run_dir::OpenRun;
+use anyhow::{Context, Result};
+use gs_core::Image;
+use gs_raster::{RenderRequest, render};
+use std::path::PathBuf;
+
+/// Which views to render.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Split {
+    /// Training views.
+    Train,
+    /// Held-out views (`--eval` runs).
+    Test,
+    /// Every view.
+    All,
+}
+
+/// Options of `vagsl render`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RenderArgs {
+    /// A `vagsl train` output folder.
+    pub run: PathBuf,
+    /// Which views.
+    #[arg(long, value_enum, default_value = "test")]
+    pub split: Split,
+    /// Output folder (default RUN/renders/SPLIT).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+}
+
+/// World-space normal map encoded (n + 1)/2 (design.md §2), 0 where nothing was rendered.
+fn world_normal_png(camera: &gs_core::Camera, normal: &Image) -> Result<Image> {
+    let r_t = camera.rotation.transpose();
+    let mut out = Image::new(normal.width(), normal.height(), 3)?;
+    for (o, n) in out.data_mut().chunks_exact_mut(3).zip(normal.data().chunks_exact(3)) {
+        let v = gs_core::glam::DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+        if v.length() > 1e-6 {
+            let w = (r_t * v).normalize();
+            o.copy_from_slice(&[(w.x as f32 + 1.0) / 2.0, (w.y as f32 + 1.0) / 2.0, (w.z as f32 + 1.0) / 2.0]);
+        }
+    }
+    Ok(out)
+}
+
+/// Runs `vagsl render`.
+pub fn run(args: &RenderArgs) -> Result<()> {
+    let run = OpenRun::open(&args.run)?;
+    let views: Vec<usize> = match args.split {
+        Split::Train => run.train.clone(),
+        Split::Test => run.test.clone(),
+        Split::All => (0..run.scene.views.len()).collect(),
+    };
+    if views.is_empty() {
+        anyhow::bail!("no views in split {:?} (held-out views exist only for runs trained with --eval)", args.split);
+    }
+    let name = format!("{:?}", args.split).to_lowercase();
+    let dir = args.output.clone().unwrap_or_else(|| run.dir.join("renders").join(name));
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    let req = RenderRequest { color: true, alpha: true, normal: true, distance: true, plane_depth: true, ..Default::default() };
+    let raster = run.raster();
+    for &i in &views {
+        let view = &run.scene.views[i];
+        let out = render(&run.gaussians, &view.camera, &req, &raster)?;
+        let stem = std::path::Path::new(&view.name).file_stem().map_or(view.name.clone(), |s| s.to_string_lossy().into_owned());
+        gs_io::write_png(&dir.join(format!("{stem}.png")), out.color.as_ref().expect("requested"))?;
+        gs_io::write_depth_exr(&dir.join(format!("{stem}_depth.exr")), out.plane_depth.as_ref().expect("requested"))?;
+        let normal = world_normal_png(&view.camera, out.normal.as_ref().expect("requested"))?;
+        gs_io::write_png(&dir.join(format!("{stem}_normal.png")), &normal)?;
+    }
+    println!("rendered {} views (colour PNG, plane depth EXR, world normal PNG) → {}", views.len(), dir.display());
+    Ok(())
+}

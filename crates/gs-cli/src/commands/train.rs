@@ -1,0 +1,349 @@
+//! `vagsl train`: the VA-GS training run, with progress, checkpoints and a report.
+
+use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, view_indices, write_json};
+use anyhow::{Context, Result, bail};
+use gs_train::{GateReading, InitMode, NccReading, Preset, StepReport, TrainConfig, Trainer, checkpoint};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// `--preset`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum PresetArg {
+    /// 3,000 iterations, every phase scaled, 2 source views (a quick look).
+    Fast,
+    /// Object scenes (DTU): the paper's 20,000-iteration surface schedule.
+    Dtu,
+    /// Large scenes (Tanks and Temples): abs-gradient threshold 1.5e-4.
+    Tnt,
+    /// Novel views (Mip-NeRF 360): 30,000 iterations, abs-gradient threshold 2e-4.
+    Mip360,
+}
+
+/// Options of `vagsl train` (see `vagsl train --help`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct TrainArgs {
+    /// Scene folder (`images/` + `sparse/0`). Omit for the built-in scene.
+    pub scene: Option<PathBuf>,
+    /// Output folder (created): config.json, point_cloud.ply, report.json, checkpoint.bin.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Settings preset.
+    #[arg(long, value_enum, default_value = "dtu")]
+    pub preset: PresetArg,
+    /// Total iterations; every phase boundary of the preset scales with it.
+    #[arg(long)]
+    pub iterations: Option<u64>,
+    /// Downscale images by this factor (1, 2, 4, 8).
+    #[arg(short = 'r', long = "resolution")]
+    pub resolution: Option<u32>,
+    /// Scale images to this width instead.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Hold out every 8th image (sorted by name) for evaluation.
+    #[arg(long)]
+    pub eval: bool,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Ablation: no edge term in L_I.
+    #[arg(long)]
+    pub no_edge: bool,
+    /// Ablation: no normal consistency L_nc.
+    #[arg(long)]
+    pub no_nc: bool,
+    /// Ablation: no normal smoothing L_ns.
+    #[arg(long)]
+    pub no_ns: bool,
+    /// Ablation: no multi-view photometric alignment L_p.
+    #[arg(long)]
+    pub no_photometric: bool,
+    /// Ablation: no multi-view feature alignment L_f.
+    #[arg(long)]
+    pub no_features: bool,
+    /// Ablation: edge weight δ ≡ 1 in L_nc and L_ns.
+    #[arg(long)]
+    pub no_delta: bool,
+    /// Source views N per iteration for L_p and L_f.
+    #[arg(long)]
+    pub source_views: Option<usize>,
+    /// NCC patch side (odd, 3–9).
+    #[arg(long)]
+    pub patch_size: Option<usize>,
+    /// τ of L_ns.
+    #[arg(long)]
+    pub tau: Option<f32>,
+    /// L_ns gate: `above` (default, "> τ") or `below` ("< τ").
+    #[arg(long, value_parser = ["above", "below"])]
+    pub ns_gate: Option<String>,
+    /// NCC cost: `pgsr` (1 − ρ², masked, default) or `plain` (1 − ρ).
+    #[arg(long, value_parser = ["pgsr", "plain"])]
+    pub ncc: Option<String>,
+    /// Keep L_p on during the L_f phase.
+    #[arg(long)]
+    pub overlap_mv: bool,
+    /// Initialisation: `points` (SfM, default), `cube` or `sphere` (random).
+    #[arg(long, value_parser = ["points", "cube", "sphere"])]
+    pub init: Option<String>,
+    /// Hard cap on the number of Gaussians.
+    #[arg(long)]
+    pub max_gaussians: Option<usize>,
+    /// Write OUT/checkpoint.bin every this many iterations.
+    #[arg(long)]
+    pub checkpoint_every: Option<u64>,
+    /// Continue from a checkpoint (its configuration is used; the scene options must match).
+    #[arg(long)]
+    pub resume: Option<PathBuf>,
+    /// No progress bar (log a line every 500 iterations instead).
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn parse_enum<T>(v: &Option<String>, f: impl Fn(&str) -> T) -> Option<T> {
+    v.as_deref().map(f)
+}
+
+/// The effective configuration of `args`.
+pub fn build_config(args: &TrainArgs) -> Result<TrainConfig> {
+    let preset = match args.preset {
+        PresetArg::Fast => Preset::Fast,
+        PresetArg::Dtu => Preset::Dtu,
+        PresetArg::Tnt => Preset::Tnt,
+        PresetArg::Mip360 => Preset::Mip360,
+    };
+    let mut c = TrainConfig::preset(preset);
+    if let Some(n) = args.iterations {
+        if n == 0 {
+            bail!("--iterations must be positive");
+        }
+        c = c.scaled(n);
+    }
+    c.seed = args.seed;
+    let l = &mut c.losses;
+    l.edge &= !args.no_edge;
+    l.normal_consistency &= !args.no_nc;
+    l.normal_smoothing &= !args.no_ns;
+    l.photometric &= !args.no_photometric;
+    l.features &= !args.no_features;
+    l.delta &= !args.no_delta;
+    if let Some(n) = args.source_views {
+        c.source_views = n;
+    }
+    if let Some(p) = args.patch_size {
+        c.patch_size = p;
+    }
+    if let Some(t) = args.tau {
+        c.weights.tau = t;
+    }
+    if let Some(g) = parse_enum(&args.ns_gate, |s| if s == "below" { GateReading::Below } else { GateReading::Above }) {
+        c.ns_gate = g;
+    }
+    if let Some(n) = parse_enum(&args.ncc, |s| if s == "plain" { NccReading::Plain } else { NccReading::Pgsr }) {
+        c.ncc = n;
+    }
+    c.overlap_mv |= args.overlap_mv;
+    if let Some(i) = parse_enum(&args.init, |s| match s {
+        "cube" => InitMode::Cube,
+        "sphere" => InitMode::Sphere,
+        _ => InitMode::Points,
+    }) {
+        c.init = i;
+    }
+    if let Some(m) = args.max_gaussians {
+        c.max_gaussians = m;
+    }
+    c.validate()?;
+    Ok(c)
+}
+
+/// `OUT/report.json`.
+#[derive(Debug, Serialize)]
+pub struct TrainReport {
+    /// Iterations completed.
+    pub iterations: u64,
+    /// Whether the run was interrupted (Ctrl-C) before the last iteration.
+    pub interrupted: bool,
+    /// Final number of Gaussians.
+    pub gaussians: usize,
+    /// Whether the Gaussian cap stopped densification.
+    pub capped: bool,
+    /// Wall seconds of the training loop.
+    pub train_seconds: f64,
+    /// Seconds per phase: warm-up, photometric (L_p), features (L_f), refinement.
+    pub phase_seconds: [f64; 4],
+    /// Peak resident memory, bytes.
+    pub peak_memory_bytes: Option<u64>,
+    /// Bytes of the per-view caches (guides, grey images, features).
+    pub cache_bytes: usize,
+    /// Loss values of the last iteration.
+    pub last: Option<StepReport>,
+}
+
+fn phase_index(config: &TrainConfig, it: u64) -> usize {
+    if it <= config.warmup_end {
+        0
+    } else if it <= config.photometric_end {
+        1
+    } else if it <= config.features_end {
+        2
+    } else {
+        3
+    }
+}
+
+fn describe(r: &StepReport) -> String {
+    let l = &r.losses;
+    let mut s = format!("L {:.4} L1 {:.4}", l.total, l.l1);
+    for (name, v) in [("nc", l.normal_consistency), ("ns", l.normal_smoothing), ("Lp", l.photometric), ("Lf", l.features)] {
+        if let Some(v) = v {
+            s.push_str(&format!(" {name} {v:.4}"));
+        }
+    }
+    s.push_str(&format!(" | {} Gaussians", r.gaussians));
+    s
+}
+
+/// Runs `vagsl train`.
+pub fn run(args: &TrainArgs) -> Result<()> {
+    let out = &args.output;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))?;
+    let source = SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: args.width, eval: args.eval };
+    let (config, resumed) = match &args.resume {
+        Some(p) => {
+            let (c, s) = checkpoint::load(p)?;
+            eprintln!("resuming {} at iteration {} (its configuration is used)", p.display(), s.iteration);
+            (c, Some(s))
+        }
+        None => (build_config(args)?, None),
+    };
+    let t_load = Instant::now();
+    let scene = load_scene(&source)?;
+    let (train_idx, test_idx) = scene.split(args.eval);
+    let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
+    let run_config =
+        RunConfig { scene: source.clone(), train_views: names(&train_idx), test_views: names(&test_idx), train: config.clone() };
+    // A resumed run must continue on the same views.
+    if resumed.is_some()
+        && let Ok(text) = std::fs::read_to_string(out.join("config.json"))
+        && let Ok(prev) = serde_json::from_str::<RunConfig>(&text)
+        && prev.train_views != run_config.train_views
+    {
+        bail!("the scene options differ from the checkpointed run's (other training views); pass the same SCENE, -r/--width and --eval");
+    }
+    view_indices(&scene, &run_config.train_views)?;
+    write_json(&out.join("config.json"), &run_config)?;
+    eprintln!(
+        "scene: {} views ({} train, {} test), {} points, loaded in {:.1}s",
+        scene.views.len(),
+        train_idx.len(),
+        test_idx.len(),
+        scene.points.len(),
+        t_load.elapsed().as_secs_f64()
+    );
+    eprintln!(
+        "config: preset {:?}, {} iterations (warm-up to {}, L_p to {}, L_f to {}), seed {}, losses {:?}",
+        config.preset,
+        config.iterations,
+        config.warmup_end,
+        config.photometric_end,
+        config.features_end,
+        config.seed,
+        config.losses
+    );
+    let mut trainer = match resumed {
+        Some(state) => Trainer::with_state(&scene, train_idx.clone(), config.clone(), state)?,
+        None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
+    };
+    eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
+
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // A second Ctrl-C while the checkpoint is written is ignored; the write is atomic anyway.
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(config.iterations);
+        b.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} {per_sec} ETA {eta} {msg}")
+                .expect("valid template"),
+        );
+        b.set_position(trainer.iteration());
+        b
+    };
+    let ckpt_path = out.join("checkpoint.bin");
+    let mut phase_seconds = [0.0f64; 4];
+    let mut last: Option<StepReport> = None;
+    let mut checkpoint_error: Option<anyhow::Error> = None;
+    let mut warned_cap = false;
+    let t0 = Instant::now();
+    let mut t_prev = Instant::now();
+    trainer.run(|tr, r| {
+        let now = Instant::now();
+        phase_seconds[phase_index(&config, r.iteration)] += (now - t_prev).as_secs_f64();
+        t_prev = now;
+        if r.iteration % 10 == 0 || r.iteration == config.iterations {
+            bar.set_position(r.iteration);
+            bar.set_message(describe(r));
+        }
+        if args.quiet && (r.iteration % 500 == 0 || r.iteration == config.iterations) {
+            eprintln!("[{:>6}/{}] {} ({:.1}s)", r.iteration, config.iterations, describe(r), t0.elapsed().as_secs_f64());
+        }
+        if r.densify.is_some_and(|d| d.capped) && !warned_cap {
+            warned_cap = true;
+            bar.println(format!("warning: reached --max-gaussians {}; densification stops", config.max_gaussians));
+        }
+        if let Some(every) = args.checkpoint_every
+            && every > 0
+            && r.iteration % every == 0
+            && r.iteration < config.iterations
+            && let Err(e) = checkpoint::save(&ckpt_path, &config, tr.state())
+        {
+            checkpoint_error = Some(e.into());
+            return false;
+        }
+        last = Some(r.clone());
+        !stop.load(Ordering::SeqCst)
+    })?;
+    bar.finish_and_clear();
+    if let Some(e) = checkpoint_error {
+        return Err(e.context(format!("writing {}", ckpt_path.display())));
+    }
+    let train_seconds = t0.elapsed().as_secs_f64();
+    let interrupted = !trainer.finished();
+    if interrupted || args.checkpoint_every.is_some() {
+        checkpoint::save(&ckpt_path, &config, trainer.state())?;
+        eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
+    }
+    gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
+    let report = TrainReport {
+        iterations: trainer.iteration(),
+        interrupted,
+        gaussians: trainer.gaussians().len(),
+        capped: trainer.state().capped,
+        train_seconds,
+        phase_seconds,
+        peak_memory_bytes: peak_memory_bytes(),
+        cache_bytes: trainer.cache_bytes(),
+        last,
+    };
+    write_json(&out.join("report.json"), &report)?;
+    println!(
+        "trained {} iterations in {:.1}s ({:.1} it/s): {} Gaussians, peak memory {} → {}",
+        report.iterations,
+        train_seconds,
+        report.iterations as f64 / train_seconds.max(1e-9),
+        report.gaussians,
+        report.peak_memory_bytes.map_or("n/a".into(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64)),
+        out.join("point_cloud.ply").display()
+    );
+    if interrupted {
+        bail!("interrupted at iteration {}; checkpoint in {}", report.iterations, ckpt_path.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,127 @@
+//! A training run's output folder: `config.json` says which scene (and how it was loaded) and
+//! which views trained, so `render`, `mesh` and `eval-images` rebuild exactly the same views.
+
+use anyhow::{Context, Result, bail};
+use gs_core::{Gaussians, Scene};
+use gs_train::TrainConfig;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// How the scene of a run is loaded.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneSource {
+    /// Scene folder; `None` = the built-in procedural scene.
+    pub path: Option<PathBuf>,
+    /// `-r` factor, if given.
+    pub resolution_factor: Option<u32>,
+    /// Target width, if given.
+    pub width: Option<u32>,
+    /// Whether every 8th view was held out.
+    pub eval: bool,
+}
+
+/// `OUT/config.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RunConfig {
+    /// The scene.
+    pub scene: SceneSource,
+    /// Names of the training views.
+    pub train_views: Vec<String>,
+    /// Names of the held-out views.
+    pub test_views: Vec<String>,
+    /// The effective training configuration.
+    pub train: TrainConfig,
+}
+
+/// Loads the scene a source describes (the built-in scene is regenerated deterministically).
+pub fn load_scene(src: &SceneSource) -> Result<Scene> {
+    match &src.path {
+        None => {
+            if src.resolution_factor.is_some() || src.width.is_some() {
+                bail!("-r/--width apply to scene folders; the built-in scene has a fixed size");
+            }
+            Ok(gs_synth::generate(&gs_synth::BuiltinOptions::default())?.scene)
+        }
+        Some(p) => {
+            let resolution = match (src.resolution_factor, src.width) {
+                (Some(_), Some(_)) => bail!("give either -r or --width, not both"),
+                (Some(f), None) => gs_io::Resolution::Factor(f),
+                (None, Some(w)) => gs_io::Resolution::Width(w),
+                (None, None) => gs_io::Resolution::Auto,
+            };
+            let opts = gs_io::LoadOptions { resolution, ..Default::default() };
+            gs_io::load_scene(p, &opts).with_context(|| format!("loading scene {}", p.display()))
+        }
+    }
+}
+
+/// Indices of the named views in `scene` (an error names a missing view).
+pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
+    names
+        .iter()
+        .map(|n| {
+            scene.views.iter().position(|v| &v.name == n).with_context(|| format!("view '{n}' of the run is not in the scene"))
+        })
+        .collect()
+}
+
+/// A finished (or checkpointed) run opened for rendering, meshing or evaluation.
+pub struct OpenRun {
+    /// The run folder.
+    pub dir: PathBuf,
+    /// Its configuration.
+    pub config: RunConfig,
+    /// The scene, loaded as during training.
+    pub scene: Scene,
+    /// The trained model (`point_cloud.ply`).
+    pub gaussians: Gaussians,
+    /// Training view indices.
+    pub train: Vec<usize>,
+    /// Held-out view indices.
+    pub test: Vec<usize>,
+}
+
+impl OpenRun {
+    /// Opens `dir`: reads `config.json` and `point_cloud.ply`, reloads the scene.
+    pub fn open(dir: &Path) -> Result<Self> {
+        let cfg_path = dir.join("config.json");
+        let text = std::fs::read_to_string(&cfg_path)
+            .with_context(|| format!("{}: cannot read the run's configuration (is this a `vagsl train` output folder?)", cfg_path.display()))?;
+        let config: RunConfig =
+            serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
+        let mut gaussians = gs_io::read_gaussian_ply(&dir.join("point_cloud.ply"))?;
+        // Coefficients above the degree reached stay 0 during training, so the maximum degree
+        // renders exactly what the trainer rendered last.
+        gaussians.sh_degree = config.train.sh_degree_max;
+        let scene = load_scene(&config.scene)?;
+        let train = view_indices(&scene, &config.train_views)?;
+        let test = view_indices(&scene, &config.test_views)?;
+        Ok(Self { dir: dir.to_path_buf(), config, scene, gaussians, train, test })
+    }
+
+    /// The rasterizer settings of the run.
+    pub fn raster(&self) -> gs_raster::RasterConfig {
+        gs_raster::RasterConfig { near: self.config.train.near, background: self.config.train.background, ..Default::default() }
+    }
+
+    /// Scene extent r of the training cameras.
+    pub fn extent(&self) -> f64 {
+        let cams: Vec<&gs_core::Camera> = self.train.iter().map(|&i| &self.scene.views[i].camera).collect();
+        gs_core::scene_extent(&cams)
+    }
+}
+
+/// Writes `value` as pretty JSON to `path` atomically.
+pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    gs_io::write_atomic(path, |w| w.write_all(text.as_bytes()))?;
+    Ok(())
+}
+
+/// Peak resident memory of this process in bytes (Linux `VmHWM`), if known.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}

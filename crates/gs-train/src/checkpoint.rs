@@ -1,0 +1,222 @@
+//! Versioned, checksummed training checkpoints (design.md §3): the configuration (JSON), the
+//! Gaussians, the Adam moments and the densification statistics, little-endian, followed by a
+//! CRC-32 of everything before it. Written atomically (temporary file + rename).
+
+use crate::config::TrainConfig;
+use crate::densify::DensifyStats;
+use crate::error::{Result, TrainError};
+use crate::trainer::TrainState;
+use gs_core::optim::ParamGroup;
+use gs_core::sh::SH_COEFFS;
+use gs_core::{Adam, AdamConfig, Gaussians};
+use gs_features::weights::crc32;
+use std::io::Write;
+use std::path::Path;
+
+/// File magic.
+pub const MAGIC: &[u8; 8] = b"VAGSLCKP";
+/// Format version.
+pub const VERSION: u32 = 1;
+
+struct Writer(Vec<u8>);
+
+impl Writer {
+    fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f32s(&mut self, v: &[f32]) {
+        self.u64(v.len() as u64);
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    fn u32s(&mut self, v: &[u32]) {
+        self.u64(v.len() as u64);
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    fn bytes(&mut self, b: &[u8]) {
+        self.u64(b.len() as u64);
+        self.0.extend_from_slice(b);
+    }
+}
+
+struct Reader<'a> {
+    buf: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> std::result::Result<&'a [u8], String> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len()).ok_or_else(|| {
+            format!("truncated: needs {n} bytes at offset {}, file has {}", self.pos, self.buf.len())
+        })?;
+        let s = &self.buf[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+    fn u32(&mut self) -> std::result::Result<u32, String> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+    fn u64(&mut self) -> std::result::Result<u64, String> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+    }
+    fn len(&mut self, elem: usize, what: &str) -> std::result::Result<usize, String> {
+        let n = self.u64()?;
+        let left = (self.buf.len() - self.pos) as u64;
+        if n.checked_mul(elem as u64).is_none_or(|b| b > left) {
+            return Err(format!("{what}: count {n} exceeds the {left} bytes left"));
+        }
+        Ok(n as usize)
+    }
+    fn f32s(&mut self, what: &str) -> std::result::Result<Vec<f32>, String> {
+        let n = self.len(4, what)?;
+        Ok(self.take(n * 4)?.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4"))).collect())
+    }
+    fn u32s(&mut self, what: &str) -> std::result::Result<Vec<u32>, String> {
+        let n = self.len(4, what)?;
+        Ok(self.take(n * 4)?.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().expect("4"))).collect())
+    }
+    fn bytes(&mut self, what: &str) -> std::result::Result<&'a [u8], String> {
+        let n = self.len(1, what)?;
+        self.take(n)
+    }
+}
+
+/// Serialises a checkpoint to bytes.
+pub fn encode(config: &TrainConfig, state: &TrainState) -> Vec<u8> {
+    let mut w = Writer(Vec::new());
+    w.0.extend_from_slice(MAGIC);
+    w.u32(VERSION);
+    w.bytes(serde_json::to_string(config).expect("config serialises").as_bytes());
+    w.u64(state.iteration);
+    w.u32(state.capped as u32);
+    let g = &state.gaussians;
+    w.u32(g.sh_degree);
+    w.f32s(g.means.as_flattened());
+    w.f32s(g.log_scales.as_flattened());
+    w.f32s(g.rotations.as_flattened());
+    w.f32s(&g.opacity_logits);
+    w.f32s(g.sh.as_flattened().as_flattened());
+    let a = &state.adam;
+    w.f32s(&[a.config.beta1, a.config.beta2, a.config.eps]);
+    w.u32(a.groups.len() as u32);
+    for grp in &a.groups {
+        w.bytes(grp.name.as_bytes());
+        w.f32s(&[grp.lr]);
+        w.u64(grp.row_width as u64);
+        w.u64(grp.step);
+        w.f32s(&grp.m);
+        w.f32s(&grp.v);
+    }
+    let s = &state.stats;
+    w.f32s(&s.grad_sum);
+    w.f32s(&s.abs_grad_sum);
+    w.u32s(&s.visible_count);
+    w.f32s(&s.max_radius);
+    let crc = crc32(&w.0);
+    w.u32(crc);
+    w.0
+}
+
+/// Parses a checkpoint; `path` names the file in errors.
+pub fn decode(bytes: &[u8], path: &Path) -> Result<(TrainConfig, TrainState)> {
+    let err = |problem: String| TrainError::Checkpoint { path: path.to_path_buf(), problem };
+    if bytes.len() < MAGIC.len() + 8 || &bytes[..8] != MAGIC {
+        return Err(err("not a vagsl checkpoint (wrong magic)".into()));
+    }
+    let (body, tail) = bytes.split_at(bytes.len() - 4);
+    let stored = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
+    if crc32(body) != stored {
+        return Err(err("checksum mismatch (the file is corrupt or truncated)".into()));
+    }
+    let mut r = Reader { buf: body, pos: 8 };
+    let parse = |r: &mut Reader| -> std::result::Result<(TrainConfig, TrainState), String> {
+        let version = r.u32()?;
+        if version != VERSION {
+            return Err(format!("format version {version}, this build reads version {VERSION}"));
+        }
+        let config: TrainConfig =
+            serde_json::from_slice(r.bytes("config")?).map_err(|e| format!("configuration: {e}"))?;
+        let iteration = r.u64()?;
+        let capped = r.u32()? != 0;
+        let sh_degree = r.u32()?;
+        let means = r.f32s("means")?;
+        let n = means.len() / 3;
+        let log_scales = r.f32s("log_scales")?;
+        let rotations = r.f32s("rotations")?;
+        let opacity_logits = r.f32s("opacity")?;
+        let sh = r.f32s("sh")?;
+        if means.len() != n * 3
+            || log_scales.len() != n * 3
+            || rotations.len() != n * 4
+            || opacity_logits.len() != n
+            || sh.len() != n * SH_COEFFS * 3
+        {
+            return Err("Gaussian arrays have inconsistent lengths".into());
+        }
+        let gaussians = Gaussians {
+            means: means.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            log_scales: log_scales.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            rotations: rotations.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect(),
+            opacity_logits,
+            sh: sh
+                .chunks_exact(SH_COEFFS * 3)
+                .map(|c| std::array::from_fn(|k| [c[3 * k], c[3 * k + 1], c[3 * k + 2]]))
+                .collect(),
+            sh_degree,
+        };
+        let ac = r.f32s("adam config")?;
+        if ac.len() != 3 {
+            return Err("Adam configuration must have 3 values".into());
+        }
+        let mut adam = Adam::new(AdamConfig { beta1: ac[0], beta2: ac[1], eps: ac[2] });
+        let groups = r.u32()?;
+        for _ in 0..groups {
+            let name = String::from_utf8(r.bytes("group name")?.to_vec()).map_err(|_| "group name is not UTF-8".to_string())?;
+            let lr = r.f32s("group lr")?;
+            let row_width = r.u64()? as usize;
+            let step = r.u64()?;
+            let m = r.f32s("moments")?;
+            let v = r.f32s("moments")?;
+            if lr.len() != 1 || row_width == 0 || m.len() != n * row_width || v.len() != m.len() {
+                return Err(format!("optimiser group '{name}' does not match {n} Gaussians"));
+            }
+            adam.groups.push(ParamGroup { name, lr: lr[0], row_width, step, m, v });
+        }
+        let stats = DensifyStats {
+            grad_sum: r.f32s("stats")?,
+            abs_grad_sum: r.f32s("stats")?,
+            visible_count: r.u32s("stats")?,
+            max_radius: r.f32s("stats")?,
+        };
+        if stats.grad_sum.len() != n || stats.abs_grad_sum.len() != n || stats.visible_count.len() != n || stats.max_radius.len() != n {
+            return Err("densification statistics do not match the Gaussians".into());
+        }
+        if r.pos != r.buf.len() {
+            return Err(format!("{} unexpected bytes after the statistics", r.buf.len() - r.pos));
+        }
+        Ok((config, TrainState { iteration, gaussians, adam, stats, capped }))
+    };
+    let (config, state) = parse(&mut r).map_err(err)?;
+    state.gaussians.validate().map_err(|e| err(e.to_string()))?;
+    config.validate().map_err(|e| err(e.to_string()))?;
+    Ok((config, state))
+}
+
+/// Writes a checkpoint atomically.
+pub fn save(path: &Path, config: &TrainConfig, state: &TrainState) -> Result<()> {
+    let bytes = encode(config, state);
+    gs_io::write_atomic(path, |w: &mut dyn Write| w.write_all(&bytes))?;
+    Ok(())
+}
+
+/// Reads and verifies a checkpoint.
+pub fn load(path: &Path) -> Result<(TrainConfig, TrainState)> {
+    let bytes = std::fs::read(path).map_err(|source| TrainError::Io { path: path.to_path_buf(), source })?;
+    decode(&bytes, path)
+}

@@ -1,0 +1,529 @@
+//! Training configuration: presets, the phase schedule of method-spec §7, learning rates (§3),
+//! densification (§4) and loss switches for ablations. Serialised to `OUT/config.json`.
+
+use crate::error::{Result, TrainError};
+use serde::{Deserialize, Serialize};
+
+/// Named settings for typical scenes (method-spec §4, §7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Object-scale scenes (DTU): the paper's surface schedule, 20,000 iterations,
+    /// absolute-gradient split threshold 8e-4. The default.
+    #[default]
+    Dtu,
+    /// Large scenes (Tanks and Temples): as `dtu` with the absolute-gradient threshold 1.5e-4.
+    Tnt,
+    /// Novel-view synthesis (Mip-NeRF 360): the 20,000-iteration surface schedule, then 10,000
+    /// more with L_I and the normal terms; absolute-gradient threshold 2e-4.
+    Mip360,
+    /// A quick look: the `dtu` schedule compressed to 3,000 iterations (every phase boundary
+    /// scaled) with 2 source views. Its accuracy cost is measured in BENCHMARKS.md.
+    Fast,
+}
+
+impl Preset {
+    /// Parses `fast|dtu|tnt|mip360`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "dtu" => Ok(Self::Dtu),
+            "tnt" => Ok(Self::Tnt),
+            "mip360" => Ok(Self::Mip360),
+            "fast" => Ok(Self::Fast),
+            other => Err(TrainError::InvalidConfig(format!("unknown preset '{other}' (fast|dtu|tnt|mip360)"))),
+        }
+    }
+}
+
+/// Which initial Gaussians (method-spec §3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum InitMode {
+    /// The sparse SfM points (falls back to `sphere` when the scene has none).
+    #[default]
+    Points,
+    /// Uniform random points in the cameras' bounding cube.
+    Cube,
+    /// Random points on a sphere enclosing the scene.
+    Sphere,
+}
+
+/// The L_ns gate direction (method-spec §5.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum GateReading {
+    /// `[‖Ñ_k − Ñ‖₁ > τ]`, the recommended reading.
+    #[default]
+    Above,
+    /// `[‖Ñ_k − Ñ‖₁ < τ]`.
+    Below,
+}
+
+/// The NCC cost of L_p (method-spec §5.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum NccReading {
+    /// PGSR: 1 − ρ², clamped, cost ≥ 0.9 masked.
+    #[default]
+    Pgsr,
+    /// The paper's formula read literally: 1 − ρ, no mask.
+    Plain,
+}
+
+/// Which VGG16 activation is F (method-spec §5.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum FeatureLayer {
+    /// conv2_2: 128 channels at 1/2 resolution.
+    #[default]
+    Conv2_2,
+    /// conv3_3: 256 channels at 1/4 resolution.
+    Conv3_3,
+}
+
+/// On/off switches of the loss terms, for ablations (`--no-edge` …).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LossSwitches {
+    /// Edge term β2·L1(∇Ĩ, ∇I) of L_I.
+    pub edge: bool,
+    /// Normal consistency L_nc.
+    pub normal_consistency: bool,
+    /// Normal smoothing L_ns.
+    pub normal_smoothing: bool,
+    /// Multi-view photometric alignment L_p.
+    pub photometric: bool,
+    /// Multi-view feature alignment L_f.
+    pub features: bool,
+    /// The edge weight δ = (1 − ∇I)²; off = δ ≡ 1 in L_nc and L_ns.
+    pub delta: bool,
+}
+
+impl Default for LossSwitches {
+    fn default() -> Self {
+        Self { edge: true, normal_consistency: true, normal_smoothing: true, photometric: true, features: true, delta: true }
+    }
+}
+
+impl LossSwitches {
+    /// Only L_I's L1 + D-SSIM (≈ 3DGS).
+    pub fn image_only() -> Self {
+        Self { edge: false, normal_consistency: false, normal_smoothing: false, photometric: false, features: false, delta: true }
+    }
+}
+
+/// Loss weights (method-spec §5).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LossWeights {
+    /// β1, D-SSIM weight in L_I.
+    pub beta1: f32,
+    /// β2, edge-term weight in L_I.
+    pub beta2: f32,
+    /// λ1, L_nc.
+    pub lambda_nc: f32,
+    /// λ2, L_ns.
+    pub lambda_ns: f32,
+    /// λ3, L_p.
+    pub lambda_p: f32,
+    /// λ4, L_f.
+    pub lambda_f: f32,
+    /// τ of L_ns.
+    pub tau: f32,
+}
+
+impl Default for LossWeights {
+    fn default() -> Self {
+        Self { beta1: 0.2, beta2: 0.03, lambda_nc: 0.015, lambda_ns: 0.3, lambda_p: 0.15, lambda_f: 1.0, tau: 0.01 }
+    }
+}
+
+/// Adam learning rates (method-spec §3); positions are multiples of the scene extent r.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LearningRates {
+    /// Means, at iteration 0, times r.
+    pub position_init: f64,
+    /// Means, at the last iteration, times r (log-linear decay).
+    pub position_final: f64,
+    /// SH DC.
+    pub sh_dc: f32,
+    /// SH degrees 1–3.
+    pub sh_rest: f32,
+    /// Opacity logits.
+    pub opacity: f32,
+    /// Log-scales.
+    pub scaling: f32,
+    /// Quaternions.
+    pub rotation: f32,
+}
+
+impl Default for LearningRates {
+    fn default() -> Self {
+        Self { position_init: 1.6e-4, position_final: 1.6e-6, sh_dc: 2.5e-3, sh_rest: 1.25e-4, opacity: 0.05, scaling: 5e-3, rotation: 1e-3 }
+    }
+}
+
+/// Densification and pruning (method-spec §4, PGSR defaults). Iteration values are those of
+/// the 20,000-iteration schedule; [`TrainConfig::scaled`] rescales them.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DensifyConfig {
+    /// First iteration that densifies.
+    pub from: u64,
+    /// Densification, opacity reset and trim stop here.
+    pub until: u64,
+    /// Densify every this many iterations.
+    pub interval: u64,
+    /// Mean screen-space gradient threshold for clone and split.
+    pub grad_threshold: f32,
+    /// Absolute-gradient (AbsGS) split threshold.
+    pub abs_grad_threshold: f32,
+    /// Clone if max scale ≤ percent_dense·r, else split.
+    pub percent_dense: f32,
+    /// At most this many absolute-gradient splits per step.
+    pub max_abs_splits: usize,
+    /// Prune below this opacity.
+    pub min_opacity: f32,
+    /// From this iteration on also prune by screen size / world size.
+    pub prune_big_after: u64,
+    /// Screen radius (px) above which a Gaussian is pruned (and abs-split candidates must exceed).
+    pub max_screen_radius: f32,
+    /// World size above which a Gaussian is pruned, times r.
+    pub max_world_scale: f32,
+    /// Opacity reset every this many iterations (0 = never).
+    pub opacity_reset_interval: u64,
+    /// Multi-view trim every this many iterations (0 = never).
+    pub trim_interval: u64,
+    /// Gaussians observed in fewer views than this are trimmed.
+    pub trim_min_views: u32,
+}
+
+impl Default for DensifyConfig {
+    fn default() -> Self {
+        Self {
+            from: 500,
+            until: 15_000,
+            interval: 100,
+            grad_threshold: 2e-4,
+            abs_grad_threshold: 8e-4,
+            percent_dense: 0.001,
+            max_abs_splits: 50_000,
+            min_opacity: 0.005,
+            prune_big_after: 3000,
+            max_screen_radius: 20.0,
+            max_world_scale: 0.1,
+            opacity_reset_interval: 3000,
+            trim_interval: 1000,
+            trim_min_views: 2,
+        }
+    }
+}
+
+/// Everything that determines a training run. Same config + scene + seed + thread count →
+/// bit-identical parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainConfig {
+    /// The preset the values started from.
+    pub preset: Preset,
+    /// Total iterations.
+    pub iterations: u64,
+    /// Colour-only warm-up ends here (edge, L_nc, L_ns, L_p start).
+    pub warmup_end: u64,
+    /// L_p is on from `warmup_end` to here; L_f from here to `features_end`.
+    pub photometric_end: u64,
+    /// L_f ends here (= `iterations` except for mip360).
+    pub features_end: u64,
+    /// Keep L_p on during the L_f phase (`--overlap-mv`).
+    pub overlap_mv: bool,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Loss switches.
+    pub losses: LossSwitches,
+    /// Loss weights.
+    pub weights: LossWeights,
+    /// L_ns gate reading.
+    pub ns_gate: GateReading,
+    /// NCC reading of L_p.
+    pub ncc: NccReading,
+    /// Source views N per iteration.
+    pub source_views: usize,
+    /// NCC patch side (odd, 3–9).
+    pub patch_size: usize,
+    /// L_p pixel cap per source.
+    pub max_pixels_per_source: usize,
+    /// VGG16 level of F.
+    pub feature_layer: FeatureLayer,
+    /// Learning rates.
+    pub lr: LearningRates,
+    /// Highest SH degree.
+    pub sh_degree_max: u32,
+    /// The SH degree rises by one every this many iterations.
+    pub sh_degree_interval: u64,
+    /// Densification and pruning.
+    pub densify: DensifyConfig,
+    /// Hard cap on the number of Gaussians; densification stops there with a warning.
+    pub max_gaussians: usize,
+    /// Initialisation.
+    pub init: InitMode,
+    /// Number of random initial points (cube/sphere init).
+    pub random_points: usize,
+    /// Background colour of the renders.
+    pub background: [f32; 3],
+    /// Near plane of the rasterizer.
+    pub near: f32,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self::preset(Preset::Dtu)
+    }
+}
+
+impl TrainConfig {
+    /// The values of a preset.
+    pub fn preset(preset: Preset) -> Self {
+        let base = Self {
+            preset,
+            iterations: 20_000,
+            warmup_end: 7_000,
+            photometric_end: 15_000,
+            features_end: 20_000,
+            overlap_mv: false,
+            seed: 0,
+            losses: LossSwitches::default(),
+            weights: LossWeights::default(),
+            ns_gate: GateReading::Above,
+            ncc: NccReading::Pgsr,
+            source_views: 3,
+            patch_size: 7,
+            max_pixels_per_source: 102_400,
+            feature_layer: FeatureLayer::Conv2_2,
+            lr: LearningRates::default(),
+            sh_degree_max: 3,
+            sh_degree_interval: 1000,
+            densify: DensifyConfig::default(),
+            max_gaussians: 3_000_000,
+            init: InitMode::Points,
+            random_points: 100_000,
+            background: [0.0; 3],
+            near: 0.01,
+        };
+        match preset {
+            Preset::Dtu => base,
+            Preset::Tnt => Self { densify: DensifyConfig { abs_grad_threshold: 1.5e-4, ..base.densify }, ..base },
+            Preset::Mip360 => Self {
+                iterations: 30_000,
+                densify: DensifyConfig { abs_grad_threshold: 2e-4, ..base.densify },
+                ..base
+            },
+            Preset::Fast => Self { source_views: 2, ..base }.scaled(3_000),
+        }
+    }
+
+    /// The same schedule with `iterations` total: every phase boundary and interval is scaled
+    /// by `iterations / self.iterations` (intervals stay ≥ 1; densification every ≥ 10).
+    pub fn scaled(&self, iterations: u64) -> Self {
+        let f = iterations as f64 / self.iterations.max(1) as f64;
+        let s = |v: u64| (v as f64 * f).round() as u64;
+        let si = |v: u64, min: u64| if v == 0 { 0 } else { s(v).max(min) };
+        Self {
+            iterations,
+            warmup_end: s(self.warmup_end),
+            photometric_end: s(self.photometric_end),
+            features_end: s(self.features_end),
+            sh_degree_interval: si(self.sh_degree_interval, 1),
+            densify: DensifyConfig {
+                from: s(self.densify.from),
+                until: s(self.densify.until),
+                interval: si(self.densify.interval, 10),
+                prune_big_after: s(self.densify.prune_big_after),
+                opacity_reset_interval: si(self.densify.opacity_reset_interval, 1),
+                trim_interval: si(self.densify.trim_interval, 1),
+                ..self.densify
+            },
+            ..self.clone()
+        }
+    }
+
+    /// Checks every value against its documented range; the message names the option.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(TrainError::InvalidConfig(m));
+        if self.iterations == 0 || self.iterations > 10_000_000 {
+            return bad(format!("iterations = {} must be in 1..=10,000,000", self.iterations));
+        }
+        if !(self.warmup_end <= self.photometric_end && self.photometric_end <= self.features_end) {
+            return bad(format!(
+                "phase boundaries must be ordered: warmup_end {} ≤ photometric_end {} ≤ features_end {}",
+                self.warmup_end, self.photometric_end, self.features_end
+            ));
+        }
+        if self.source_views == 0 || self.source_views > 16 {
+            return bad(format!("source_views = {} must be in 1..=16", self.source_views));
+        }
+        if self.patch_size % 2 == 0 || !(3..=9).contains(&self.patch_size) {
+            return bad(format!("patch_size = {} must be odd in 3..=9", self.patch_size));
+        }
+        if self.max_pixels_per_source == 0 {
+            return bad("max_pixels_per_source must be positive".into());
+        }
+        if self.sh_degree_max > 3 {
+            return bad(format!("sh_degree_max = {} must be ≤ 3", self.sh_degree_max));
+        }
+        if self.max_gaussians == 0 || self.max_gaussians > gs_core::gaussians::MAX_GAUSSIANS {
+            return bad(format!("max_gaussians = {} must be in 1..={}", self.max_gaussians, gs_core::gaussians::MAX_GAUSSIANS));
+        }
+        let w = &self.weights;
+        for (name, v) in [
+            ("beta1", w.beta1),
+            ("beta2", w.beta2),
+            ("lambda_nc", w.lambda_nc),
+            ("lambda_ns", w.lambda_ns),
+            ("lambda_p", w.lambda_p),
+            ("lambda_f", w.lambda_f),
+            ("tau", w.tau),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} = {v} must be finite and ≥ 0"));
+            }
+        }
+        if w.beta1 > 1.0 {
+            return bad(format!("beta1 = {} must be ≤ 1", w.beta1));
+        }
+        let lr = &self.lr;
+        for (name, v) in [
+            ("lr.position_init", lr.position_init as f32),
+            ("lr.position_final", lr.position_final as f32),
+            ("lr.sh_dc", lr.sh_dc),
+            ("lr.sh_rest", lr.sh_rest),
+            ("lr.opacity", lr.opacity),
+            ("lr.scaling", lr.scaling),
+            ("lr.rotation", lr.rotation),
+        ] {
+            if !(v.is_finite() && v >= 0.0 && v < 10.0) {
+                return bad(format!("{name} = {v} must be in [0, 10)"));
+            }
+        }
+        if lr.position_init > 0.0 && !(lr.position_final > 0.0) {
+            return bad("lr.position_final must be positive (log-linear decay)".into());
+        }
+        let d = &self.densify;
+        if d.interval == 0 {
+            return bad("densify.interval must be positive".into());
+        }
+        for (name, v) in [
+            ("densify.grad_threshold", d.grad_threshold),
+            ("densify.abs_grad_threshold", d.abs_grad_threshold),
+            ("densify.percent_dense", d.percent_dense),
+            ("densify.min_opacity", d.min_opacity),
+            ("densify.max_screen_radius", d.max_screen_radius),
+            ("densify.max_world_scale", d.max_world_scale),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} = {v} must be finite and ≥ 0"));
+            }
+        }
+        if !(self.near > 0.0 && self.near.is_finite()) {
+            return bad(format!("near = {} must be positive", self.near));
+        }
+        if !self.background.iter().all(|c| c.is_finite()) {
+            return bad("background must be finite".into());
+        }
+        if matches!(self.init, InitMode::Cube | InitMode::Sphere) && self.random_points == 0 {
+            return bad("random_points must be positive for cube/sphere init".into());
+        }
+        Ok(())
+    }
+
+    /// The losses active at 1-based iteration `it` (method-spec §7).
+    pub fn phase(&self, it: u64) -> Phase {
+        let l = &self.losses;
+        let geometry = it > self.warmup_end;
+        let photometric_window = geometry && it <= self.photometric_end;
+        let feature_window = it > self.photometric_end && it <= self.features_end;
+        Phase {
+            edge: geometry && l.edge,
+            normal_consistency: geometry && l.normal_consistency,
+            normal_smoothing: geometry && l.normal_smoothing,
+            photometric: l.photometric && (photometric_window || (self.overlap_mv && feature_window)),
+            features: l.features && feature_window,
+        }
+    }
+
+    /// The SH degree at 1-based iteration `it`.
+    pub fn sh_degree(&self, it: u64) -> u32 {
+        if self.sh_degree_interval == 0 {
+            return self.sh_degree_max;
+        }
+        ((it.saturating_sub(1) / self.sh_degree_interval) as u32).min(self.sh_degree_max)
+    }
+}
+
+/// Which loss terms one iteration evaluates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct Phase {
+    /// Edge term of L_I.
+    pub edge: bool,
+    /// L_nc.
+    pub normal_consistency: bool,
+    /// L_ns.
+    pub normal_smoothing: bool,
+    /// L_p.
+    pub photometric: bool,
+    /// L_f.
+    pub features: bool,
+}
+
+impl Phase {
+    /// Whether the geometry channels (Ñ, D, plane depth) must be rendered.
+    pub fn needs_geometry(&self) -> bool {
+        self.normal_consistency || self.normal_smoothing || self.photometric || self.features
+    }
+    /// Whether the view's edge guide (∇I, δ) is needed.
+    pub fn needs_guide(&self) -> bool {
+        self.edge || self.normal_consistency || self.normal_smoothing
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paper_schedule() {
+        let c = TrainConfig::default();
+        c.validate().unwrap();
+        assert_eq!(c.phase(7000), Phase::default());
+        let p = c.phase(7001);
+        assert!(p.edge && p.normal_consistency && p.normal_smoothing && p.photometric && !p.features);
+        let p = c.phase(15_001);
+        assert!(p.edge && !p.photometric && p.features);
+        assert!(TrainConfig { overlap_mv: true, ..c.clone() }.phase(15_001).photometric);
+        assert_eq!((c.sh_degree(1), c.sh_degree(1000), c.sh_degree(1001), c.sh_degree(19_999)), (0, 0, 1, 3));
+    }
+
+    #[test]
+    fn scaling_keeps_proportions() {
+        let c = TrainConfig::default().scaled(2000);
+        assert_eq!((c.warmup_end, c.photometric_end, c.features_end), (700, 1500, 2000));
+        assert_eq!((c.densify.from, c.densify.until, c.densify.interval), (50, 1500, 10));
+        assert_eq!((c.densify.opacity_reset_interval, c.densify.trim_interval, c.sh_degree_interval), (300, 100, 100));
+        c.validate().unwrap();
+        let m = TrainConfig::preset(Preset::Mip360);
+        let p = m.phase(25_000);
+        assert!(p.normal_consistency && !p.features && !p.photometric);
+    }
+
+    #[test]
+    fn absurd_values_are_named() {
+        for (c, name) in [
+            (TrainConfig { iterations: 0, ..Default::default() }, "iterations"),
+            (TrainConfig { patch_size: 4, ..Default::default() }, "patch_size"),
+            (TrainConfig { source_views: 0, ..Default::default() }, "source_views"),
+            (TrainConfig { weights: LossWeights { lambda_p: f32::NAN, ..Default::default() }, ..Default::default() }, "lambda_p"),
+            (TrainConfig { max_gaussians: 0, ..Default::default() }, "max_gaussians"),
+        ] {
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
+        }
+        assert!(Preset::parse("bogus").is_err());
+        let round: TrainConfig = serde_json::from_str(&serde_json::to_string(&TrainConfig::preset(Preset::Fast)).unwrap()).unwrap();
+        assert_eq!(round, TrainConfig::preset(Preset::Fast));
+    }
+}

@@ -1,0 +1,283 @@
+//! Adaptive density control (method-spec §4, PGSR/AbsGS): screen-space gradient statistics,
+//! clone / split / prune, opacity reset and the multi-view trim, applied to the Gaussians and
+//! the optimiser's moments together so rows never fall out of step.
+
+use crate::config::DensifyConfig;
+use crate::error::Result;
+use gs_core::gaussians::{inverse_sigmoid, rotation_matrix, sigmoid};
+use gs_core::glam::Vec3;
+use gs_core::{Adam, Gaussians, Rng};
+use gs_raster::GaussianGradients;
+use serde::Serialize;
+
+/// Split factor of the scales: a split Gaussian's children have scales ÷ 1.6 (0.8·2).
+pub const SPLIT_SCALE_DIVISOR: f32 = 1.6;
+/// Opacity after a reset: min(opacity, 0.01).
+pub const RESET_OPACITY: f32 = 0.01;
+
+/// Per-Gaussian statistics accumulated between densification steps.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DensifyStats {
+    /// Σ over views of ‖∂L/∂μ₂ᴅ‖ (signed accumulation per view, norm per view).
+    pub grad_sum: Vec<f32>,
+    /// Σ over views of the AbsGS norm ‖(Σ|∂L/∂x|, Σ|∂L/∂y|)‖.
+    pub abs_grad_sum: Vec<f32>,
+    /// Views in which the Gaussian was visible (radius > 0).
+    pub visible_count: Vec<u32>,
+    /// Largest screen radius seen, pixels.
+    pub max_radius: Vec<f32>,
+}
+
+impl DensifyStats {
+    /// Zeroed statistics for `n` Gaussians.
+    pub fn new(n: usize) -> Self {
+        Self { grad_sum: vec![0.0; n], abs_grad_sum: vec![0.0; n], visible_count: vec![0; n], max_radius: vec![0.0; n] }
+    }
+
+    /// Number of Gaussians tracked.
+    pub fn len(&self) -> usize {
+        self.grad_sum.len()
+    }
+
+    /// Whether no Gaussian is tracked.
+    pub fn is_empty(&self) -> bool {
+        self.grad_sum.is_empty()
+    }
+
+    /// Adds one view's gradients for the Gaussians visible in it (radius > 0).
+    pub fn accumulate(&mut self, radii: &[u32], grads: &GaussianGradients) {
+        for (i, &r) in radii.iter().enumerate() {
+            if r > 0 {
+                self.grad_sum[i] += grads.mean2d_norm(i);
+                self.abs_grad_sum[i] += grads.mean2d_abs_norm(i);
+                self.visible_count[i] += 1;
+                self.max_radius[i] = self.max_radius[i].max(r as f32);
+            }
+        }
+    }
+}
+
+/// What one densification step did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct DensifyReport {
+    /// Gaussians cloned.
+    pub cloned: usize,
+    /// Gaussians split (each replaced by two).
+    pub split: usize,
+    /// Gaussians pruned.
+    pub pruned: usize,
+    /// Whether the Gaussian cap limited the step.
+    pub capped: bool,
+}
+
+/// Names and row widths of the optimiser groups, in the order the trainer registers them.
+pub const GROUPS: [(&str, usize); 6] =
+    [("means", 3), ("sh_dc", 3), ("sh_rest", 45), ("opacity", 1), ("log_scales", 3), ("rotations", 4)];
+
+/// Largest of the three scales of Gaussian `i`.
+fn max_scale(g: &Gaussians, i: usize) -> f32 {
+    g.scale(i).into_iter().fold(0.0f32, f32::max)
+}
+
+/// A position sampled from Gaussian `i`: μ + R·(s ⊙ n), n ~ N(0, I).
+fn sample_position(g: &Gaussians, i: usize, rng: &mut Rng) -> [f32; 3] {
+    let s = g.scale(i);
+    let n = Vec3::new(rng.normal() * s[0], rng.normal() * s[1], rng.normal() * s[2]);
+    let r = rotation_matrix(g.rotations[i]);
+    (Vec3::from(g.means[i]) + r * n).to_array()
+}
+
+/// Clone, split and prune (PGSR's `densify_and_prune` with AbsGS): `size_limit` is the screen
+/// radius above which Gaussians are pruned (set after `prune_big_after`), `extent` the scene
+/// extent r. New Gaussians get zero Adam moments; statistics are reset for every Gaussian.
+#[allow(clippy::too_many_arguments)]
+pub fn densify_and_prune(
+    g: &mut Gaussians,
+    adam: &mut Adam,
+    stats: &mut DensifyStats,
+    cfg: &DensifyConfig,
+    extent: f32,
+    prune_big: bool,
+    max_gaussians: usize,
+    rng: &mut Rng,
+) -> Result<DensifyReport> {
+    let n = g.len();
+    let mut report = DensifyReport::default();
+    let small_limit = cfg.percent_dense * extent;
+    let mean_grad = |sum: &[f32], i: usize| if stats.visible_count[i] > 0 { sum[i] / stats.visible_count[i] as f32 } else { 0.0 };
+    let mut clone = Vec::new();
+    let mut split = Vec::new();
+    let mut abs_split = Vec::new();
+    for i in 0..n {
+        let grad = mean_grad(&stats.grad_sum, i);
+        let big = max_scale(g, i) > small_limit;
+        if grad >= cfg.grad_threshold && !big {
+            clone.push(i);
+        } else if grad >= cfg.grad_threshold && big {
+            split.push(i);
+        } else if big && mean_grad(&stats.abs_grad_sum, i) >= cfg.abs_grad_threshold && stats.max_radius[i] > cfg.max_screen_radius {
+            abs_split.push(i);
+        }
+    }
+    abs_split.truncate(cfg.max_abs_splits);
+    split.extend(abs_split);
+    split.sort_unstable();
+    // The cap: clones add one Gaussian each, splits one net (two children replace the parent).
+    let room = max_gaussians.saturating_sub(n);
+    if clone.len() + split.len() > room {
+        report.capped = true;
+        let keep_clone = clone.len().min(room);
+        clone.truncate(keep_clone);
+        split.truncate(room - keep_clone);
+    }
+    let mut born = Gaussians::with_len(0)?;
+    for &i in &clone {
+        let mean = sample_position(g, i, rng);
+        born.push(mean, g.log_scales[i], g.rotations[i], g.opacity_logits[i], g.sh[i]);
+    }
+    let shrink = SPLIT_SCALE_DIVISOR.ln();
+    for &i in &split {
+        let ls = g.log_scales[i].map(|v| v - shrink);
+        for _ in 0..2 {
+            let mean = sample_position(g, i, rng);
+            born.push(mean, ls, g.rotations[i], g.opacity_logits[i], g.sh[i]);
+        }
+    }
+    report.cloned = clone.len();
+    report.split = split.len();
+    // Prune: split parents, low opacity, and (after prune_big_after) huge ones.
+    let mut keep = vec![true; n + born.len()];
+    for &i in &split {
+        keep[i] = false;
+    }
+    g.extend_from(&born);
+    adam.extend_rows(born.len());
+    let old_radius = stats.max_radius.clone();
+    for (i, k) in keep.iter_mut().enumerate() {
+        let too_big = prune_big
+            && ((i < n && old_radius[i] > cfg.max_screen_radius) || max_scale(g, i) > cfg.max_world_scale * extent);
+        if g.opacity(i) < cfg.min_opacity || too_big {
+            *k = false;
+        }
+    }
+    report.pruned = keep.iter().filter(|k| !**k).count() - split.len();
+    retain_rows(g, adam, &mut keep)?;
+    *stats = DensifyStats::new(g.len());
+    Ok(report)
+}
+
+/// Removes the rows with `keep = false` from the Gaussians and the optimiser; never removes
+/// the last Gaussian (the most opaque one stays), so a model is never empty.
+pub fn retain_rows(g: &mut Gaussians, adam: &mut Adam, keep: &mut [bool]) -> Result<usize> {
+    if !keep.iter().any(|k| *k) && !keep.is_empty() {
+        let best = (0..keep.len()).fold(0, |b, i| if g.opacity_logits[i] > g.opacity_logits[b] { i } else { b });
+        keep[best] = true;
+    }
+    let removed = keep.iter().filter(|k| !**k).count();
+    if removed > 0 {
+        g.retain(keep)?;
+        adam.retain_rows(keep)?;
+    }
+    Ok(removed)
+}
+
+/// Opacity reset: opacity = min(opacity, 0.01), with the opacity moments zeroed.
+pub fn reset_opacity(g: &mut Gaussians, adam: &mut Adam) -> Result<()> {
+    let cap = inverse_sigmoid(RESET_OPACITY);
+    for o in &mut g.opacity_logits {
+        if sigmoid(*o) > RESET_OPACITY {
+            *o = cap;
+        }
+    }
+    adam.reset_group("opacity")?;
+    Ok(())
+}
+
+/// Multi-view trim: removes Gaussians observed (T > 0.5 while contributing) in fewer than
+/// `min_views` of the training views; `views_observed[i]` counts the views. Returns how many.
+pub fn trim_unobserved(g: &mut Gaussians, adam: &mut Adam, stats: &mut DensifyStats, views_observed: &[u32], min_views: u32) -> Result<usize> {
+    let mut keep: Vec<bool> = views_observed.iter().map(|&c| c >= min_views).collect();
+    let removed = retain_rows(g, adam, &mut keep)?;
+    if removed > 0 {
+        // Keep the accumulated statistics of the survivors.
+        let filter = |v: &mut Vec<f32>| {
+            let mut k = keep.iter();
+            v.retain(|_| *k.next().unwrap_or(&false));
+        };
+        filter(&mut stats.grad_sum);
+        filter(&mut stats.abs_grad_sum);
+        filter(&mut stats.max_radius);
+        let mut k = keep.iter();
+        stats.visible_count.retain(|_| *k.next().unwrap_or(&false));
+    }
+    Ok(removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gs_core::AdamConfig;
+
+    fn model(n: usize) -> (Gaussians, Adam) {
+        let mut g = Gaussians::with_len(0).unwrap();
+        for i in 0..n {
+            let mut sh = [[0.0; 3]; 16];
+            sh[0] = [i as f32; 3];
+            g.push([i as f32, 0.0, 0.0], [(0.01f32).ln(); 3], [1.0, 0.0, 0.0, 0.0], 0.0, sh);
+        }
+        let mut adam = Adam::new(AdamConfig::default());
+        for (name, w) in GROUPS {
+            adam.add_group(name, 1e-3, n, w).unwrap();
+        }
+        (g, adam)
+    }
+
+    #[test]
+    fn clone_split_prune_keep_rows_in_step() {
+        let (mut g, mut adam) = model(4);
+        g.log_scales[1] = [(1.0f32).ln(); 3]; // big: split
+        g.opacity_logits[3] = -10.0; // transparent: pruned
+        let mut st = DensifyStats::new(4);
+        st.grad_sum = vec![1e-3, 1e-3, 0.0, 0.0];
+        st.visible_count = vec![1, 1, 1, 1];
+        let cfg = DensifyConfig { percent_dense: 0.1, ..Default::default() };
+        let mut rng = Rng::new(1);
+        let r = densify_and_prune(&mut g, &mut adam, &mut st, &cfg, 1.0, false, 100, &mut rng).unwrap();
+        assert_eq!((r.cloned, r.split, r.pruned, r.capped), (1, 1, 1, false));
+        // 4 + 1 clone + 2 children − 1 parent − 1 pruned = 5.
+        assert_eq!(g.len(), 5);
+        g.validate().unwrap();
+        for grp in &adam.groups {
+            assert_eq!(grp.m.len(), 5 * grp.row_width, "{}", grp.name);
+        }
+        // Survivors in order: 0, 2 (originals), clone of 0, two children of 1.
+        assert_eq!(g.sh.iter().map(|s| s[0][0]).collect::<Vec<_>>(), vec![0.0, 2.0, 0.0, 1.0, 1.0]);
+        assert!((g.log_scales[3][0].exp() - 1.0 / 1.6).abs() < 1e-5);
+        assert_eq!(st.len(), 5);
+    }
+
+    #[test]
+    fn the_cap_stops_growth() {
+        let (mut g, mut adam) = model(4);
+        let mut st = DensifyStats::new(4);
+        st.grad_sum = vec![1.0; 4];
+        st.visible_count = vec![1; 4];
+        let r = densify_and_prune(&mut g, &mut adam, &mut st, &DensifyConfig::default(), 100.0, false, 6, &mut Rng::new(0)).unwrap();
+        assert!(r.capped && r.cloned == 2 && g.len() == 6);
+    }
+
+    #[test]
+    fn reset_and_trim() {
+        let (mut g, mut adam) = model(3);
+        g.opacity_logits[2] = -8.0;
+        reset_opacity(&mut g, &mut adam).unwrap();
+        assert!((g.opacity(0) - 0.01).abs() < 1e-6 && g.opacity(2) < 0.01);
+        let mut st = DensifyStats::new(3);
+        assert_eq!(trim_unobserved(&mut g, &mut adam, &mut st, &[5, 1, 2], 2).unwrap(), 1);
+        assert_eq!(g.len(), 2);
+        assert_eq!(adam.groups[0].m.len(), 6);
+        // Never empty.
+        assert_eq!(trim_unobserved(&mut g, &mut adam, &mut st, &[0, 0], 2).unwrap(), 1);
+        assert_eq!(g.len(), 1);
+    }
+}

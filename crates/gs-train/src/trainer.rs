@@ -1,0 +1,605 @@
+//! The VA-GS training loop (method-spec §3–§7): one [`Trainer::step`] renders a training view,
+//! evaluates the losses of the current phase, back-propagates through the rasterizer, takes an
+//! Adam step and runs the density control on schedule.
+//!
+//! Determinism: every random choice of iteration `it` comes from `Rng::new(seed).fork(..)`
+//! keyed by `it` (view order per epoch, source views, L_p sampling, densification), so the
+//! state to checkpoint is only the parameters, the optimiser and the statistics — and a
+//! resumed run continues bit-identically.
+
+use crate::config::{FeatureLayer, GateReading, NccReading, Phase, TrainConfig};
+use crate::densify::{self, DensifyReport, DensifyStats, GROUPS};
+use crate::error::{Result, TrainError};
+use crate::init::initial_gaussians;
+use gs_core::{Adam, AdamConfig, ExponentialLr, Gaussians, Image, NeighbourRule, Rng, Scene};
+use gs_features::{FeatureMap, Vgg16};
+use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, NsGate, image_loss, normal_losses};
+use gs_mvs::{
+    FeatureMaps, FeatureReference, FeatureSource, NccMode, PhotometricConfig, PhotometricReference,
+    PhotometricSource, SourceSelection, SourceViewSelector, feature_loss, photometric_loss,
+};
+use gs_raster::{OutputGradients, RasterConfig, RenderRequest, backward, render};
+use serde::Serialize;
+
+/// RNG stream tags (xor-ed into the iteration) so the per-iteration draws are independent.
+const STREAM_VIEW_ORDER: u64 = 1 << 40;
+const STREAM_ITERATION: u64 = 2 << 40;
+
+/// Loss values of one iteration (unweighted terms; `None` when the term was off).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct LossValues {
+    /// L1(Ĩ, I).
+    pub l1: f64,
+    /// SSIM(Ĩ, I).
+    pub ssim: f64,
+    /// L1(∇Ĩ, ∇I).
+    pub edge: Option<f64>,
+    /// L_nc.
+    pub normal_consistency: Option<f64>,
+    /// L_ns.
+    pub normal_smoothing: Option<f64>,
+    /// L_p (summed over sources).
+    pub photometric: Option<f64>,
+    /// L_f (averaged over sources).
+    pub features: Option<f64>,
+    /// The weighted total L.
+    pub total: f64,
+}
+
+/// What one iteration did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepReport {
+    /// 1-based iteration just completed.
+    pub iteration: u64,
+    /// Index (into the scene's views) of the rendered view.
+    pub view: usize,
+    /// Active terms.
+    pub phase: Phase,
+    /// Loss values.
+    pub losses: LossValues,
+    /// Gaussians after the step.
+    pub gaussians: usize,
+    /// Densification, when it ran.
+    pub densify: Option<DensifyReport>,
+    /// Gaussians removed by the multi-view trim, when it ran.
+    pub trimmed: Option<usize>,
+    /// Whether the opacity was reset.
+    pub opacity_reset: bool,
+}
+
+/// The training state that a checkpoint stores (everything else is derived from the scene
+/// and the configuration).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainState {
+    /// Iterations completed.
+    pub iteration: u64,
+    /// The model.
+    pub gaussians: Gaussians,
+    /// Adam moments and steps.
+    pub adam: Adam,
+    /// Densification statistics since the last densification.
+    pub stats: DensifyStats,
+    /// Whether the Gaussian cap has been reached (warned once).
+    pub capped: bool,
+}
+
+/// Adapts a VGG feature map of gs-features to gs-mvs's [`FeatureMaps`] interface.
+struct VggMaps<'a>(&'a FeatureMap);
+
+impl FeatureMaps<f32> for VggMaps<'_> {
+    fn channels(&self) -> usize {
+        self.0.channels()
+    }
+    fn sample(&self, u: f32, v: f32, out: &mut [f32], grad_u: Option<&mut [f32]>, grad_v: Option<&mut [f32]>) {
+        match (grad_u, grad_v) {
+            (Some(gu), Some(gv)) => self.0.sample_bilinear_into(u, v, out, Some((gu, gv))),
+            (gu, gv) => {
+                let c = out.len();
+                let (mut su, mut sv) = (vec![0.0; c], vec![0.0; c]);
+                let inside = self.0.sample_bilinear_into(u, v, out, Some((&mut su, &mut sv)));
+                if let Some(gu) = gu {
+                    gu.copy_from_slice(&su);
+                }
+                if let Some(gv) = gv {
+                    gv.copy_from_slice(&sv);
+                }
+                inside
+            }
+        };
+    }
+}
+
+/// The trainer: a scene, its split, the configuration and the [`TrainState`].
+pub struct Trainer<'s> {
+    config: TrainConfig,
+    scene: &'s Scene,
+    train_views: Vec<usize>,
+    extent: f64,
+    raster: RasterConfig,
+    selector: SourceViewSelector,
+    state: TrainState,
+    guides: Vec<Option<EdgeGuide>>,
+    greys: Vec<Option<Image>>,
+    vgg: Option<Vgg16>,
+    features: Vec<Option<FeatureMap>>,
+}
+
+fn check_scene(scene: &Scene, train_views: &[usize]) -> Result<()> {
+    if train_views.is_empty() {
+        return Err(TrainError::InvalidScene("the scene has no training views".into()));
+    }
+    for &i in train_views {
+        let v = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("training view index {i} out of range")))?;
+        let (w, h) = (v.camera.width as usize, v.camera.height as usize);
+        if v.image.width() != w || v.image.height() != h || v.image.channels() != 3 {
+            return Err(TrainError::InvalidScene(format!(
+                "view '{}': image is {}x{}x{} but its camera is {w}x{h} (RGB expected)",
+                v.name,
+                v.image.width(),
+                v.image.height(),
+                v.image.channels()
+            )));
+        }
+        if !v.image.is_finite() {
+            return Err(TrainError::InvalidScene(format!("view '{}': image has NaN/Inf values", v.name)));
+        }
+    }
+    Ok(())
+}
+
+impl<'s> Trainer<'s> {
+    /// A fresh run: initial Gaussians from the scene (method-spec §3), Adam groups, empty
+    /// statistics. `train_views` index `scene.views`.
+    pub fn new(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig) -> Result<Self> {
+        config.validate()?;
+        check_scene(scene, &train_views)?;
+        let (gaussians, _) = initial_gaussians(scene, config.init, config.random_points, config.seed)?;
+        if gaussians.len() > config.max_gaussians {
+            return Err(TrainError::InvalidConfig(format!(
+                "the initialisation has {} Gaussians, more than max_gaussians = {}",
+                gaussians.len(),
+                config.max_gaussians
+            )));
+        }
+        let mut adam = Adam::new(AdamConfig::default());
+        let lr = &config.lr;
+        let n = gaussians.len();
+        for ((name, width), rate) in GROUPS.iter().zip([0.0, lr.sh_dc, lr.sh_rest, lr.opacity, lr.scaling, lr.rotation]) {
+            adam.add_group(name, rate, n, *width)?;
+        }
+        let state = TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false };
+        Self::with_state(scene, train_views, config, state)
+    }
+
+    /// Continues from a checkpointed state (same scene, split and configuration).
+    pub fn with_state(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, state: TrainState) -> Result<Self> {
+        config.validate()?;
+        check_scene(scene, &train_views)?;
+        state.gaussians.validate()?;
+        let n = state.gaussians.len();
+        if state.stats.len() != n || state.adam.groups.iter().any(|g| g.m.len() != n * g.row_width) {
+            return Err(TrainError::InvalidConfig("state: statistics or optimiser rows do not match the Gaussians".into()));
+        }
+        let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
+        let extent = gs_core::scene_extent(&cams).max(1e-9);
+        let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), config.source_views, SourceSelection::RandomN)?;
+        let raster = RasterConfig { near: config.near, background: config.background, ..Default::default() };
+        let k = train_views.len();
+        Ok(Self {
+            config,
+            scene,
+            train_views,
+            extent,
+            raster,
+            selector,
+            state,
+            guides: (0..k).map(|_| None).collect(),
+            greys: (0..k).map(|_| None).collect(),
+            vgg: None,
+            features: (0..k).map(|_| None).collect(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &TrainConfig {
+        &self.config
+    }
+
+    /// The current state (parameters, optimiser, statistics).
+    pub fn state(&self) -> &TrainState {
+        &self.state
+    }
+
+    /// The current model.
+    pub fn gaussians(&self) -> &Gaussians {
+        &self.state.gaussians
+    }
+
+    /// Iterations completed.
+    pub fn iteration(&self) -> u64 {
+        self.state.iteration
+    }
+
+    /// Scene extent r of the training cameras.
+    pub fn extent(&self) -> f64 {
+        self.extent
+    }
+
+    /// The rasterizer settings used for training (and for rendering the result).
+    pub fn raster_config(&self) -> &RasterConfig {
+        &self.raster
+    }
+
+    /// Whether all iterations are done.
+    pub fn finished(&self) -> bool {
+        self.state.iteration >= self.config.iterations
+    }
+
+    /// Bytes held by the per-view caches (edge guides, grey images, feature maps).
+    pub fn cache_bytes(&self) -> usize {
+        let img = |i: &Image| i.data().len() * 4;
+        self.guides.iter().flatten().map(|g| img(&g.gradient) + img(&g.delta)).sum::<usize>()
+            + self.greys.iter().flatten().map(img).sum::<usize>()
+            + self.features.iter().flatten().map(|f| f.memory_bytes()).sum::<usize>()
+    }
+
+    /// Training-view slot (index into `train_views`) of 1-based iteration `it`: a fresh
+    /// seeded permutation every epoch, so every view is seen once per epoch.
+    fn view_slot(&self, it: u64) -> usize {
+        let n = self.train_views.len() as u64;
+        let epoch = (it - 1) / n;
+        let mut order: Vec<usize> = (0..n as usize).collect();
+        Rng::new(self.config.seed).fork(STREAM_VIEW_ORDER ^ epoch).shuffle(&mut order);
+        order[((it - 1) % n) as usize]
+    }
+
+    fn ensure_guide(&mut self, slot: usize) -> Result<()> {
+        if self.guides[slot].is_none() {
+            let v = &self.scene.views[self.train_views[slot]];
+            let mut guide = EdgeGuide::from_gt(&v.image)?;
+            if !self.config.losses.delta {
+                // δ ≡ 1 inside, 0 on the border (where N̂ is undefined), for `--no-delta`.
+                let (w, h) = (guide.delta.width(), guide.delta.height());
+                for y in 0..h {
+                    for x in 0..w {
+                        let inside = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                        guide.delta.set(x, y, 0, if inside { 1.0 } else { 0.0 });
+                    }
+                }
+            }
+            self.guides[slot] = Some(guide);
+        }
+        Ok(())
+    }
+
+    fn ensure_grey(&mut self, slot: usize) -> Result<()> {
+        if self.greys[slot].is_none() {
+            self.greys[slot] = Some(self.scene.views[self.train_views[slot]].image.to_grey()?);
+        }
+        Ok(())
+    }
+
+    fn ensure_features(&mut self, slot: usize) -> Result<()> {
+        if self.features[slot].is_none() {
+            if self.vgg.is_none() {
+                self.vgg = Some(Vgg16::bundled()?);
+            }
+            let level = match self.config.feature_layer {
+                FeatureLayer::Conv2_2 => gs_features::FeatureLevel::Conv2_2,
+                FeatureLayer::Conv3_3 => gs_features::FeatureLevel::Conv3_3,
+            };
+            let net = self.vgg.as_ref().expect("set above");
+            self.features[slot] = Some(net.extract(&self.scene.views[self.train_views[slot]].image, level)?);
+        }
+        Ok(())
+    }
+
+    /// Renders the plane depth of training slot `slot` without gradients (source views).
+    fn source_plane_depth(&self, slot: usize) -> Result<Image> {
+        let req = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
+        let out = render(&self.state.gaussians, &self.scene.views[self.train_views[slot]].camera, &req, &self.raster)?;
+        Ok(out.plane_depth.expect("requested"))
+    }
+
+    /// One training iteration.
+    pub fn step(&mut self) -> Result<StepReport> {
+        let it = self.state.iteration + 1;
+        let cfg = self.config.clone();
+        let extent = self.extent as f32;
+        let mut rng = Rng::new(cfg.seed).fork(STREAM_ITERATION ^ it);
+
+        // Learning rate of the means and SH degree for this iteration.
+        let lr_means = if cfg.lr.position_init > 0.0 {
+            ExponentialLr::new(cfg.lr.position_init * self.extent, cfg.lr.position_final * self.extent, cfg.iterations).at(it)
+        } else {
+            0.0
+        };
+        self.state.adam.group_mut("means")?.lr = lr_means as f32;
+        self.state.gaussians.sh_degree = cfg.sh_degree(it);
+
+        let slot = self.view_slot(it);
+        let view_index = self.train_views[slot];
+        let phase = cfg.phase(it);
+        if phase.needs_guide() {
+            self.ensure_guide(slot)?;
+        }
+        let sources: Vec<usize> =
+            if phase.photometric || phase.features { self.selector.select(slot, &mut rng) } else { Vec::new() };
+        if phase.photometric && !sources.is_empty() {
+            self.ensure_grey(slot)?;
+            for &s in &sources {
+                self.ensure_grey(s)?;
+            }
+        }
+        if phase.features && !sources.is_empty() {
+            self.ensure_features(slot)?;
+            for &s in &sources {
+                self.ensure_features(s)?;
+            }
+        }
+
+        let view = &self.scene.views[view_index];
+        let camera = &view.camera;
+        let geometry = phase.needs_geometry();
+        let request = RenderRequest {
+            color: true,
+            alpha: phase.normal_consistency || phase.normal_smoothing,
+            normal: geometry,
+            distance: geometry,
+            plane_depth: geometry,
+            expected_depth: false,
+            observed: false,
+        };
+        let out = render(&self.state.gaussians, camera, &request, &self.raster)?;
+        let color = out.color.as_ref().expect("requested");
+        let guide = self.guides[slot].as_ref();
+        let li = image_loss(
+            color,
+            &view.image,
+            guide,
+            &ImageLossConfig { beta1: cfg.weights.beta1, beta2: cfg.weights.beta2, edge: phase.edge },
+        )?;
+        let mut losses =
+            LossValues { l1: li.l1, ssim: li.ssim, edge: li.edge, total: li.total, ..Default::default() };
+
+        let (mut grad_normal, mut grad_distance, mut grad_plane_depth): (Option<Image>, Option<Image>, Option<Image>) =
+            (None, None, None);
+        if phase.normal_consistency || phase.normal_smoothing {
+            let nl = normal_losses(
+                out.plane_depth.as_ref().expect("requested"),
+                out.normal.as_ref().expect("requested"),
+                out.alpha.as_ref(),
+                guide.expect("ensured"),
+                &camera.intrinsics,
+                &NormalLossConfig {
+                    lambda_nc: if phase.normal_consistency { cfg.weights.lambda_nc } else { 0.0 },
+                    lambda_ns: if phase.normal_smoothing { cfg.weights.lambda_ns } else { 0.0 },
+                    tau: cfg.weights.tau,
+                    gate: match cfg.ns_gate {
+                        GateReading::Above => NsGate::Above,
+                        GateReading::Below => NsGate::Below,
+                    },
+                    ..NormalLossConfig::default()
+                },
+            )?;
+            losses.normal_consistency = phase.normal_consistency.then_some(nl.l_nc);
+            losses.normal_smoothing = phase.normal_smoothing.then_some(nl.l_ns);
+            losses.total += nl.total;
+            grad_normal = Some(nl.grad_normal);
+            grad_plane_depth = Some(nl.grad_plane_depth);
+        }
+
+        let source_depths: Vec<Image> = if sources.is_empty() {
+            Vec::new()
+        } else {
+            sources.iter().map(|&s| self.source_plane_depth(s)).collect::<Result<_>>()?
+        };
+        if phase.photometric && !sources.is_empty() {
+            let reference = PhotometricReference {
+                camera,
+                normal: out.normal.as_ref().expect("requested").into(),
+                distance: out.distance.as_ref().expect("requested").into(),
+                plane_depth: out.plane_depth.as_ref().expect("requested").into(),
+                grey: self.greys[slot].as_ref().expect("ensured").into(),
+            };
+            let srcs: Vec<PhotometricSource<f32>> = sources
+                .iter()
+                .zip(&source_depths)
+                .map(|(&s, d)| PhotometricSource {
+                    camera: &self.scene.views[self.train_views[s]].camera,
+                    plane_depth: d.into(),
+                    grey: self.greys[s].as_ref().expect("ensured").into(),
+                })
+                .collect();
+            let pc = PhotometricConfig {
+                patch_size: cfg.patch_size,
+                ncc: match cfg.ncc {
+                    NccReading::Pgsr => NccMode::Pgsr,
+                    NccReading::Plain => NccMode::Plain,
+                },
+                max_pixels_per_source: Some(cfg.max_pixels_per_source),
+                seed: rng.next_u64(),
+            };
+            let lp = photometric_loss(&reference, &srcs, &pc)?;
+            losses.photometric = Some(lp.loss);
+            losses.total += cfg.weights.lambda_p as f64 * lp.loss;
+            let (gn, gd) = lp.grad_images();
+            add_scaled(&mut grad_normal, &gn, cfg.weights.lambda_p);
+            add_scaled(&mut grad_distance, &gd, cfg.weights.lambda_p);
+        }
+        if phase.features && !sources.is_empty() {
+            let fr = VggMaps(self.features[slot].as_ref().expect("ensured"));
+            let fs: Vec<VggMaps> = sources.iter().map(|&s| VggMaps(self.features[s].as_ref().expect("ensured"))).collect();
+            let reference =
+                FeatureReference { camera, plane_depth: out.plane_depth.as_ref().expect("requested").into(), features: &fr };
+            let srcs: Vec<FeatureSource<f32>> = sources
+                .iter()
+                .zip(&source_depths)
+                .zip(&fs)
+                .map(|((&s, d), f)| FeatureSource {
+                    camera: &self.scene.views[self.train_views[s]].camera,
+                    plane_depth: d.into(),
+                    features: f,
+                })
+                .collect();
+            let lf = feature_loss(&reference, &srcs)?;
+            losses.features = Some(lf.loss);
+            losses.total += cfg.weights.lambda_f as f64 * lf.loss;
+            let g = Image::from_vec(lf.width, lf.height, 1, lf.grad_plane_depth)?;
+            add_scaled(&mut grad_plane_depth, &g, cfg.weights.lambda_f);
+        }
+        if !losses.total.is_finite() {
+            return Err(TrainError::Diverged { iteration: it, problem: format!("loss is {:?}", losses) });
+        }
+
+        let grads = backward(
+            &self.state.gaussians,
+            camera,
+            &self.raster,
+            &out,
+            &OutputGradients {
+                color: Some(&li.grad_rendered),
+                normal: grad_normal.as_ref(),
+                distance: grad_distance.as_ref(),
+                plane_depth: grad_plane_depth.as_ref(),
+                ..Default::default()
+            },
+        )?;
+        if it <= cfg.densify.until {
+            self.state.stats.accumulate(&out.radii, &grads);
+        }
+        self.adam_step(&grads)?;
+        drop(out);
+
+        // Density control (method-spec §4).
+        let d = cfg.densify;
+        let mut report = StepReport {
+            iteration: it,
+            view: view_index,
+            phase,
+            losses,
+            gaussians: 0,
+            densify: None,
+            trimmed: None,
+            opacity_reset: false,
+        };
+        if it <= d.until {
+            if it > d.from && it % d.interval == 0 {
+                let prune_big = it > d.prune_big_after;
+                let r = densify::densify_and_prune(
+                    &mut self.state.gaussians,
+                    &mut self.state.adam,
+                    &mut self.state.stats,
+                    &d,
+                    extent,
+                    prune_big,
+                    cfg.max_gaussians,
+                    &mut rng,
+                )?;
+                self.state.capped |= r.capped;
+                report.densify = Some(r);
+            }
+            if d.opacity_reset_interval > 0 && it % d.opacity_reset_interval == 0 && it < d.until {
+                densify::reset_opacity(&mut self.state.gaussians, &mut self.state.adam)?;
+                report.opacity_reset = true;
+            }
+            if d.trim_interval > 0 && it % d.trim_interval == 0 {
+                let counts = self.views_observed()?;
+                report.trimmed = Some(densify::trim_unobserved(
+                    &mut self.state.gaussians,
+                    &mut self.state.adam,
+                    &mut self.state.stats,
+                    &counts,
+                    d.trim_min_views,
+                )?);
+            }
+        }
+        self.state.iteration = it;
+        report.gaussians = self.state.gaussians.len();
+        Ok(report)
+    }
+
+    /// For every Gaussian, the number of training views in which it was observed (contributed
+    /// while T > 0.5), for the multi-view trim.
+    pub fn views_observed(&self) -> Result<Vec<u32>> {
+        let mut counts = vec![0u32; self.state.gaussians.len()];
+        let req = RenderRequest { color: false, alpha: false, observed: true, ..RenderRequest::default() };
+        for &i in &self.train_views {
+            let out = render(&self.state.gaussians, &self.scene.views[i].camera, &req, &self.raster)?;
+            for (c, &o) in counts.iter_mut().zip(out.observed.as_ref().expect("requested")) {
+                *c += (o > 0) as u32;
+            }
+        }
+        Ok(counts)
+    }
+
+    fn adam_step(&mut self, grads: &gs_raster::GaussianGradients) -> Result<()> {
+        let g = &mut self.state.gaussians;
+        let adam = &mut self.state.adam;
+        let n = g.len();
+        check_finite(self.state.iteration + 1, "means", grads.means.as_flattened())?;
+        adam.step("means", g.means.as_flattened_mut(), grads.means.as_flattened())?;
+        // SH: DC and the rest are separate groups with their own learning rates.
+        let mut dc_p = Vec::with_capacity(n * 3);
+        let mut dc_g = Vec::with_capacity(n * 3);
+        let mut rest_p = Vec::with_capacity(n * 45);
+        let mut rest_g = Vec::with_capacity(n * 45);
+        for (p, gr) in g.sh.iter().zip(&grads.sh) {
+            dc_p.extend_from_slice(&p[0]);
+            dc_g.extend_from_slice(&gr[0]);
+            rest_p.extend_from_slice(p[1..].as_flattened());
+            rest_g.extend_from_slice(gr[1..].as_flattened());
+        }
+        adam.step("sh_dc", &mut dc_p, &dc_g)?;
+        adam.step("sh_rest", &mut rest_p, &rest_g)?;
+        for (i, p) in g.sh.iter_mut().enumerate() {
+            p[0].copy_from_slice(&dc_p[i * 3..i * 3 + 3]);
+            p[1..].as_flattened_mut().copy_from_slice(&rest_p[i * 45..i * 45 + 45]);
+        }
+        adam.step("opacity", &mut g.opacity_logits, &grads.opacity_logits)?;
+        adam.step("log_scales", g.log_scales.as_flattened_mut(), grads.log_scales.as_flattened())?;
+        adam.step("rotations", g.rotations.as_flattened_mut(), grads.rotations.as_flattened())?;
+        Ok(())
+    }
+
+    /// Runs until `config.iterations`, calling `on_step` after every iteration; `on_step`
+    /// returns `false` to stop early (e.g. on Ctrl-C, after which the caller checkpoints).
+    pub fn run(&mut self, mut on_step: impl FnMut(&Self, &StepReport) -> bool) -> Result<()> {
+        while !self.finished() {
+            let r = self.step()?;
+            if !on_step(self, &r) {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// Consumes the trainer, returning its state.
+    pub fn into_state(self) -> TrainState {
+        self.state
+    }
+}
+
+fn check_finite(iteration: u64, what: &str, v: &[f32]) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(TrainError::Diverged { iteration, problem: format!("gradient of the {what} is not finite") })
+    }
+}
+
+/// `acc += scale·g`, creating `acc` when absent.
+fn add_scaled(acc: &mut Option<Image>, g: &Image, scale: f32) {
+    match acc {
+        Some(a) => {
+            for (x, y) in a.data_mut().iter_mut().zip(g.data()) {
+                *x += scale * y;
+            }
+        }
+        None => {
+            let mut a = g.clone();
+            a.data_mut().iter_mut().for_each(|x| *x *= scale);
+            *acc = Some(a);
+        }
+    }
+}
