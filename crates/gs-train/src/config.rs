@@ -317,12 +317,18 @@ impl TrainConfig {
         }
     }
 
-    /// The same schedule with `iterations` total: every phase boundary and interval is scaled
-    /// by `iterations / self.iterations` (intervals stay ≥ 1; densification every ≥ 10).
+    /// The same schedule with `iterations` total: the phase boundaries (warm-up, L_p, L_f, end
+    /// of densification, large-Gaussian pruning) and the SH, opacity-reset and trim intervals
+    /// scale by `iterations / self.iterations`. The densification cadence does not: new
+    /// Gaussians need about a hundred iterations to settle before the next step judges them,
+    /// so densification starts at `from` and runs every `interval` iterations whatever the
+    /// length (both capped to fit the run), and opacity resets / trims are at least 1000 / 200
+    /// iterations apart.
     pub fn scaled(&self, iterations: u64) -> Self {
         let f = iterations as f64 / self.iterations.max(1) as f64;
         let s = |v: u64| (v as f64 * f).round() as u64;
         let si = |v: u64, min: u64| if v == 0 { 0 } else { s(v).max(min) };
+        let until = s(self.densify.until);
         Self {
             iterations,
             warmup_end: s(self.warmup_end),
@@ -330,12 +336,12 @@ impl TrainConfig {
             features_end: s(self.features_end),
             sh_degree_interval: si(self.sh_degree_interval, 1),
             densify: DensifyConfig {
-                from: s(self.densify.from),
-                until: s(self.densify.until),
-                interval: si(self.densify.interval, 10),
+                from: self.densify.from.min(until / 4),
+                until,
+                interval: self.densify.interval.min((until / 10).max(1)),
                 prune_big_after: s(self.densify.prune_big_after),
-                opacity_reset_interval: si(self.densify.opacity_reset_interval, 1),
-                trim_interval: si(self.densify.trim_interval, 1),
+                opacity_reset_interval: si(self.densify.opacity_reset_interval, 1000),
+                trim_interval: si(self.densify.trim_interval, 200),
                 ..self.densify
             },
             ..self.clone()
@@ -502,8 +508,10 @@ mod tests {
     fn scaling_keeps_proportions() {
         let c = TrainConfig::default().scaled(2000);
         assert_eq!((c.warmup_end, c.photometric_end, c.features_end), (700, 1500, 2000));
-        assert_eq!((c.densify.from, c.densify.until, c.densify.interval), (50, 1500, 10));
-        assert_eq!((c.densify.opacity_reset_interval, c.densify.trim_interval, c.sh_degree_interval), (300, 100, 100));
+        assert_eq!((c.densify.from, c.densify.until, c.densify.interval), (375, 1500, 100));
+        assert_eq!((c.densify.opacity_reset_interval, c.densify.trim_interval, c.sh_degree_interval), (1000, 200, 100));
+        let c = TrainConfig::default().scaled(6000);
+        assert_eq!((c.densify.from, c.densify.until, c.densify.interval), (500, 4500, 100));
         c.validate().unwrap();
         let m = TrainConfig::preset(Preset::Mip360);
         let p = m.phase(25_000);

@@ -1,0 +1,55 @@
+//! End to end on the built-in scene: train (full VA-GS and the only-L_I ablation) → mesh →
+//! Chamfer / F1 against the exact object mesh, beside the floor a depth-fusion method can
+//! reach (the TSDF of the exact GT depth maps at the same voxel size). Release only.
+
+use gs_core::{Scene, TriangleMesh};
+use gs_train::{LossSwitches, MeshOptions, TrainConfig, Trainer, extract_mesh};
+use gs_tsdf::{EvalOptions, PointMetrics, TsdfConfig, TsdfVolume, evaluate_meshes};
+
+const ITERATIONS: u64 = 3000;
+
+fn score(mesh: &TriangleMesh, gt: &TriangleMesh) -> PointMetrics {
+    let opts = EvalOptions { samples: 100_000, ..EvalOptions::object_protocol(gt).unwrap() };
+    evaluate_meshes(mesh, gt, &opts).unwrap().metrics
+}
+
+fn train_and_mesh(scene: &Scene, train: &[usize], config: TrainConfig) -> (TriangleMesh, usize, f64) {
+    let t0 = std::time::Instant::now();
+    let mut trainer = Trainer::new(scene, train.to_vec(), config).unwrap();
+    trainer.run(|_, _| true).unwrap();
+    let (mesh, _) =
+        extract_mesh(trainer.gaussians(), scene, train, trainer.raster_config(), trainer.extent(), &MeshOptions::default())
+            .unwrap();
+    (mesh, trainer.gaussians().len(), t0.elapsed().as_secs_f64())
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore = "release only: two training runs")]
+fn full_pipeline_beats_image_only_and_approaches_the_gt_depth_floor() {
+    let built = gs_synth::generate(&gs_synth::BuiltinOptions::default()).unwrap();
+    let scene = &built.scene;
+    let (train, _test) = scene.split(true);
+    let gt = &built.object_mesh;
+
+    // The floor: exact GT depth of the training views fused at the same voxel size.
+    let cams: Vec<&gs_core::Camera> = train.iter().map(|&i| &scene.views[i].camera).collect();
+    let extent = gs_core::scene_extent(&cams);
+    let voxel = extent / 512.0;
+    let mut vol = TsdfVolume::new(TsdfConfig { depth_trunc: 3.0 * extent, with_color: false, ..TsdfConfig::with_voxel_size(voxel) }).unwrap();
+    for &i in &train {
+        vol.integrate_view(i, &scene.views[i].camera, &built.gt_depth[i], None, None).unwrap();
+    }
+    let floor = score(&vol.extract_mesh().unwrap(), gt);
+
+    let full_cfg = TrainConfig::default().scaled(ITERATIONS);
+    let (full_mesh, full_n, full_s) = train_and_mesh(scene, &train, full_cfg.clone());
+    let full = score(&full_mesh, gt);
+    let li_cfg = TrainConfig { losses: LossSwitches::image_only(), ..full_cfg };
+    let (li_mesh, li_n, li_s) = train_and_mesh(scene, &train, li_cfg);
+    let li = score(&li_mesh, gt);
+    eprintln!("voxel {voxel:.5}");
+    eprintln!("GT-depth floor: {}", serde_json::to_string(&floor).unwrap());
+    eprintln!("full VA-GS ({full_n} Gaussians, {full_s:.0}s): {}", serde_json::to_string(&full).unwrap());
+    eprintln!("only L_I   ({li_n} Gaussians, {li_s:.0}s): {}", serde_json::to_string(&li).unwrap());
+    assert!(full.chamfer < li.chamfer, "full {} vs only-L_I {}", full.chamfer, li.chamfer);
+}
