@@ -6,7 +6,10 @@ use gs_core::{Scene, TriangleMesh};
 use gs_train::{LossSwitches, MeshOptions, TrainConfig, Trainer, extract_mesh};
 use gs_tsdf::{EvalOptions, PointMetrics, TsdfConfig, TsdfVolume, evaluate_meshes};
 
-const ITERATIONS: u64 = 3000;
+/// Iterations of both runs (`VAGSL_PIPELINE_ITERATIONS` overrides, for longer experiments).
+fn iterations() -> u64 {
+    std::env::var("VAGSL_PIPELINE_ITERATIONS").ok().and_then(|v| v.parse().ok()).unwrap_or(1500)
+}
 
 fn score(mesh: &TriangleMesh, gt: &TriangleMesh) -> PointMetrics {
     let opts = EvalOptions { samples: 100_000, ..EvalOptions::object_protocol(gt).unwrap() };
@@ -41,7 +44,7 @@ fn full_pipeline_beats_image_only_and_approaches_the_gt_depth_floor() {
     }
     let floor = score(&vol.extract_mesh().unwrap(), gt);
 
-    let full_cfg = TrainConfig::default().scaled(ITERATIONS);
+    let full_cfg = TrainConfig::default().scaled(iterations());
     let (full_mesh, full_n, full_s) = train_and_mesh(scene, &train, full_cfg.clone());
     let full = score(&full_mesh, gt);
     let li_cfg = TrainConfig { losses: LossSwitches::image_only(), ..full_cfg };

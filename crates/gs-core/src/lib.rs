@@ -22,6 +22,7 @@ pub mod gradcheck;
 pub mod image;
 pub mod mesh;
 pub mod optim;
+pub mod real;
 pub mod rng;
 pub mod scene;
 pub mod sh;

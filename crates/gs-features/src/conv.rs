@@ -1,6 +1,6 @@
 //! 3×3 convolution (pad 1, stride 1) + bias + ReLU and 2×2 max-pool on zero-padded HWC tensors.
 //!
-//! Two interchangeable convolution algorithms (see `BENCH_NOTES.md` for the measurement):
+//! Two interchangeable convolution algorithms (see the workspace `BENCHMARKS.md` for the measurement):
 //! * [`ConvAlgorithm::Im2colGemm`]: per band of image rows, gather the 3×3×C patches into a
 //!   `[pixels][9·C]` matrix (im2col) and multiply by the `[9·C][Cout]` kernel matrix with
 //!   `matrixmultiply::sgemm` (packed, cache-blocked, runtime AVX/FMA dispatch).

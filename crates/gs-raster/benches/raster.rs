@@ -5,7 +5,7 @@
 //!
 //! Throughput is reported in Gaussian-pixel pairs: `RenderStats::forward_pairs` (per pixel,
 //! the tile-list entries it went through before saturating) and `backward_pairs` (entries up
-//! to its last contributor). `BENCH_NOTES.md` records measured numbers.
+//! to its last contributor). the workspace `BENCHMARKS.md` records measured numbers.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use gs_core::gaussians::{inverse_sigmoid, rgb_to_sh_dc};

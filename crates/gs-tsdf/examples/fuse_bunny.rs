@@ -1,4 +1,4 @@
-//! Fuses synth-bunny's GT depth maps and prints timings and metrics as JSON (for BENCH_NOTES.md).
+//! Fuses synth-bunny's GT depth maps and prints timings and metrics as JSON (for the workspace BENCHMARKS.md).
 //! `cargo run -p gs-tsdf --release --example fuse_bunny -- [voxel] [max_tsdf_jump]`
 
 #[path = "../tests/common/mod.rs"]

@@ -6,4 +6,5 @@ pub mod eval_mesh;
 pub mod info;
 pub mod mesh;
 pub mod render;
+pub mod tradeoff;
 pub mod train;

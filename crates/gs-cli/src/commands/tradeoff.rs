@@ -1,0 +1,262 @@
+//! `vagsl tradeoff`: the ablation ladder (only L_I ≈ 3DGS; + edge; + L_nc/L_ns; + L_p; + L_f =
+//! full; and the fast preset), each trained, meshed and scored, written as a Markdown / JSON
+//! table and an SVG plot of mesh error against wall time.
+
+use crate::commands::eval_mesh::read_mesh;
+use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, write_json};
+use anyhow::{Context, Result, bail};
+use gs_core::TriangleMesh;
+use gs_train::{LossSwitches, MeshOptions, Preset, TrainConfig, Trainer, evaluate_images, extract_mesh};
+use gs_tsdf::{Aabb, EvalOptions, evaluate_meshes};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Options of `vagsl tradeoff`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct TradeoffArgs {
+    /// Scene folder. Omit for the built-in scene (its exact object mesh is the default GT).
+    pub scene: Option<PathBuf>,
+    /// Ground-truth mesh (PLY/OBJ) the meshes are scored against.
+    #[arg(long)]
+    pub gt: Option<PathBuf>,
+    /// Output folder: one sub-folder per rung, tradeoff.{md,json,svg}.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Iterations of the ladder's runs (the fast rung uses the fast preset's own length).
+    #[arg(long, default_value_t = 20_000)]
+    pub iterations: u64,
+    /// Downscale images by this factor.
+    #[arg(short = 'r', long = "resolution")]
+    pub resolution: Option<u32>,
+    /// Hold out every 8th view and report PSNR on them.
+    #[arg(long)]
+    pub eval: bool,
+    /// Crop the prediction to the GT's bounding box grown by this fraction per side (object
+    /// protocol: 0.05); `--min-z` also drops everything below that height (a floor).
+    #[arg(long, default_value_t = 0.05)]
+    pub crop_to_gt: f64,
+    /// With the crop: drop everything below this z (synth-bunny and the built-in scene: 0.005).
+    #[arg(long)]
+    pub min_z: Option<f64>,
+    /// Points sampled per mesh for the metrics.
+    #[arg(long, default_value_t = 200_000)]
+    pub samples: usize,
+    /// Seed of every run.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+/// One rung of the ladder.
+#[derive(Debug, Clone, Serialize)]
+pub struct Rung {
+    /// Name.
+    pub name: String,
+    /// Iterations.
+    pub iterations: u64,
+    /// Training wall time, seconds.
+    pub train_seconds: f64,
+    /// Mesh extraction wall time, seconds.
+    pub mesh_seconds: f64,
+    /// Final Gaussians.
+    pub gaussians: usize,
+    /// Mesh accuracy (pred → GT).
+    pub accuracy: f64,
+    /// Mesh completeness (GT → pred).
+    pub completeness: f64,
+    /// Chamfer.
+    pub chamfer: f64,
+    /// F1 at τ.
+    pub f1: f64,
+    /// Held-out PSNR (with --eval).
+    pub psnr: Option<f64>,
+}
+
+fn ladder(iterations: u64, seed: u64) -> Vec<(&'static str, TrainConfig)> {
+    let base = TrainConfig { seed, ..TrainConfig::default().scaled(iterations) };
+    let image_only = LossSwitches::image_only();
+    let with = |f: &dyn Fn(&mut LossSwitches)| {
+        let mut l = image_only;
+        f(&mut l);
+        TrainConfig { losses: l, ..base.clone() }
+    };
+    vec![
+        ("only L_I (≈ 3DGS)", with(&|_| {})),
+        ("+ edge", with(&|l| l.edge = true)),
+        ("+ L_nc, L_ns", with(&|l| (l.edge, l.normal_consistency, l.normal_smoothing) = (true, true, true))),
+        ("+ L_p", with(&|l| *l = LossSwitches { features: false, ..LossSwitches::default() })),
+        ("+ L_f (full VA-GS)", TrainConfig { losses: LossSwitches::default(), ..base.clone() }),
+        ("fast preset", TrainConfig { seed, ..TrainConfig::preset(Preset::Fast) }),
+    ]
+}
+
+fn slug(name: &str) -> String {
+    name.chars().filter(|c| c.is_ascii_alphanumeric() || *c == ' ' || *c == '_').collect::<String>().split_whitespace().collect::<Vec<_>>().join("_").to_lowercase()
+}
+
+/// The SVG plot: Chamfer against training time, one labelled point per rung.
+pub fn svg_plot(rungs: &[Rung]) -> String {
+    let (w, h, m) = (640.0, 400.0, 60.0);
+    let tmax = rungs.iter().map(|r| r.train_seconds).fold(1e-9, f64::max) * 1.1;
+    let cmax = rungs.iter().map(|r| r.chamfer).fold(1e-12, f64::max) * 1.1;
+    let x = |t: f64| m + t / tmax * (w - 2.0 * m);
+    let y = |c: f64| h - m - c / cmax * (h - 2.0 * m);
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n\
+         <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
+         <line x1=\"{m}\" y1=\"{b}\" x2=\"{r}\" y2=\"{b}\" stroke=\"black\"/>\n\
+         <line x1=\"{m}\" y1=\"{m}\" x2=\"{m}\" y2=\"{b}\" stroke=\"black\"/>\n\
+         <text x=\"{cx}\" y=\"{ty}\" text-anchor=\"middle\">training time (s), max {tmax:.0}</text>\n\
+         <text x=\"14\" y=\"{cy}\" transform=\"rotate(-90 14 {cy})\" text-anchor=\"middle\">Chamfer (lower is better), max {cmax:.5}</text>\n",
+        b = h - m,
+        r = w - m,
+        cx = w / 2.0,
+        ty = h - 20.0,
+        cy = h / 2.0
+    );
+    for r in rungs {
+        let _ = writeln!(
+            s,
+            "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"4\" fill=\"#1f77b4\"/><text x=\"{:.1}\" y=\"{:.1}\">{}</text>",
+            x(r.train_seconds),
+            y(r.chamfer),
+            x(r.train_seconds) + 6.0,
+            y(r.chamfer) - 6.0,
+            r.name.replace('&', "&amp;").replace('<', "&lt;")
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn markdown(rungs: &[Rung]) -> String {
+    let mut s = String::from(
+        "| run | iterations | train s | mesh s | Gaussians | accuracy | completeness | Chamfer | F1 | PSNR |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rungs {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.0} | {:.1} | {} | {:.5} | {:.5} | {:.5} | {:.4} | {} |",
+            r.name,
+            r.iterations,
+            r.train_seconds,
+            r.mesh_seconds,
+            r.gaussians,
+            r.accuracy,
+            r.completeness,
+            r.chamfer,
+            r.f1,
+            r.psnr.map_or("–".into(), |p| format!("{p:.2}"))
+        );
+    }
+    s
+}
+
+/// Runs `vagsl tradeoff`.
+pub fn run(args: &TradeoffArgs) -> Result<()> {
+    let source = SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: None, eval: args.eval };
+    let (gt, min_z): (TriangleMesh, Option<f64>) = match (&args.gt, &args.scene) {
+        (Some(p), _) => (read_mesh(p)?, args.min_z),
+        (None, None) => (gs_synth::generate(&gs_synth::BuiltinOptions::default())?.object_mesh, Some(args.min_z.unwrap_or(0.005))),
+        (None, Some(_)) => bail!("--gt is required for a scene folder (the mesh the runs are scored against)"),
+    };
+    let scene = load_scene(&source)?;
+    let (train, test) = scene.split(args.eval);
+    std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create folder", args.output.display()))?;
+    let b = Aabb::of_mesh(&gt).context("the ground-truth mesh has no vertices")?;
+    let f = args.crop_to_gt;
+    let mut min: [f64; 3] = std::array::from_fn(|k| b.min[k] - f * (b.max[k] - b.min[k]));
+    if let Some(z) = min_z {
+        min[2] = z;
+    }
+    let eval = EvalOptions {
+        samples: args.samples,
+        tau: 0.005 * b.diagonal(),
+        max_distance: None,
+        crop: Some(Aabb { min, max: std::array::from_fn(|k| b.max[k] + f * (b.max[k] - b.min[k])) }),
+        seed: 0,
+    };
+    let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
+    let mut rungs = Vec::new();
+    for (name, config) in ladder(args.iterations, args.seed) {
+        let dir = args.output.join(slug(name));
+        std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+        eprintln!("[tradeoff] {name}: {} iterations", config.iterations);
+        let t0 = Instant::now();
+        let mut trainer = Trainer::new(&scene, train.clone(), config.clone())?;
+        trainer.run(|_, _| true)?;
+        let train_seconds = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let (mesh, _) =
+            extract_mesh(trainer.gaussians(), &scene, &train, trainer.raster_config(), trainer.extent(), &MeshOptions::default())?;
+        let mesh_seconds = t1.elapsed().as_secs_f64();
+        let run_config = RunConfig { scene: source.clone(), train_views: names(&train), test_views: names(&test), train: config.clone() };
+        write_json(&dir.join("config.json"), &run_config)?;
+        gs_io::write_gaussian_ply(&dir.join("point_cloud.ply"), trainer.gaussians())?;
+        gs_io::write_mesh_ply(&dir.join("mesh.ply"), &mesh)?;
+        let m = evaluate_meshes(&mesh, &gt, &eval)?.metrics;
+        let psnr = if test.is_empty() {
+            None
+        } else {
+            Some(evaluate_images(trainer.gaussians(), &scene, &test, trainer.raster_config(), None)?.psnr)
+        };
+        let rung = Rung {
+            name: name.to_string(),
+            iterations: config.iterations,
+            train_seconds,
+            mesh_seconds,
+            gaussians: trainer.gaussians().len(),
+            accuracy: m.accuracy,
+            completeness: m.completeness,
+            chamfer: m.chamfer,
+            f1: m.f1,
+            psnr,
+        };
+        eprintln!("[tradeoff] {}", markdown(std::slice::from_ref(&rung)).lines().last().unwrap_or_default());
+        rungs.push(rung);
+        // Write after every rung so an interrupted ladder keeps what it measured.
+        write_json(&args.output.join("tradeoff.json"), &serde_json::json!({
+            "rungs": rungs, "tau": eval.tau, "samples": eval.samples, "peak_memory_bytes": peak_memory_bytes(),
+        }))?;
+        let md = markdown(&rungs);
+        gs_io::write_atomic(&args.output.join("tradeoff.md"), |w| w.write_all(md.as_bytes()))?;
+        let svg = svg_plot(&rungs);
+        gs_io::write_atomic(&args.output.join("tradeoff.svg"), |w| w.write_all(svg.as_bytes()))?;
+    }
+    print!("{}", markdown(&rungs));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ladder_adds_one_term_per_rung() {
+        let l = ladder(2000, 3);
+        assert_eq!(l.len(), 6);
+        assert_eq!(l[0].1.losses, LossSwitches::image_only());
+        assert!(l[1].1.losses.edge && !l[1].1.losses.normal_consistency);
+        assert!(l[2].1.losses.normal_smoothing && !l[2].1.losses.photometric);
+        assert!(l[3].1.losses.photometric && !l[3].1.losses.features);
+        assert_eq!(l[4].1.losses, LossSwitches::default());
+        assert!(l.iter().all(|(_, c)| c.seed == 3 && c.validate().is_ok()));
+        assert_eq!(slug("+ L_nc, L_ns"), "l_nc_l_ns");
+        let rung = Rung {
+            name: "a<b".into(),
+            iterations: 1,
+            train_seconds: 2.0,
+            mesh_seconds: 0.1,
+            gaussians: 5,
+            accuracy: 0.1,
+            completeness: 0.2,
+            chamfer: 0.15,
+            f1: 0.5,
+            psnr: None,
+        };
+        let svg = svg_plot(&[rung.clone()]);
+        assert!(svg.starts_with("<svg") && svg.contains("a&lt;b") && svg.trim_end().ends_with("</svg>"));
+        assert!(markdown(&[rung]).contains("| a<b | 1 | 2 |"));
+    }
+}

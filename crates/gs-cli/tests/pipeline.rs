@@ -1,0 +1,109 @@
+//! `vagsl train → mesh → render → eval-images → eval-mesh` on the built-in scene and on a
+//! shared real scene (a few iterations: this checks the plumbing, files and errors; the
+//! accuracy of training is tested in tests/tests/pipeline.rs).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn vagsl(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_vagsl")).args(args).output().expect("run vagsl");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+fn shared(rel: &str) -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+}
+
+fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+#[test]
+fn builtin_scene_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = out.to_str().unwrap();
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--iterations", "40", "--eval", "--quiet", "--checkpoint-every", "20"]);
+    assert!(ok, "{err}");
+    for f in ["config.json", "point_cloud.ply", "report.json", "checkpoint.bin"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let report = json(&out.join("report.json"));
+    assert_eq!(report["iterations"], 40);
+    assert!(report["gaussians"].as_u64().unwrap() > 0);
+    let cfg = json(&out.join("config.json"));
+    assert_eq!(cfg["test_views"].as_array().unwrap().len(), 4, "every 8th of 32 views held out");
+    assert_eq!(cfg["train"]["iterations"], 40);
+    // The PLY opens as a 3DGS model.
+    let g = gs_io::read_gaussian_ply(&out.join("point_cloud.ply")).unwrap();
+    assert_eq!(g.len() as u64, report["gaussians"].as_u64().unwrap());
+
+    let (ok, stdout, err) = vagsl(&["mesh", o]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("triangles"), "{stdout}");
+    let mesh = gs_io::read_mesh_ply(&out.join("mesh.ply")).unwrap();
+    assert!(!mesh.triangles.is_empty());
+
+    let (ok, _, err) = vagsl(&["render", o, "--split", "test"]);
+    assert!(ok, "{err}");
+    let renders = out.join("renders/test");
+    for f in ["0000.png", "0000_depth.exr", "0000_normal.png"] {
+        assert!(renders.join(f).is_file(), "{f} missing");
+    }
+
+    let (ok, stdout, err) = vagsl(&["eval-images", o, "--json"]);
+    assert!(ok, "{err}");
+    let m: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(m["views"].as_array().unwrap().len(), 4);
+    let psnr = m["psnr"].as_f64().unwrap();
+    assert!(psnr > 10.0 && psnr < 60.0, "PSNR {psnr}");
+    assert!(m["lpips"].as_f64().unwrap() > 0.0);
+
+    let (ok, stdout, err) = vagsl(&["eval-mesh", "--pred", out.join("mesh.ply").to_str().unwrap(), "--gt", out.join("mesh.ply").to_str().unwrap(), "--samples", "2000", "--json"]);
+    assert!(ok, "{err}");
+    let e: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert!(e["chamfer"].as_f64().unwrap() < 0.05);
+
+    // With --checkpoint-every the final state is checkpointed too: resuming it is accepted
+    // (same scene options) and has nothing left to do.
+    let ck = out.join("checkpoint.bin");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--eval", "--quiet", "--resume", ck.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(err.contains("resuming"), "{err}");
+}
+
+#[test]
+fn bad_inputs_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("x");
+    let o = o.to_str().unwrap();
+    let (ok, _, err) = vagsl(&["train", "/nonexistent/scene", "-o", o]);
+    assert!(!ok && err.contains("/nonexistent/scene"), "{err}");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--patch-size", "4"]);
+    assert!(!ok && err.contains("patch_size"), "{err}");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--iterations", "0"]);
+    assert!(!ok && err.contains("iterations"), "{err}");
+    let (ok, _, err) = vagsl(&["mesh", dir.path().to_str().unwrap()]);
+    assert!(!ok && err.contains("config.json"), "{err}");
+    let bad = dir.path().join("bad.bin");
+    std::fs::write(&bad, b"garbage").unwrap();
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--resume", bad.to_str().unwrap()]);
+    assert!(!ok && err.contains("bad.bin") && err.contains("magic"), "{err}");
+    let (ok, _, err) = vagsl(&["eval-mesh", "--pred", "/nonexistent/p.ply", "--gt", "/nonexistent/g.ply"]);
+    assert!(!ok && err.contains("/nonexistent/p.ply"), "{err}");
+}
+
+#[test]
+fn trains_on_a_real_distorted_scene() {
+    // fox: OPENCV with distortion, 50 photos; undistorted and downscaled on load.
+    let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("fox");
+    let (ok, _, err) = vagsl(&[
+        "train", shared("fox").to_str().unwrap(), "-o", o.to_str().unwrap(), "--width", "135",
+        "--iterations", "20", "--quiet", "--eval",
+    ]);
+    assert!(ok, "{err}");
+    let (ok, stdout, err) = vagsl(&["eval-images", o.to_str().unwrap(), "--no-lpips"]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("PSNR"), "{stdout}");
+}
