@@ -5,7 +5,7 @@ use crate::error::{Result, TrainError};
 use gs_core::{Gaussians, Image, Scene, TriangleMesh};
 use gs_losses::{Lpips, psnr, ssim_metric};
 use gs_raster::{RasterConfig, RenderRequest, render};
-use gs_tsdf::{ComponentFilter, TsdfConfig, TsdfVolume, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
+use gs_tsdf::{ComponentFilter, TsdfConfig, TsdfVolume, clean_mesh};
 use serde::Serialize;
 
 /// Options of [`extract_mesh`] (Open3D's names).
@@ -118,7 +118,7 @@ pub fn extract_mesh(
     let t = std::time::Instant::now();
     let raw = volume.extract_mesh()?;
     let filter = if opts.largest_component_only { ComponentFilter::Largest } else { ComponentFilter::MinTriangles(50) };
-    let mesh = remove_unreferenced_vertices(&remove_degenerate_triangles(&filter_components(&raw, filter)?));
+    let mesh = clean_mesh(&raw, filter)?;
     fuse_s += t.elapsed().as_secs_f64();
     let report = MeshReport {
         voxel_size: voxel,

@@ -93,7 +93,9 @@ impl FeatureMaps<f32> for VggMaps<'_> {
     fn sample(&self, u: f32, v: f32, out: &mut [f32], grad_u: Option<&mut [f32]>, grad_v: Option<&mut [f32]>) {
         match (grad_u, grad_v) {
             (Some(gu), Some(gv)) => self.0.sample_bilinear_into(u, v, out, Some((gu, gv))),
+            (None, None) => self.0.sample_bilinear_into(u, v, out, None),
             (gu, gv) => {
+                // One derivative only (not used by gs-mvs today): compute both, keep one.
                 let c = out.len();
                 let (mut su, mut sv) = (vec![0.0; c], vec![0.0; c]);
                 let inside = self.0.sample_bilinear_into(u, v, out, Some((&mut su, &mut sv)));

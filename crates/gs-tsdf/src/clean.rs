@@ -118,6 +118,12 @@ pub fn filter_components(mesh: &TriangleMesh, filter: ComponentFilter) -> Result
     Ok(remove_unreferenced_vertices(&TriangleMesh { triangles, ..mesh.clone() }))
 }
 
+/// The standard clean-up after marching cubes (method-spec §8): keep the components selected by
+/// `filter`, then drop degenerate triangles and unreferenced vertices.
+pub fn clean_mesh(mesh: &TriangleMesh, filter: ComponentFilter) -> Result<TriangleMesh> {
+    Ok(remove_unreferenced_vertices(&remove_degenerate_triangles(&filter_components(mesh, filter)?)))
+}
+
 /// DTU-style culling: drops every vertex that projects inside some view's image (in front of
 /// the camera) onto a mask pixel < 0.5, with the triangles using it. Masks are 1-channel images
 /// of the camera's size.

@@ -36,7 +36,7 @@ pub mod metrics;
 pub mod synthetic;
 pub mod volume;
 
-pub use clean::{ComponentFilter, cull_by_masks, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
+pub use clean::{ComponentFilter, clean_mesh, cull_by_masks, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
 pub use error::{Result, TsdfError};
 pub use extract::ExtractOptions;
 pub use metrics::{Aabb, EvalOptions, EvalReport, PointMetrics, evaluate_meshes, point_metrics, sample_surface};
