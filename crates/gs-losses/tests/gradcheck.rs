@@ -62,6 +62,18 @@ fn l1_gradient() {
     let mut g = vec![0.0; a.len()];
     l1_backward(&a, &b, 0.8, &mut g);
     check("L1", |x| 0.8 * l1(x, &b), &a, &g, &opts());
+    // Constant and saturated images (rendered 0.5 / 0 / 1 against a GT on the other side):
+    // every difference is away from the kink, so the check is exact.
+    let n = 6 * 4 * 3;
+    for (name, rendered, gt) in [
+        ("L1 constant", vec![0.5; n], random(&mut rng, n, 0.6, 1.0)),
+        ("L1 saturated 0", vec![0.0; n], random(&mut rng, n, 0.1, 1.0)),
+        ("L1 saturated 1", vec![1.0; n], random(&mut rng, n, 0.0, 0.9)),
+    ] {
+        let mut g = vec![0.0; n];
+        l1_backward(&rendered, &gt, 0.8, &mut g);
+        check(name, |x| 0.8 * l1(x, &gt), &rendered, &g, &opts());
+    }
 }
 
 fn ssim_case(name: &str, a: &[f64], b: &[f64], dims: Dims, region: SsimRegion) {
@@ -193,6 +205,10 @@ fn edge_term_gradient() {
         Dims::new(6, 6, 1),
         1e-8,
     );
+    // Saturated ground truths (all 0, all 1): ∇I is 0 inside, the rendered image is random.
+    for (name, v) in [("edge GT saturated 0", 0.0), ("edge GT saturated 1", 1.0)] {
+        edge_case(name, &a, &vec![v; dims.len()], dims, 1e-8);
+    }
     // Too small for an interior: ∇I = 1 everywhere, zero loss and gradient.
     edge_case(
         "edge 2x5",
@@ -371,6 +387,20 @@ fn normal_losses_gradient() {
     // Random (non-smooth) depth.
     let zr = random(&mut rng, w * h, 1.0, 3.0);
     normal_case("random depth", &zr, w, h, None, &mut rng);
+    // A planar depth (a tilted plane n·X = d, so N̂ = n everywhere inside). Tilted, because a
+    // fronto-parallel plane puts N̂'s x, y components exactly on the kink of ‖·‖₁ in L_ns.
+    let k = intrinsics(w, h);
+    let n = [0.3f64, -0.2, -1.0];
+    let d = -2.0; // z ≈ 2 at the principal point
+    let plane: Vec<f64> = (0..w * h)
+        .map(|p| {
+            let (u, v) = ((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
+            let r = [(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0];
+            d / (n[0] * r[0] + n[1] * r[1] + n[2] * r[2])
+        })
+        .collect();
+    assert!(plane.iter().all(|&z| z > 0.5 && z < 5.0), "plane in front of the camera");
+    normal_case("planar depth", &plane, w, h, None, &mut rng);
 }
 
 #[test]

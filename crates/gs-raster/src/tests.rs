@@ -1240,3 +1240,39 @@ fn fast_exp_matches_libm() {
     assert_eq!(raster::exp_neg(f32::NAN), 0.0);
     assert_eq!(raster::exp_neg(f32::INFINITY), 0.0);
 }
+
+/// A uniform cloud of `n` small Gaussians in front of `camera(…)` (no rejection sampling, so
+/// millions are cheap to make).
+fn cloud(n: usize, seed: u64) -> Gaussians {
+    let mut rng = Rng::new(seed);
+    let mut g = Gaussians::with_len(0).unwrap();
+    for _ in 0..n {
+        let mut sh = [[0.0f32; 3]; 16];
+        sh[0] = [rng.uniform_range(-1.0, 1.0), rng.uniform_range(-1.0, 1.0), rng.uniform_range(-1.0, 1.0)];
+        g.push(
+            [rng.uniform_range(-1.5, 1.5), rng.uniform_range(-1.2, 1.2), rng.uniform_range(-1.0, 1.0)],
+            [rng.uniform_range(-4.5, -3.0), rng.uniform_range(-4.5, -3.0), rng.uniform_range(-6.0, -4.0)],
+            random_quat(&mut rng),
+            rng.uniform_range(-2.0, 3.0),
+            sh,
+        );
+    }
+    g
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore = "release only: 4000×3000 and 2 million Gaussians")]
+fn extremes_4000x3000_image_and_two_million_gaussians() {
+    let cfg = RasterConfig::default();
+    // design.md §4.5: a 4000×3000 image, every channel, forward and backward.
+    let big = camera(4000, 3000, 3500.0);
+    let out = render_and_backward_finite(&cloud(20_000, 91), &big, &cfg);
+    assert_eq!(out.color.as_ref().unwrap().width(), 4000);
+    assert!(out.stats.visible > 10_000, "{:?}", out.stats);
+    // design.md §4.6: 2 million Gaussians at 640×480, every channel, forward and backward.
+    let cam = camera(640, 480, 560.0);
+    let many = cloud(2_000_000, 92);
+    let out = render_and_backward_finite(&many, &cam, &cfg);
+    assert!(out.stats.visible > 1_000_000, "{:?}", out.stats);
+    assert_eq!(out.radii.len(), 2_000_000);
+}
