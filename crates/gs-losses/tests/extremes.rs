@@ -150,3 +150,23 @@ fn metrics_definitions() {
     assert!((psnr(&one, &zero).unwrap()).abs() < 1e-12);
     assert!(ssim_metric(&one, &zero).unwrap().is_finite());
 }
+
+#[test]
+#[cfg_attr(debug_assertions, ignore = "release only: 4000×3000 images")]
+fn losses_finite_at_4000x3000() {
+    // design.md §4.5: the largest image size, a saturated/textured pair and a tilted plane.
+    let (w, h) = (4000, 3000);
+    let r = Image::from_vec(w, h, 3, (0..w * h * 3).map(|i| ((i * 31) % 97) as f32 / 96.0).collect()).unwrap();
+    let g = Image::from_vec(w, h, 3, (0..w * h * 3).map(|i| ((i / 3) % 2) as f32).collect()).unwrap();
+    finite_image_loss(&r, &g);
+    let guide = EdgeGuide::from_gt(&g).unwrap();
+    let k = Intrinsics::new(3500.0, 3500.0, 2000.0, 1500.0);
+    let z = Image::from_vec(w, h, 1, (0..w * h).map(|p| 2.0 + (p % w) as f32 * 1e-4).collect()).unwrap();
+    let mut n = Image::new(w, h, 3).unwrap();
+    for p in n.data_mut().chunks_mut(3) {
+        p.copy_from_slice(&[0.1, -0.1, -0.99]);
+    }
+    let out = normal_losses(&z, &n, None, &guide, &k, &NormalLossConfig::default()).unwrap();
+    assert!(out.l_nc.is_finite() && out.l_ns.is_finite());
+    assert!(out.grad_plane_depth.is_finite() && out.grad_normal.is_finite());
+}
