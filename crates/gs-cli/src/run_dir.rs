@@ -101,7 +101,7 @@ impl OpenRun {
 
     /// The rasterizer settings of the run.
     pub fn raster(&self) -> gs_raster::RasterConfig {
-        gs_raster::RasterConfig { near: self.config.train.near, background: self.config.train.background, ..Default::default() }
+        self.config.train.raster_config()
     }
 
     /// Scene extent r of the training cameras.

@@ -452,6 +452,12 @@ impl TrainConfig {
         }
     }
 
+    /// The rasterizer settings of a run (near plane and background from this configuration);
+    /// training, rendering and meshing a run all use these.
+    pub fn raster_config(&self) -> gs_raster::RasterConfig {
+        gs_raster::RasterConfig { near: self.near, background: self.background, ..Default::default() }
+    }
+
     /// The SH degree at 1-based iteration `it`.
     pub fn sh_degree(&self, it: u64) -> u32 {
         if self.sh_degree_interval == 0 {

@@ -185,7 +185,7 @@ impl<'s> Trainer<'s> {
         let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
         let extent = gs_core::scene_extent(&cams).max(1e-9);
         let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), config.source_views, SourceSelection::RandomN)?;
-        let raster = RasterConfig { near: config.near, background: config.background, ..Default::default() };
+        let raster = config.raster_config();
         let k = train_views.len();
         Ok(Self {
             config,
