@@ -49,18 +49,22 @@ pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
     })
 }
 
+/// The crop of the object protocols: the GT's bounding box `b` grown by `fraction` of its size
+/// per side, with everything below `min_z` (a floor) dropped when given.
+pub fn gt_crop(b: &Aabb, fraction: f64, min_z: Option<f64>) -> Aabb {
+    let mut min: [f64; 3] = std::array::from_fn(|k| b.min[k] - fraction * (b.max[k] - b.min[k]));
+    if let Some(z) = min_z {
+        min[2] = z;
+    }
+    Aabb { min, max: std::array::from_fn(|k| b.max[k] + fraction * (b.max[k] - b.min[k])) }
+}
+
 /// Runs `vagsl eval-mesh`.
 pub fn run(args: &EvalMeshArgs) -> Result<()> {
     let pred = read_mesh(&args.pred)?;
     let gt = read_mesh(&args.gt)?;
     let b = Aabb::of_mesh(&gt).with_context(|| format!("{}: the ground-truth mesh has no vertices", args.gt.display()))?;
-    let crop = args.crop_to_gt.map(|f| {
-        let mut min: [f64; 3] = std::array::from_fn(|k| b.min[k] - f * (b.max[k] - b.min[k]));
-        if let Some(z) = args.min_z {
-            min[2] = z;
-        }
-        Aabb { min, max: std::array::from_fn(|k| b.max[k] + f * (b.max[k] - b.min[k])) }
-    });
+    let crop = args.crop_to_gt.map(|f| gt_crop(&b, f, args.min_z));
     if args.min_z.is_some() && crop.is_none() {
         bail!("--min-z applies with --crop-to-gt");
     }
