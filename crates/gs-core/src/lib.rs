@@ -19,6 +19,7 @@ pub mod camera;
 pub mod error;
 pub mod gaussians;
 pub mod gradcheck;
+pub mod half;
 pub mod image;
 pub mod mesh;
 pub mod optim;

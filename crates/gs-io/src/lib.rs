@@ -62,7 +62,7 @@ pub use colmap::{ColmapModel, read_model};
 pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, model_summary};
 pub use error::{IoError, Result};
 pub use self::exr::{read_exr, write_depth_exr, write_exr, write_normal_exr};
-pub use npy::{read_npy, write_npy};
+pub use npy::{NpyArray, read_npy, read_npy_array, read_npz, write_npy};
 pub use obj::read_obj;
 pub use png::write_png;
 pub use ply::gaussian::{parse_gaussian_ply, read_gaussian_ply, write_gaussian_ply};

@@ -1,17 +1,26 @@
-//! A minimal NumPy `.npy` reader (and f32 writer) for depth and normal maps.
+//! A minimal NumPy `.npy` / `.npz` reader (and f32 `.npy` writer) for depth and normal maps
+//! and for pretrained weights.
 //!
-//! Reads `float32` (`<f4`) and `float16` (`<f2`) arrays in C order, 2-D `[H][W]` (→ a
-//! 1-channel [`Image`]) or 3-D `[H][W][C]` (→ a C-channel image), format versions 1.0, 2.0 and
-//! 3.0. Everything else (big-endian, other dtypes, Fortran order, other ranks) is rejected with
+//! Reads `float32` (`<f4`) and `float16` (`<f2`) arrays in C order, format versions 1.0, 2.0
+//! and 3.0: any rank as an [`NpyArray`], 2-D `[H][W]` (→ a 1-channel [`Image`]) or 3-D
+//! `[H][W][C]` (→ a C-channel image) through [`read_npy`]; `.npz` archives written by
+//! `numpy.savez` (uncompressed zip) through [`read_npz`]. Everything else (big-endian, other dtypes, Fortran order, other ranks) is rejected with
 //! a clear [`IoError`]. Values are returned as stored (NaN and infinities included): the
 //! synth-bunny ground truth uses 0 for "no surface".
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
 use gs_core::Image;
+pub use gs_core::half::f16_to_f32;
 use std::path::Path;
 
 const MAGIC: &[u8] = b"\x93NUMPY";
+
+/// Reads a `.npy` file of any rank (see the module docs for what is accepted).
+pub fn read_npy_array(path: &Path) -> Result<NpyArray> {
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    parse_npy_array(&bytes, path)
+}
 
 /// Reads a `.npy` file into an [`Image`] (see the module docs for what is accepted).
 pub fn read_npy(path: &Path) -> Result<Image> {
@@ -19,8 +28,35 @@ pub fn read_npy(path: &Path) -> Result<Image> {
     parse_npy(&bytes, path)
 }
 
-/// Parses a `.npy` file held in memory; `path` only names the file in errors.
+/// An array of any rank read from a `.npy` file: C-order shape and values (f16 widened to f32).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NpyArray {
+    /// Shape, C order (empty for a scalar).
+    pub shape: Vec<usize>,
+    /// Values in C order.
+    pub data: Vec<f32>,
+}
+
+/// Parses a `.npy` file held in memory into an [`Image`] (2-D or 3-D arrays only); `path` only
+/// names the file in errors.
 pub fn parse_npy(bytes: &[u8], path: &Path) -> Result<Image> {
+    let array = parse_npy_array(bytes, path)?;
+    let dims = &array.shape;
+    let (h, w, c) = match dims[..] {
+        [h, w] => (h, w, 1),
+        [h, w, c] => (h, w, c),
+        _ => {
+            return Err(IoError::Unsupported {
+                path: path.into(),
+                message: format!("shape {dims:?}: only 2-D [H][W] and 3-D [H][W][C] arrays are images"),
+            });
+        }
+    };
+    Image::from_vec(w, h, c, array.data).map_err(|source| IoError::Core { path: path.into(), source })
+}
+
+/// Parses a `.npy` file of any rank held in memory; `path` only names the file in errors.
+pub fn parse_npy_array(bytes: &[u8], path: &Path) -> Result<NpyArray> {
     let fmt = |m: String| IoError::format(path, m);
     if !bytes.starts_with(MAGIC) || bytes.len() < 10 {
         return Err(fmt("not a .npy file (missing the \\x93NUMPY magic)".into()));
@@ -64,14 +100,9 @@ pub fn parse_npy(bytes: &[u8], path: &Path) -> Result<Image> {
         .filter(|s| !s.is_empty())
         .map(|s| s.parse::<usize>().map_err(|_| fmt(format!("bad shape entry '{s}'"))))
         .collect::<Result<_>>()?;
-    let (h, w, c) = match dims[..] {
-        [h, w] => (h, w, 1),
-        [h, w, c] => (h, w, c),
-        _ => return Err(unsupported(format!("shape {dims:?}: only 2-D [H][W] and 3-D [H][W][C] arrays"))),
-    };
-    let count = h
-        .checked_mul(w)
-        .and_then(|p| p.checked_mul(c))
+    let count = dims
+        .iter()
+        .try_fold(1usize, |p, &d| p.checked_mul(d))
         .ok_or_else(|| fmt(format!("shape {dims:?} overflows")))?;
     let data = &bytes[end..];
     if count.checked_mul(item).is_none_or(|need| need != data.len()) {
@@ -86,7 +117,74 @@ pub fn parse_npy(bytes: &[u8], path: &Path) -> Result<Image> {
     } else {
         data.chunks_exact(2).map(|b| f16_to_f32(u16::from_le_bytes([b[0], b[1]]))).collect()
     };
-    Image::from_vec(w, h, c, values).map_err(|source| IoError::Core { path: path.into(), source })
+    Ok(NpyArray { shape: dims, data: values })
+}
+
+/// Reads every array of an `.npz` archive (as written by `numpy.savez`: an uncompressed zip
+/// of `.npy` members), in archive order, as `(name without ".npy", array)`. Compressed
+/// members (`numpy.savez_compressed`) are rejected with a clear error.
+pub fn read_npz(path: &Path) -> Result<Vec<(String, NpyArray)>> {
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    parse_npz(&bytes, path)
+}
+
+/// Parses an `.npz` archive held in memory (see [`read_npz`]).
+pub fn parse_npz(bytes: &[u8], path: &Path) -> Result<Vec<(String, NpyArray)>> {
+    let fmt = |m: String| IoError::format(path, m);
+    let u16_at = |o: usize| -> Result<u16> {
+        bytes.get(o..o + 2).map(|b| u16::from_le_bytes([b[0], b[1]])).ok_or_else(|| fmt(format!("truncated zip at byte {o}")))
+    };
+    let u32_at = |o: usize| -> Result<u32> {
+        bytes
+            .get(o..o + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .ok_or_else(|| fmt(format!("truncated zip at byte {o}")))
+    };
+    let mut out = Vec::new();
+    let mut at = 0usize;
+    // Local file headers follow each other; the central directory (PK\x01\x02) ends them.
+    while at + 4 <= bytes.len() && u32_at(at)? == 0x0403_4b50 {
+        let flags = u16_at(at + 6)?;
+        let method = u16_at(at + 8)?;
+        let mut size = u32_at(at + 18)? as u64;
+        let name_len = u16_at(at + 26)? as usize;
+        let extra_len = u16_at(at + 28)? as usize;
+        let name_bytes = bytes.get(at + 30..at + 30 + name_len).ok_or_else(|| fmt("truncated zip member name".into()))?;
+        let name = String::from_utf8_lossy(name_bytes).into_owned();
+        let extra = bytes.get(at + 30 + name_len..at + 30 + name_len + extra_len).ok_or_else(|| fmt(format!("truncated zip header of {name}")))?;
+        if size == 0xFFFF_FFFF {
+            // Zip64: the extra field 0x0001 holds the 64-bit uncompressed, then compressed size.
+            let mut e = 0;
+            while e + 4 <= extra.len() {
+                let (id, len) = (u16::from_le_bytes([extra[e], extra[e + 1]]), u16::from_le_bytes([extra[e + 2], extra[e + 3]]) as usize);
+                if id == 1 && len >= 16 && e + 4 + 16 <= extra.len() {
+                    size = u64::from_le_bytes(extra[e + 12..e + 20].try_into().expect("8 bytes"));
+                }
+                e += 4 + len;
+            }
+        }
+        if method != 0 {
+            return Err(IoError::Unsupported {
+                path: path.into(),
+                message: format!("member {name} is compressed (method {method}); only numpy.savez's uncompressed .npz is read"),
+            });
+        }
+        if flags & 0x8 != 0 {
+            return Err(IoError::Unsupported { path: path.into(), message: format!("member {name} has a trailing data descriptor (streamed zip)") });
+        }
+        let start = at + 30 + name_len + extra_len;
+        let end = usize::try_from(size).ok().and_then(|s| start.checked_add(s)).filter(|&e| e <= bytes.len()).ok_or_else(|| {
+            fmt(format!("member {name} announces {size} bytes but the archive ends first (truncated)"))
+        })?;
+        let member = path.join(&name);
+        let array = parse_npy_array(&bytes[start..end], &member)?;
+        out.push((name.trim_end_matches(".npy").to_string(), array));
+        at = end;
+    }
+    if out.is_empty() {
+        return Err(fmt("not an .npz archive (no zip member at the start)".into()));
+    }
+    Ok(out)
 }
 
 /// Writes `image` as a float32 `.npy` (shape `(H, W)` for one channel, `(H, W, C)` otherwise),
@@ -137,46 +235,4 @@ fn dict_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
         }
     }
     None
-}
-
-/// IEEE 754 binary16 → f32 (exact, including subnormals, infinities and NaN).
-pub fn f16_to_f32(h: u16) -> f32 {
-    let sign = ((h as u32) & 0x8000) << 16;
-    let exp = ((h >> 10) & 0x1f) as u32;
-    let mant = (h & 0x3ff) as u32;
-    let bits = match (exp, mant) {
-        (0, 0) => sign,
-        (0, m) => {
-            // Subnormal: value = m · 2^-24.
-            let v = m as f32 * (1.0 / 16_777_216.0);
-            return if sign != 0 { -v } else { v };
-        }
-        (0x1f, 0) => sign | 0x7f80_0000,
-        (0x1f, m) => sign | 0x7fc0_0000 | (m << 13),
-        (e, m) => sign | ((e + 127 - 15) << 23) | (m << 13),
-    };
-    f32::from_bits(bits)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn f16_conversion_matches_half_for_every_pattern() {
-        for h in 0..=u16::MAX {
-            let ours = f16_to_f32(h);
-            let theirs = ::exr::prelude::f16::from_bits(h).to_f32();
-            assert!(ours.to_bits() == theirs.to_bits() || (ours.is_nan() && theirs.is_nan()), "{h:#x}: {ours} vs {theirs}");
-        }
-    }
-
-    #[test]
-    fn dict_parsing() {
-        let h = "{'descr': '<f2', 'fortran_order': False, 'shape': (360, 480, 3), }";
-        assert_eq!(dict_value(h, "descr"), Some("'<f2'"));
-        assert_eq!(dict_value(h, "fortran_order"), Some("False"));
-        assert_eq!(dict_value(h, "shape"), Some("(360, 480, 3)"));
-        assert_eq!(dict_value(h, "nope"), None);
-    }
 }

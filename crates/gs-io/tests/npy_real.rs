@@ -90,3 +90,38 @@ fn rejected_layouts_are_clear() {
     let e = parse_npy(&npy("<f4", "False", "(100000000000, 100000000000)", 8), p).unwrap_err().to_string();
     assert!(e.contains("overflows") || e.contains("truncated"), "{e}");
 }
+
+fn weights(name: &str) -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/weights")).join(name)
+}
+
+#[test]
+fn npz_reads_the_shared_vgg16_weights() {
+    let arrays = gs_io::read_npz(&weights("vgg16_imagenet_conv1_1-conv3_3.npz")).unwrap();
+    let names: Vec<&str> = arrays.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names.len(), 16);
+    assert_eq!(&names[..4], &["conv1_1_weight", "conv1_1_bias", "conv1_2_weight", "conv1_2_bias"]);
+    let get = |n: &str| &arrays.iter().find(|(k, _)| k == n).unwrap().1;
+    assert_eq!(get("conv3_3_weight").shape, vec![256, 256, 3, 3]);
+    assert_eq!(get("conv1_1_bias").shape, vec![64]);
+    assert_eq!(get("conv1_1_weight").data.len(), 64 * 3 * 9);
+    let mean = &get("input_mean").data;
+    assert!((mean[0] - 0.485).abs() < 1e-7 && (mean[2] - 0.406).abs() < 1e-7);
+}
+
+#[test]
+fn npz_truncated_or_not_a_zip_is_a_clear_error() {
+    let bytes = std::fs::read(weights("vgg16_imagenet_conv1_1-conv3_3.npz")).unwrap();
+    let p = Path::new("w.npz");
+    let msg = gs_io::npy::parse_npz(&bytes[..100_000], p).unwrap_err().to_string();
+    assert!(msg.contains("w.npz") && msg.contains("truncated"), "{msg}");
+    let msg = gs_io::npy::parse_npz(b"hello", p).unwrap_err().to_string();
+    assert!(msg.contains("not an .npz"), "{msg}");
+    // A compressed member (method 8) is refused, naming it.
+    let mut compressed = bytes.clone();
+    compressed[8] = 8;
+    let msg = gs_io::npy::parse_npz(&compressed, p).unwrap_err().to_string();
+    assert!(msg.contains("conv1_1_weight.npy") && msg.contains("compressed"), "{msg}");
+    let missing = gs_io::read_npz(Path::new("/nonexistent/w.npz")).unwrap_err().to_string();
+    assert!(missing.contains("/nonexistent/w.npz"), "{missing}");
+}

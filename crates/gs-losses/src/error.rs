@@ -22,14 +22,6 @@ pub enum LossError {
         /// What is wrong with it.
         problem: String,
     },
-    /// A `.npy` file that cannot be read (I/O error, unsupported dtype, truncated data).
-    #[error("npy {file}: {problem}")]
-    Npy {
-        /// The file that failed to load.
-        file: String,
-        /// What is wrong with it.
-        problem: String,
-    },
     /// An error from gs-core (e.g. building an output image).
     #[error(transparent)]
     Core(#[from] gs_core::CoreError),

@@ -43,7 +43,6 @@ pub mod lpips;
 pub mod metrics;
 pub mod normal;
 pub mod normal_loss;
-pub mod npy;
 pub mod real;
 pub mod ssim;
 

@@ -12,7 +12,7 @@
 //! sgemm, parallel over column blocks with rayon (deterministic).
 
 use crate::error::{LossError, Result};
-use crate::npy::f16_to_f32;
+use gs_core::half::f16_to_f32;
 use gs_core::Image;
 use rayon::prelude::*;
 use std::path::Path;

@@ -232,9 +232,10 @@ pub fn feature_loss<T: Real>(
     feature_loss_with_weights(reference, sources, &weights)
 }
 
-/// L_f with precomputed (e.g. frozen) υ/ω maps. A pixel of V whose reprojection under the
-/// evaluated depth is invalid (behind the source or outside it — possible only with supplied
-/// weights) still counts in |V| and contributes 0.
+/// L_f with precomputed (e.g. frozen) υ/ω maps. With supplied weights a pixel of V may reproject
+/// outside the source image under the evaluated depth: its features are then sampled with
+/// border-clamped taps (as the synth-bunny reference does); one that lands behind the source
+/// camera still counts in |V| and contributes 0.
 pub fn feature_loss_with_weights<T: Real>(
     reference: &FeatureReference<'_, T>,
     sources: &[FeatureSource<'_, T>],
@@ -290,9 +291,8 @@ pub fn feature_loss_with_weights<T: Real>(
                     }
                     let us = g.s_fx * xs[0] / xs[2] + g.s_cx;
                     let vs = g.s_fy * xs[1] / xs[2] + g.s_cy;
-                    if !g.inside_source(us, vs) {
-                        continue;
-                    }
+                    // Outside the source image (possible only with supplied weights) the
+                    // features are sampled with border-clamped taps, as the reference does.
                     reference.features.sample(u, v, &mut a, None, None);
                     source
                         .features
