@@ -6,7 +6,7 @@
 //! the exact figure for any size and option set.
 
 use crate::error::{FeatureError, Result};
-use crate::map::{FeatureMap, FeatureSource};
+use crate::map::FeatureMap;
 use crate::net::{ExtractOptions, Vgg16};
 use gs_core::Image;
 
@@ -68,11 +68,6 @@ impl FeatureCache {
         self.maps.get(index).and_then(|m| m.as_ref())
     }
 
-    /// The map of view `index` as the trait object gs-mvs consumes.
-    pub fn source(&self, index: usize) -> Option<&dyn FeatureSource> {
-        self.get(index).map(|m| m as &dyn FeatureSource)
-    }
-
     /// Bytes held by all computed maps.
     pub fn memory_bytes(&self) -> usize {
         self.maps.iter().flatten().map(FeatureMap::memory_bytes).sum()
@@ -98,7 +93,7 @@ mod tests {
         assert_eq!(cache.get_or_compute(&net, 1, &b).unwrap(), &first);
         assert_eq!(cache.memory_bytes(), 8 * 6 * 128 * 2);
         assert_eq!(cache.memory_bytes(), opts.bytes_per_image(16, 12));
-        assert_eq!(cache.source(1).unwrap().channels(), 128);
+        assert_eq!(cache.get(1).unwrap().channels(), 128);
         assert!(cache.get_or_compute(&net, 3, &a).unwrap_err().to_string().contains("out of range"));
         let tiny = Image::new(1, 1, 3).unwrap();
         assert!(cache.get_or_compute(&net, 0, &tiny).unwrap_err().to_string().contains("view 0"));

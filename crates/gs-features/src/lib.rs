@@ -6,11 +6,12 @@
 //! inference-only on the CPU with rayon. F is taken at conv2_2 (128 channels, 1/2 resolution,
 //! the default) or conv3_3 (256 channels, 1/4 resolution), computed once per training image
 //! ([`FeatureCache`]), and sampled bilinearly at image pixel coordinates with its gradient
-//! w.r.t. the position ([`FeatureMap::sample_bilinear`], [`FeatureSource`]).
+//! w.r.t. the position ([`FeatureMap::sample_bilinear_into`]; gs-mvs implements its
+//! `FeatureMaps` trait for [`FeatureMap`], so these maps feed L_f directly).
 //!
 //! ```
 //! use gs_core::Image;
-//! use gs_features::{FeatureLevel, FeatureSource, Vgg16, cosine};
+//! use gs_features::{FeatureLevel, Vgg16, cosine};
 //!
 //! let net = Vgg16::bundled().unwrap(); // verifies size and checksum of the bundled weights
 //! let image = Image::filled(32, 24, 3, 0.5).unwrap(); // RGB in [0, 1], row-major [H][W][C]
@@ -21,8 +22,7 @@
 //! let s = f.sample_bilinear(10.3, 7.9);
 //! assert!(s.inside && s.value.len() == 128 && s.d_du.len() == 128);
 //! let mut value = vec![0.0; 128];
-//! let src: &dyn FeatureSource = &f;
-//! src.sample(10.3, 7.9, &mut value, None);
+//! //! assert!(f.sample_bilinear_into(10.3, 7.9, &mut value, None));
 //! assert!((cosine(&value, &s.value) - 1.0).abs() < 1e-6);
 //! ```
 //!
@@ -41,7 +41,7 @@ pub use cache::FeatureCache;
 pub use conv::ConvAlgorithm;
 pub use error::{FeatureError, Result};
 pub use map::{
-    COSINE_EPS, FeatureMap, FeatureSample, FeatureSource, StoragePrecision, cosine, cosine_with_grad,
+    COSINE_EPS, FeatureMap, FeatureSample, StoragePrecision, cosine, cosine_with_grad,
 };
 pub use net::{DEFAULT_MAX_PIXELS, ExtractOptions, FeatureLevel, Vgg16, projection_matrix};
 pub use weights::{BUNDLED_VGG16_BLOB, VggWeights};

@@ -259,30 +259,6 @@ fn axis(f: f32, n: usize) -> (usize, usize, f32, bool) {
     (i0, (i0 + 1).min(n - 1), f - i, true)
 }
 
-/// What gs-mvs needs from the features of one view: bilinear samples of F at image pixel
-/// coordinates, with ∂F/∂(u, v) so L_f's gradient reaches p_s' and through it the plane depth.
-pub trait FeatureSource: Send + Sync {
-    /// Feature channels C.
-    fn channels(&self) -> usize;
-    /// Image-pixel extent `(width, height)` the features cover.
-    fn image_extent(&self) -> (f32, f32);
-    /// Samples F at image pixel `(u, v)` into `value`, and ∂F/∂u, ∂F/∂v into `grad` when given;
-    /// returns whether (u, v) lies inside the covered extent.
-    fn sample(&self, u: f32, v: f32, value: &mut [f32], grad: Option<(&mut [f32], &mut [f32])>) -> bool;
-}
-
-impl FeatureSource for FeatureMap {
-    fn channels(&self) -> usize {
-        self.channels
-    }
-    fn image_extent(&self) -> (f32, f32) {
-        (self.stride * self.width as f32, self.stride * self.height as f32)
-    }
-    fn sample(&self, u: f32, v: f32, value: &mut [f32], grad: Option<(&mut [f32], &mut [f32])>) -> bool {
-        self.sample_bilinear_into(u, v, value, grad)
-    }
-}
-
 /// The norm floor of method-spec §5.5: cos(a, b) = a·b / (max(‖a‖, ε)·max(‖b‖, ε)).
 pub const COSINE_EPS: f32 = 1e-8;
 

@@ -1,5 +1,6 @@
 //! Multi-view feature alignment L_f (method-spec §5.5): sampling, cosine and backward, against
-//! the [`FeatureMaps`] trait (gs-features' VGG maps are wired to it by the caller).
+//! the [`FeatureMaps`] trait (implemented here for gs-features' VGG maps and for
+//! [`GridFeatureMaps`]; tests use synthetic ones).
 //!
 //! x_r = z_r·K_r⁻¹p̄_r from the reference plane depth, p_s' = π(K_s(R_rs x_r + t_rs));
 //! L_f = (1/N) Σ_s (1/|V_s|) Σ_(p∈V_s) υω·|1 − cos(F_r(p_r), F_s(p_s'))| with
@@ -130,6 +131,37 @@ impl<T: Real> FeatureMaps<T> for GridFeatureMaps<T> {
             }
             if let Some(g) = gv.as_deref_mut() {
                 g[k] = (bottom - top) * inv_s;
+            }
+        }
+    }
+}
+
+/// gs-features' VGG maps are L_f's features as they are (f32, any stride; their bilinear
+/// convention is this trait's: feature pixel k centred at `stride·(k + 0.5)`, clamped taps).
+impl FeatureMaps<f32> for gs_features::FeatureMap {
+    fn channels(&self) -> usize {
+        gs_features::FeatureMap::channels(self)
+    }
+
+    fn sample(&self, u_px: f32, v_px: f32, out: &mut [f32], grad_u: Option<&mut [f32]>, grad_v: Option<&mut [f32]>) {
+        match (grad_u, grad_v) {
+            (Some(gu), Some(gv)) => {
+                self.sample_bilinear_into(u_px, v_px, out, Some((gu, gv)));
+            }
+            (None, None) => {
+                self.sample_bilinear_into(u_px, v_px, out, None);
+            }
+            (gu, gv) => {
+                // One derivative only: compute both, keep the one asked for.
+                let c = out.len();
+                let (mut su, mut sv) = (vec![0.0; c], vec![0.0; c]);
+                self.sample_bilinear_into(u_px, v_px, out, Some((&mut su, &mut sv)));
+                if let Some(gu) = gu {
+                    gu.copy_from_slice(&su);
+                }
+                if let Some(gv) = gv {
+                    gv.copy_from_slice(&sv);
+                }
             }
         }
     }

@@ -15,7 +15,7 @@ use gs_core::{Adam, AdamConfig, ExponentialLr, Gaussians, Image, NeighbourRule, 
 use gs_features::{FeatureMap, Vgg16};
 use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, NsGate, image_loss, normal_losses};
 use gs_mvs::{
-    FeatureMaps, FeatureReference, FeatureSource, NccMode, PhotometricConfig, PhotometricReference,
+    FeatureReference, FeatureSource, NccMode, PhotometricConfig, PhotometricReference,
     PhotometricSource, SourceSelection, SourceViewSelector, feature_loss, photometric_loss,
 };
 use gs_raster::{OutputGradients, RasterConfig, RenderRequest, backward, render};
@@ -81,34 +81,6 @@ pub struct TrainState {
     pub stats: DensifyStats,
     /// Whether the Gaussian cap has been reached (warned once).
     pub capped: bool,
-}
-
-/// Adapts a VGG feature map of gs-features to gs-mvs's [`FeatureMaps`] interface.
-struct VggMaps<'a>(&'a FeatureMap);
-
-impl FeatureMaps<f32> for VggMaps<'_> {
-    fn channels(&self) -> usize {
-        self.0.channels()
-    }
-    fn sample(&self, u: f32, v: f32, out: &mut [f32], grad_u: Option<&mut [f32]>, grad_v: Option<&mut [f32]>) {
-        match (grad_u, grad_v) {
-            (Some(gu), Some(gv)) => self.0.sample_bilinear_into(u, v, out, Some((gu, gv))),
-            (None, None) => self.0.sample_bilinear_into(u, v, out, None),
-            (gu, gv) => {
-                // One derivative only (not used by gs-mvs today): compute both, keep one.
-                let c = out.len();
-                let (mut su, mut sv) = (vec![0.0; c], vec![0.0; c]);
-                let inside = self.0.sample_bilinear_into(u, v, out, Some((&mut su, &mut sv)));
-                if let Some(gu) = gu {
-                    gu.copy_from_slice(&su);
-                }
-                if let Some(gv) = gv {
-                    gv.copy_from_slice(&sv);
-                }
-                inside
-            }
-        };
-    }
 }
 
 /// The trainer: a scene, its split, the configuration and the [`TrainState`].
@@ -430,10 +402,10 @@ impl<'s> Trainer<'s> {
             add_scaled(&mut grad_distance, &gd, cfg.weights.lambda_p);
         }
         if phase.features && !sources.is_empty() {
-            let fr = VggMaps(self.features[slot].as_ref().expect("ensured"));
-            let fs: Vec<VggMaps> = sources.iter().map(|&s| VggMaps(self.features[s].as_ref().expect("ensured"))).collect();
+            let fr = self.features[slot].as_ref().expect("ensured");
+            let fs: Vec<&FeatureMap> = sources.iter().map(|&s| self.features[s].as_ref().expect("ensured")).collect();
             let reference =
-                FeatureReference { camera, plane_depth: out.plane_depth.as_ref().expect("requested").into(), features: &fr };
+                FeatureReference { camera, plane_depth: out.plane_depth.as_ref().expect("requested").into(), features: fr };
             let srcs: Vec<FeatureSource<f32>> = sources
                 .iter()
                 .zip(&source_depths)
@@ -441,7 +413,7 @@ impl<'s> Trainer<'s> {
                 .map(|((&s, d), f)| FeatureSource {
                     camera: &self.scene.views[self.train_views[s]].camera,
                     plane_depth: d.into(),
-                    features: f,
+                    features: *f,
                 })
                 .collect();
             let lf = feature_loss(&reference, &srcs)?;
