@@ -22,7 +22,7 @@
 //! let s = f.sample_bilinear(10.3, 7.9);
 //! assert!(s.inside && s.value.len() == 128 && s.d_du.len() == 128);
 //! let mut value = vec![0.0; 128];
-//! //! assert!(f.sample_bilinear_into(10.3, 7.9, &mut value, None));
+//! assert!(f.sample_bilinear_into(10.3, 7.9, &mut value, None));
 //! assert!((cosine(&value, &s.value) - 1.0).abs() < 1e-6);
 //! ```
 //!
