@@ -14,6 +14,16 @@
 //! paper says). The weight λ3 = 0.15 is applied by the caller. Gradients flow through the
 //! bilinear sample positions and the homography into Ñ and D of the reference view; υ, ω, the
 //! pixel set and the NCC mask are constants, so ∂L_p/∂z (plane depth) is zero by construction.
+//!
+//! **Grey images at a higher resolution** (PGSR's `ncc_scale`): a grey image may be an integer
+//! multiple s ∈ 1..=4 of its camera's size (s·W × s·H, the same s on both axes; reference and
+//! sources each their own). The patch of reference pixel (i, j) is then taken around the
+//! high-resolution pixel (s·i + ⌊s/2⌋, s·j + ⌊s/2⌋) with one high-resolution pixel per step
+//! (exact values, as PGSR's `pixels / ncc_scale + offsets`), and warped with the homography of
+//! the cameras resized to the grey images. The plane (Ñ, D) is camera-space and resolution-free,
+//! so only the patch footprint shrinks (finer texture, s× smaller baseline in pixels); for even
+//! s the patch centre sits half a high-resolution pixel from the training pixel's centre, which
+//! the per-pixel plane makes harmless.
 
 use crate::error::{MvsError, Result};
 use crate::geometry::{MapView, PairGeometry, dot3, sample_bilinear_grad};
@@ -91,7 +101,8 @@ impl PhotometricConfig {
 }
 
 /// The reference view's rendered maps (gradients flow into `normal` and `distance`) and its
-/// grey GT image. All maps are `W×H` of `camera`.
+/// grey GT image. All maps are `W×H` of `camera`, except `grey`, which may be `s·W × s·H` for an
+/// integer s in 1..=4 (see the module docs).
 #[derive(Debug, Clone, Copy)]
 pub struct PhotometricReference<'a, T> {
     /// Reference camera.
@@ -102,7 +113,7 @@ pub struct PhotometricReference<'a, T> {
     pub distance: MapView<'a, T>,
     /// Plane depth z = D / (−Ñ·r + 1e-8), 1 channel (used for υ, ω only).
     pub plane_depth: MapView<'a, T>,
-    /// Grey GT reference image (0.299R + 0.587G + 0.114B), 1 channel.
+    /// Grey GT reference image (0.299R + 0.587G + 0.114B), 1 channel, W×H or s·W × s·H.
     pub grey: MapView<'a, T>,
 }
 
@@ -113,7 +124,7 @@ pub struct PhotometricSource<'a, T> {
     pub camera: &'a Camera,
     /// Rendered plane depth of the source view, 1 channel (for ω only).
     pub plane_depth: MapView<'a, T>,
-    /// Grey GT source image, 1 channel.
+    /// Grey GT source image, 1 channel, W_s×H_s or s·W_s × s·H_s.
     pub grey: MapView<'a, T>,
 }
 
@@ -182,14 +193,44 @@ fn check_inputs<T>(
     reference
         .plane_depth
         .expect_size(cam, 1, "reference plane_depth")?;
-    reference.grey.expect_size(cam, 1, "reference grey image")?;
+    grey_scale(&reference.grey, cam, "reference grey image")?;
     for (k, s) in sources.iter().enumerate() {
         s.plane_depth
             .expect_size(s.camera, 1, &format!("source {k} plane_depth"))?;
-        s.grey
-            .expect_size(s.camera, 1, &format!("source {k} grey image"))?;
+        grey_scale(&s.grey, s.camera, &format!("source {k} grey image"))?;
     }
     Ok(())
+}
+
+/// Largest accepted grey-image resolution multiple.
+pub const MAX_GREY_SCALE: usize = 4;
+
+/// The integer multiple s (1..=4) of the camera's size that a grey image has.
+fn grey_scale<T>(grey: &MapView<'_, T>, camera: &Camera, name: &str) -> Result<usize> {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let s = grey.width / w.max(1);
+    if grey.channels != 1 || s == 0 || s > MAX_GREY_SCALE || grey.width != s * w || grey.height != s * h {
+        return Err(MvsError::SizeMismatch {
+            map: name.to_string(),
+            expected: format!("{w}x{h}x1 or an integer multiple s·{w} x s·{h} x 1 with s in 1..={MAX_GREY_SCALE}"),
+            got: format!("{}x{}x{}", grey.width, grey.height, grey.channels),
+        });
+    }
+    Ok(s)
+}
+
+/// The cameras whose pixels are the grey images' pixels, and the reference grey scale.
+fn patch_geometry<T: Real>(
+    reference: &PhotometricReference<'_, T>,
+    source: &PhotometricSource<'_, T>,
+) -> Result<(PairGeometry<T>, usize)> {
+    let sr = grey_scale(&reference.grey, reference.camera, "reference grey image")?;
+    let ss = grey_scale(&source.grey, source.camera, "source grey image")?;
+    if sr == 1 && ss == 1 {
+        return Ok((PairGeometry::new(reference.camera, source.camera), 1));
+    }
+    let up = |c: &Camera, s: usize| c.resized(c.width * s as u32, c.height * s as u32).map_err(|e| MvsError::InvalidInput(e.to_string()));
+    Ok((PairGeometry::new(&up(reference.camera, sr)?, &up(source.camera, ss)?), sr))
 }
 
 /// L_p over `sources` with υ and ω computed from the plane depths (method-spec §5.4, §6).
@@ -238,12 +279,13 @@ pub fn photometric_loss_with_weights<T: Real>(
     let mut scratch_n = vec![T::ZERO; w * h * 3];
     let mut scratch_d = vec![T::ZERO; w * h];
     for (k, (source, vis)) in sources.iter().zip(weights).enumerate() {
-        let g = PairGeometry::new(reference.camera, source.camera);
+        let (g, grey_scale) = patch_geometry(reference, source)?;
         let selected = select_pixels(vis, config, k, w, h);
         let (stats, any) = source_pass(
             reference,
             source,
             &g,
+            grey_scale,
             vis,
             &selected,
             config,
@@ -474,6 +516,7 @@ fn source_pass<T: Real>(
     reference: &PhotometricReference<'_, T>,
     source: &PhotometricSource<'_, T>,
     g: &PairGeometry<T>,
+    grey_scale: usize,
     vis: &Visibility<T>,
     selected: &[u8],
     config: &PhotometricConfig,
@@ -507,8 +550,8 @@ fn source_pass<T: Real>(
                     &source.grey,
                     n,
                     d,
-                    i,
-                    j,
+                    grey_scale * i + grey_scale / 2,
+                    grey_scale * j + grey_scale / 2,
                     config.patch_size,
                     config.ncc,
                 ) {
@@ -710,6 +753,83 @@ mod tests {
             "exact geometry, perfect images: {}",
             exact.loss
         );
+    }
+
+    /// Grey images at 2× the rendered maps (PGSR's ncc_scale 0.5): the exact geometry still
+    /// matches (low cost, beats ±2 %), the gradient is exact, and odd sizes are refused.
+    #[test]
+    fn high_resolution_grey_images() {
+        let s = small_scene(48, 36, 3);
+        let f = f64_maps(&s);
+        let scene = crate::testutil::small_analytic_scene();
+        let hi: Vec<Vec<f64>> =
+            s.cams.iter().map(|c| to_f64(&scene.render(&c.resized(96, 72).unwrap()).grey)).collect();
+        let (w, h) = (48usize, 36usize);
+        let exact_n = to_f64(&s.maps[0].normal);
+        let mk = |normal: Vec<f64>, distance: Vec<f64>, cfg: &PhotometricConfig, weights: Option<&[Visibility<f64>]>| {
+            let r = PhotometricReference {
+                camera: &s.cams[0],
+                normal: MapView::new(w, h, 3, &normal).unwrap(),
+                distance: MapView::new(w, h, 1, &distance).unwrap(),
+                plane_depth: MapView::new(w, h, 1, &f.plane).unwrap(),
+                grey: MapView::new(2 * w, 2 * h, 1, &hi[0]).unwrap(),
+            };
+            let src: Vec<PhotometricSource<f64>> = (1..3)
+                .map(|k| PhotometricSource {
+                    camera: &s.cams[k],
+                    plane_depth: MapView::new(w, h, 1, &f.src[k - 1].0).unwrap(),
+                    grey: MapView::new(2 * w, 2 * h, 1, &hi[k]).unwrap(),
+                })
+                .collect();
+            match weights {
+                Some(wt) => photometric_loss_with_weights(&r, &src, wt, cfg).unwrap(),
+                None => photometric_loss(&r, &src, cfg).unwrap(),
+            }
+        };
+        let cfg = PhotometricConfig { max_pixels_per_source: None, ..Default::default() };
+        let weights: Vec<Visibility<f64>> = (1..3)
+            .map(|k| {
+                compute_visibility(
+                    &s.cams[0],
+                    MapView::new(w, h, 1, &f.plane).unwrap(),
+                    &s.cams[k],
+                    MapView::new(w, h, 1, &f.src[k - 1].0).unwrap(),
+                )
+                .unwrap()
+            })
+            .collect();
+        let exact = mk(exact_n.clone(), f.distance.clone(), &cfg, Some(&weights));
+        assert!(exact.per_source.iter().all(|p| p.n_valid > 200), "{:?}", exact.per_source);
+        assert!(exact.loss < 0.1, "exact geometry, 2× grey: {}", exact.loss);
+        assert_eq!(mk(exact_n.clone(), f.distance.clone(), &cfg, None).loss, exact.loss);
+        for scale in [1.02, 0.98] {
+            let d: Vec<f64> = f.distance.iter().map(|d| d * scale).collect();
+            let pert = mk(exact_n.clone(), d, &cfg, Some(&weights));
+            assert!(exact.loss < pert.loss, "scale {scale}: exact {} perturbed {}", exact.loss, pert.loss);
+        }
+        // Finite differences through the 2× homography.
+        let out = mk(f.normal.clone(), f.distance.clone(), &cfg, Some(&weights));
+        let mut x = f.normal.clone();
+        x.extend_from_slice(&f.distance);
+        let mut analytic = out.grad_normal.clone();
+        analytic.extend_from_slice(&out.grad_distance);
+        let nz: Vec<usize> = (0..analytic.len()).filter(|&k| analytic[k] != 0.0).collect();
+        assert!(nz.len() > 100);
+        let idx: Vec<usize> = nz.iter().step_by(nz.len() / 40).copied().collect();
+        let loss = |x: &[f64]| mk(x[..w * h * 3].to_vec(), x[w * h * 3..].to_vec(), &cfg, Some(&weights)).loss;
+        let rep = check_gradient(loss, &x, &analytic, &GradCheck { eps: 1e-6, rtol: 1e-4, atol: 1e-9, indices: Some(idx) });
+        assert!(rep.is_ok(), "{rep:?}");
+        // A grey image that is not an integer multiple of its camera is refused, naming it.
+        let odd = vec![0.5; 97 * 72];
+        let r = PhotometricReference {
+            camera: &s.cams[0],
+            normal: MapView::new(w, h, 3, &exact_n).unwrap(),
+            distance: MapView::new(w, h, 1, &f.distance).unwrap(),
+            plane_depth: MapView::new(w, h, 1, &f.plane).unwrap(),
+            grey: MapView::new(97, 72, 1, &odd).unwrap(),
+        };
+        let e = photometric_loss(&r, &[], &cfg).unwrap_err().to_string();
+        assert!(e.contains("reference grey image") && e.contains("97x72"), "{e}");
     }
 
     #[test]

@@ -13,17 +13,22 @@ pub(crate) fn to_f64(img: &gs_core::Image) -> Vec<f64> {
     img.data().iter().map(|&v| v as f64).collect()
 }
 
-/// `n` cameras on an arc looking at a textured ground with a box, `w×h` pixels.
-pub(crate) fn small_scene(w: u32, h: u32, n: usize) -> SmallScene {
-    let f = w as f64 * 0.9;
-    let k = Intrinsics::new(f, f, w as f64 / 2.0 + 0.1, h as f64 / 2.0 - 0.2);
-    let scene = AnalyticScene {
+/// The textured ground with a box that [`small_scene`] renders.
+pub(crate) fn small_analytic_scene() -> AnalyticScene {
+    AnalyticScene {
         boxes: vec![AxisBox {
             min: DVec3::new(-0.25, -0.2, 0.0),
             max: DVec3::new(0.15, 0.2, 0.45),
         }],
         frequency: 5.0,
-    };
+    }
+}
+
+/// `n` cameras on an arc looking at a textured ground with a box, `w×h` pixels.
+pub(crate) fn small_scene(w: u32, h: u32, n: usize) -> SmallScene {
+    let f = w as f64 * 0.9;
+    let k = Intrinsics::new(f, f, w as f64 / 2.0 + 0.1, h as f64 / 2.0 - 0.2);
+    let scene = small_analytic_scene();
     let cams: Vec<Camera> = (0..n)
         .map(|i| {
             let a = -0.25 + 0.25 * i as f64;
