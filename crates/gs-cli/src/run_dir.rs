@@ -55,6 +55,57 @@ pub fn load_scene(src: &SceneSource) -> Result<Scene> {
     }
 }
 
+/// Grey GT images of the `train` views of `scene` at `s` × their resolution, for
+/// `--ncc-scale` (the built-in scene is re-rendered at that size; a scene folder is reloaded at
+/// `s` × the training width, which must not exceed the originals and must give exactly
+/// `s·W × s·H` for every view).
+pub fn high_resolution_greys(src: &SceneSource, scene: &Scene, train: &[usize], s: u32) -> Result<Vec<gs_core::Image>> {
+    let names: Vec<String> = train.iter().map(|&i| scene.views[i].name.clone()).collect();
+    let hi = match &src.path {
+        None => {
+            let o = gs_synth::BuiltinOptions::default();
+            gs_synth::generate(&gs_synth::BuiltinOptions { width: o.width * s, height: o.height * s, ..o })?.scene
+        }
+        Some(p) => {
+            let w = scene.views[train[0]].camera.width * s;
+            let widest = gs_io::model_summary(p)?.cameras.iter().map(|c| c.width).max().unwrap_or(0);
+            if w > widest {
+                bail!("--ncc-scale {s}: the grey images would be {w} px wide, wider than the originals ({widest} px); lower -r or --ncc-scale");
+            }
+            let opts = gs_io::LoadOptions {
+                resolution: gs_io::Resolution::Width(w),
+                only_images: Some(names.clone()),
+                ..Default::default()
+            };
+            gs_io::load_scene(p, &opts).with_context(|| format!("loading {} at {s}x for --ncc-scale", p.display()))?
+        }
+    };
+    names
+        .iter()
+        .zip(train)
+        .map(|(n, &i)| {
+            let lo = &scene.views[i].camera;
+            let v = hi.views.iter().find(|v| &v.name == n).with_context(|| format!("view {n} missing at {s}x"))?;
+            if (v.camera.width, v.camera.height) != (lo.width * s, lo.height * s) {
+                bail!(
+                    "--ncc-scale {s}: view {n} loads at {}x{}, not exactly {s} × {}x{} (odd original size); use another -r/--width",
+                    v.camera.width,
+                    v.camera.height,
+                    lo.width,
+                    lo.height
+                );
+            }
+            // The same camera, resized: the principal point and focal lengths scale exactly.
+            let expect = lo.resized(v.camera.width, v.camera.height)?;
+            let k = (&expect.intrinsics, &v.camera.intrinsics);
+            if (k.0.fx - k.1.fx).abs() > 1e-6 * k.0.fx || (k.0.cx - k.1.cx).abs() > 1e-3 || (k.0.cy - k.1.cy).abs() > 1e-3 {
+                bail!("--ncc-scale {s}: view {n} at {s}x has intrinsics {:?}, expected {:?}", k.1, k.0);
+            }
+            Ok(v.image.to_grey()?)
+        })
+        .collect()
+}
+
 /// Indices of the named views in `scene` (an error names a missing view).
 pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
     names

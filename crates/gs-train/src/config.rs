@@ -246,6 +246,11 @@ pub struct TrainConfig {
     pub source_views: usize,
     /// NCC patch side (odd, 3–9).
     pub patch_size: usize,
+    /// Grey images of L_p at this integer multiple (1–4) of the training resolution (PGSR's
+    /// `ncc_scale` = 1/this): finer texture for the NCC at the same render cost. Above 1 the
+    /// caller supplies them ([`crate::Trainer::set_grey_images`]); `vagsl train --ncc-scale`.
+    #[serde(default = "one_u32")]
+    pub ncc_scale: u32,
     /// L_p pixel cap per source.
     pub max_pixels_per_source: usize,
     /// VGG16 level of F.
@@ -268,6 +273,10 @@ pub struct TrainConfig {
     pub background: [f32; 3],
     /// Near plane of the rasterizer.
     pub near: f32,
+}
+
+fn one_u32() -> u32 {
+    1
 }
 
 impl Default for TrainConfig {
@@ -293,6 +302,7 @@ impl TrainConfig {
             ncc: NccReading::Pgsr,
             source_views: 3,
             patch_size: 7,
+            ncc_scale: 1,
             max_pixels_per_source: 102_400,
             feature_layer: FeatureLayer::Conv2_2,
             lr: LearningRates::default(),
@@ -362,6 +372,9 @@ impl TrainConfig {
         }
         if self.source_views == 0 || self.source_views > 16 {
             return bad(format!("source_views = {} must be in 1..=16", self.source_views));
+        }
+        if !(1..=4).contains(&self.ncc_scale) {
+            return bad(format!("ncc_scale = {} must be in 1..=4", self.ncc_scale));
         }
         if self.patch_size % 2 == 0 || !(3..=9).contains(&self.patch_size) {
             return bad(format!("patch_size = {} must be odd in 3..=9", self.patch_size));

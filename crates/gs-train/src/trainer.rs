@@ -246,8 +246,43 @@ impl<'s> Trainer<'s> {
         Ok(())
     }
 
+    /// Supplies the grey GT images of L_p, one per training view in `train_views` order, at
+    /// `config.ncc_scale` × the training resolution (required when that is above 1; with 1 the
+    /// trainer derives them from the views itself).
+    pub fn set_grey_images(&mut self, greys: Vec<Image>) -> Result<()> {
+        if greys.len() != self.train_views.len() {
+            return Err(TrainError::InvalidConfig(format!(
+                "{} grey images for {} training views",
+                greys.len(),
+                self.train_views.len()
+            )));
+        }
+        let s = self.config.ncc_scale as usize;
+        for (g, &v) in greys.iter().zip(&self.train_views) {
+            let view = &self.scene.views[v];
+            let (w, h) = (view.camera.width as usize * s, view.camera.height as usize * s);
+            if (g.width(), g.height(), g.channels()) != (w, h, 1) {
+                return Err(TrainError::InvalidConfig(format!(
+                    "grey image of {} is {}x{}x{}; ncc_scale {s} needs {w}x{h}x1",
+                    view.name,
+                    g.width(),
+                    g.height(),
+                    g.channels()
+                )));
+            }
+        }
+        self.greys = greys.into_iter().map(Some).collect();
+        Ok(())
+    }
+
     fn ensure_grey(&mut self, slot: usize) -> Result<()> {
         if self.greys[slot].is_none() {
+            if self.config.ncc_scale != 1 {
+                return Err(TrainError::InvalidConfig(format!(
+                    "ncc_scale = {} needs the high-resolution grey images (Trainer::set_grey_images)",
+                    self.config.ncc_scale
+                )));
+            }
             self.greys[slot] = Some(self.scene.views[self.train_views[slot]].image.to_grey()?);
         }
         Ok(())

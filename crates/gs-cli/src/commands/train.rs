@@ -73,6 +73,10 @@ pub struct TrainArgs {
     /// NCC patch side (odd, 3–9).
     #[arg(long)]
     pub patch_size: Option<usize>,
+    /// Grey images of L_p at this multiple (1–4) of the training resolution (PGSR's
+    /// ncc_scale = 1/S): finer NCC texture at the same render cost; needs originals that large.
+    #[arg(long)]
+    pub ncc_scale: Option<u32>,
     /// τ of L_ns.
     #[arg(long)]
     pub tau: Option<f32>,
@@ -131,6 +135,9 @@ pub fn build_config(args: &TrainArgs) -> Result<TrainConfig> {
     l.delta &= !args.no_delta;
     if let Some(n) = args.source_views {
         c.source_views = n;
+    }
+    if let Some(s) = args.ncc_scale {
+        c.ncc_scale = s;
     }
     if let Some(p) = args.patch_size {
         c.patch_size = p;
@@ -257,6 +264,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         Some(state) => Trainer::with_state(&scene, train_idx.clone(), config.clone(), state)?,
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
+    if config.ncc_scale > 1 {
+        trainer.set_grey_images(crate::run_dir::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
+        eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
+    }
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
 
     let stop = Arc::new(AtomicBool::new(false));
