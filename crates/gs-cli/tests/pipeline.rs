@@ -81,6 +81,11 @@ fn bad_inputs_are_clear_errors() {
     assert!(!ok && err.contains("/nonexistent/scene"), "{err}");
     let (ok, _, err) = vagsl(&["train", "-o", o, "--patch-size", "4"]);
     assert!(!ok && err.contains("patch_size"), "{err}");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--ncc-scale", "5"]);
+    assert!(!ok && err.contains("ncc_scale"), "{err}");
+    // Grey images wider than the photos would only be upsampled: refused.
+    let (ok, _, err) = vagsl(&["train", shared("fox").to_str().unwrap(), "-o", o, "-r", "1", "--ncc-scale", "2"]);
+    assert!(!ok && err.contains("--ncc-scale 2") && err.contains("wider than the originals"), "{err}");
     let (ok, _, err) = vagsl(&["train", "-o", o, "--iterations", "0"]);
     assert!(!ok && err.contains("iterations"), "{err}");
     let (ok, _, err) = vagsl(&["mesh", dir.path().to_str().unwrap()]);
@@ -95,12 +100,13 @@ fn bad_inputs_are_clear_errors() {
 
 #[test]
 fn trains_on_a_real_distorted_scene() {
-    // fox: OPENCV with distortion, 50 photos; undistorted and downscaled on load.
+    // fox: OPENCV with distortion, 50 photos; undistorted and downscaled on load, with L_p's
+    // grey images loaded again at twice the training width (--ncc-scale 2).
     let dir = tempfile::tempdir().unwrap();
     let o = dir.path().join("fox");
     let (ok, _, err) = vagsl(&[
         "train", shared("fox").to_str().unwrap(), "-o", o.to_str().unwrap(), "--width", "135",
-        "--iterations", "20", "--quiet", "--eval",
+        "--iterations", "20", "--quiet", "--eval", "--ncc-scale", "2",
     ]);
     assert!(ok, "{err}");
     let (ok, stdout, err) = vagsl(&["eval-images", o.to_str().unwrap(), "--no-lpips"]);
