@@ -2,6 +2,7 @@
 //! Gaussians, the Adam moments and the densification statistics, little-endian, followed by a
 //! CRC-32 of everything before it. Written atomically (temporary file + rename).
 
+use crate::exposure::Exposure;
 use crate::config::TrainConfig;
 use crate::densify::DensifyStats;
 use crate::error::{Result, TrainError};
@@ -16,7 +17,7 @@ use std::path::Path;
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"VAGSLCKP";
 /// Format version.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 struct Writer(Vec<u8>);
 
@@ -118,6 +119,19 @@ pub fn encode(config: &TrainConfig, state: &TrainState) -> Vec<u8> {
     w.f32s(&s.abs_grad_sum);
     w.u32s(&s.visible_count);
     w.f32s(&s.max_radius);
+    // Version 2: the exposure corrections (absent = 0).
+    match &state.exposure {
+        None => w.u32(0),
+        Some(e) => {
+            w.u32(1);
+            w.f32s(e.params.as_flattened());
+            let g = &e.adam.groups[0];
+            w.f32s(&[g.lr]);
+            w.u64(g.step);
+            w.f32s(&g.m);
+            w.f32s(&g.v);
+        }
+    }
     let crc = crc32(&w.0);
     w.u32(crc);
     w.0
@@ -137,8 +151,8 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<(TrainConfig, TrainState)> {
     let mut r = Reader { buf: body, pos: 8 };
     let parse = |r: &mut Reader| -> std::result::Result<(TrainConfig, TrainState), String> {
         let version = r.u32()?;
-        if version != VERSION {
-            return Err(format!("format version {version}, this build reads version {VERSION}"));
+        if version != VERSION && version != 1 {
+            return Err(format!("format version {version}, this build reads versions 1 and {VERSION}"));
         }
         let config: TrainConfig =
             serde_json::from_slice(r.bytes("config")?).map_err(|e| format!("configuration: {e}"))?;
@@ -197,10 +211,26 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<(TrainConfig, TrainState)> {
         if stats.grad_sum.len() != n || stats.abs_grad_sum.len() != n || stats.visible_count.len() != n || stats.max_radius.len() != n {
             return Err("densification statistics do not match the Gaussians".into());
         }
+        let exposure = if version >= 2 && r.u32()? != 0 {
+            let params = r.f32s("exposure")?;
+            let lr = r.f32s("exposure lr")?;
+            let step = r.u64()?;
+            let m = r.f32s("exposure moments")?;
+            let v = r.f32s("exposure moments")?;
+            if params.len() % 6 != 0 || lr.len() != 1 || m.len() != params.len() || v.len() != params.len() {
+                return Err("exposure corrections have inconsistent lengths".into());
+            }
+            let mut e = Exposure::new(params.len() / 6).map_err(|e| e.to_string())?;
+            e.params = params.chunks_exact(6).map(|c| std::array::from_fn(|k| c[k])).collect();
+            e.adam.groups[0] = ParamGroup { name: "exposure".into(), lr: lr[0], row_width: 6, step, m, v };
+            Some(e)
+        } else {
+            None
+        };
         if r.pos != r.buf.len() {
             return Err(format!("{} unexpected bytes after the statistics", r.buf.len() - r.pos));
         }
-        Ok((config, TrainState { iteration, gaussians, adam, stats, capped }))
+        Ok((config, TrainState { iteration, gaussians, adam, stats, capped, exposure }))
     };
     let (config, state) = parse(&mut r).map_err(err)?;
     state.gaussians.validate().map_err(|e| err(e.to_string()))?;

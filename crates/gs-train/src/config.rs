@@ -246,6 +246,10 @@ pub struct TrainConfig {
     pub source_views: usize,
     /// NCC patch side (odd, 3–9).
     pub patch_size: usize,
+    /// Per-view exposure compensation (affine colour correction learned per training view,
+    /// see [`crate::exposure`]); off by default.
+    #[serde(default)]
+    pub exposure: bool,
     /// Grey images of L_p at this integer multiple (1–4) of the training resolution (PGSR's
     /// `ncc_scale` = 1/this): finer texture for the NCC at the same render cost. Above 1 the
     /// caller supplies them ([`crate::Trainer::set_grey_images`]); `vagsl train --ncc-scale`.
@@ -303,6 +307,7 @@ impl TrainConfig {
             source_views: 3,
             patch_size: 7,
             ncc_scale: 1,
+            exposure: false,
             max_pixels_per_source: 102_400,
             feature_layer: FeatureLayer::Conv2_2,
             lr: LearningRates::default(),

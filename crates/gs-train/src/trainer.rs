@@ -10,6 +10,7 @@
 use crate::config::{FeatureLayer, GateReading, NccReading, Phase, TrainConfig};
 use crate::densify::{self, DensifyReport, DensifyStats, GROUPS};
 use crate::error::{Result, TrainError};
+use crate::exposure::Exposure;
 use crate::init::initial_gaussians;
 use gs_core::{Adam, AdamConfig, ExponentialLr, Gaussians, Image, NeighbourRule, Rng, Scene};
 use gs_features::{FeatureMap, Vgg16};
@@ -81,6 +82,8 @@ pub struct TrainState {
     pub stats: DensifyStats,
     /// Whether the Gaussian cap has been reached (warned once).
     pub capped: bool,
+    /// Per-view exposure corrections (when `config.exposure`).
+    pub exposure: Option<Exposure>,
 }
 
 /// The trainer: a scene, its split, the configuration and the [`TrainState`].
@@ -141,7 +144,8 @@ impl<'s> Trainer<'s> {
         for ((name, width), rate) in GROUPS.iter().zip([0.0, lr.sh_dc, lr.sh_rest, lr.opacity, lr.scaling, lr.rotation]) {
             adam.add_group(name, rate, n, *width)?;
         }
-        let state = TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false };
+        let exposure = if config.exposure { Some(Exposure::new(train_views.len())?) } else { None };
+        let state = TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false, exposure };
         Self::with_state(scene, train_views, config, state)
     }
 
@@ -153,6 +157,20 @@ impl<'s> Trainer<'s> {
         let n = state.gaussians.len();
         if state.stats.len() != n || state.adam.groups.iter().any(|g| g.m.len() != n * g.row_width) {
             return Err(TrainError::InvalidConfig("state: statistics or optimiser rows do not match the Gaussians".into()));
+        }
+        match &state.exposure {
+            Some(e) if !config.exposure || e.params.len() != train_views.len() => {
+                return Err(TrainError::InvalidConfig(format!(
+                    "state: {} exposure corrections for {} training views (exposure {})",
+                    e.params.len(),
+                    train_views.len(),
+                    if config.exposure { "on" } else { "off" }
+                )));
+            }
+            None if config.exposure => {
+                return Err(TrainError::InvalidConfig("state: exposure compensation is on but the state has none".into()));
+            }
+            _ => {}
         }
         let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
         let extent = gs_core::scene_extent(&cams).max(1e-9);
@@ -360,7 +378,12 @@ impl<'s> Trainer<'s> {
             observed: false,
         };
         let out = render(&self.state.gaussians, camera, &request, &self.raster)?;
-        let color = out.color.as_ref().expect("requested");
+        // Exposure compensation: the loss sees exp(a)·c + b of this view.
+        let corrected = match &self.state.exposure {
+            Some(e) => Some(crate::exposure::apply(out.color.as_ref().expect("requested"), &e.params[slot])?),
+            None => None,
+        };
+        let color = corrected.as_ref().or(out.color.as_ref()).expect("requested");
         let guide = self.guides[slot].as_ref();
         let li = image_loss(
             color,
@@ -461,13 +484,21 @@ impl<'s> Trainer<'s> {
             return Err(TrainError::Diverged { iteration: it, problem: format!("loss is {:?}", losses) });
         }
 
+        let grad_color = match &mut self.state.exposure {
+            Some(e) => {
+                let (gc, ge) = crate::exposure::backward(out.color.as_ref().expect("requested"), &e.params[slot], &li.grad_rendered)?;
+                e.step(slot, &ge, it, cfg.iterations)?;
+                gc
+            }
+            None => li.grad_rendered,
+        };
         let grads = backward(
             &self.state.gaussians,
             camera,
             &self.raster,
             &out,
             &OutputGradients {
-                color: Some(&li.grad_rendered),
+                color: Some(&grad_color),
                 normal: grad_normal.as_ref(),
                 distance: grad_distance.as_ref(),
                 plane_depth: grad_plane_depth.as_ref(),

@@ -17,6 +17,8 @@ fn config() -> TrainConfig {
     c.densify.opacity_reset_interval = 50;
     c.densify.trim_interval = 40;
     c.seed = 7;
+    // The per-view exposure corrections and their optimiser are checkpointed too.
+    c.exposure = true;
     c
 }
 
@@ -46,6 +48,7 @@ fn resume_continues_bit_identically() {
     assert_eq!(resumed.iteration(), straight.iteration());
     assert_eq!(resumed.state(), straight.state(), "parameters, optimiser and statistics must match bit for bit");
     assert!(straight.gaussians().len() != 400, "densification ran");
+    assert!(straight.state().exposure.as_ref().unwrap().params.iter().any(|p| p[0] != 0.0), "exposure was learned");
 }
 
 #[test]

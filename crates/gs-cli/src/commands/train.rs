@@ -67,6 +67,10 @@ pub struct TrainArgs {
     /// Ablation: edge weight δ ≡ 1 in L_nc and L_ns.
     #[arg(long)]
     pub no_delta: bool,
+    /// Per-view exposure compensation: learn an affine colour correction per training photo
+    /// (for photos whose exposure or white balance varies); written to OUT/exposure.json.
+    #[arg(long)]
+    pub exposure: bool,
     /// Source views N per iteration for L_p and L_f.
     #[arg(long)]
     pub source_views: Option<usize>,
@@ -133,6 +137,7 @@ pub fn build_config(args: &TrainArgs) -> Result<TrainConfig> {
     l.photometric &= !args.no_photometric;
     l.features &= !args.no_features;
     l.delta &= !args.no_delta;
+    c.exposure |= args.exposure;
     if let Some(n) = args.source_views {
         c.source_views = n;
     }
@@ -332,6 +337,18 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
     gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
+    if let Some(e) = &trainer.state().exposure {
+        let per_view: serde_json::Map<String, serde_json::Value> = run_config
+            .train_views
+            .iter()
+            .zip(&e.params)
+            .map(|(name, p)| {
+                let gain: Vec<f32> = p[..3].iter().map(|a| a.exp()).collect();
+                (name.clone(), serde_json::json!({ "gain_rgb": gain, "bias_rgb": &p[3..] }))
+            })
+            .collect();
+        write_json(&out.join("exposure.json"), &per_view)?;
+    }
     let report = TrainReport {
         iterations: trainer.iteration(),
         interrupted,
