@@ -107,7 +107,7 @@ fn smallest_axis(s: vec3<f32>) -> u32 {
 }
 
 fn sh_basis(d: vec3<f32>) -> array<f32, 16> {
-    var b: array<f32, 16>;
+    var b = array<f32, 16>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let x = d.x;
     let y = d.y;
     let z = d.z;

@@ -18,7 +18,7 @@ fn radix_scatter(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
     if (b >= pass_.nb) {
         return;
     }
-    var cnt: array<u32, 16>;
+    var cnt = array<u32, 16>(0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u);
     for (var k = 0u; k < 8u; k++) {
         let i = b * 1024u + li * 8u + k;
         if (i < pass_.n) {

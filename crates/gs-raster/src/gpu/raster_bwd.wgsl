@@ -78,6 +78,9 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             f[c] = splat[o + 9u + c];
         }
         var g: array<f32, 16>;
+        for (var c = 0u; c < 16u; c++) {
+            g[c] = 0.0;
+        }
         for (var q = 0u; q < 2u; q++) {
             if (!valid[q] || k >= lastq[q]) {
                 continue;

@@ -42,7 +42,7 @@ fn scan_apply(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
         return;
     }
     let base = b * 1024u + li * 4u;
-    var v: array<u32, 4>;
+    var v = array<u32, 4>(0u, 0u, 0u, 0u);
     var s = 0u;
     for (var k = 0u; k < 4u; k++) {
         if (base + k < pass_.n) {
