@@ -48,6 +48,11 @@ const SLOT: u64 = 256;
 const MAX_SLOTS: usize = 512;
 /// Elements per radix-sort / scan block.
 const BLOCK: u32 = 1024;
+/// Tile-list positions per forward dispatch and per backward dispatch. Software Vulkan
+/// (llvmpipe) stops any invocation after 65535 loop iterations in total, so long tile lists
+/// are walked in windows with the per-pixel state kept in buffers between dispatches.
+const FWD_WINDOW: u32 = 32768;
+const BWD_WINDOW: u32 = 256;
 
 static NEXT_ID: AtomicU64 = AtomicU64::new(1);
 
@@ -200,6 +205,7 @@ struct Buffers {
     last: GrowBuf,
     observed: GrowBuf,
     pixgrad: GrowBuf,
+    bstate: GrowBuf,
     gacc: GrowBuf,
     gout: GrowBuf,
     staging: GrowBuf,
@@ -211,6 +217,8 @@ struct Buffers {
 struct Frame {
     generation: u64,
     total: u32,
+    /// Largest last-contributor count of any pixel (bounds the backward windows).
+    max_last: u32,
     /// Whether the tile-sorted intersections ended in the `c` pair (else `b`).
     tiles_in_c: bool,
 }
@@ -414,6 +422,7 @@ impl WgpuRasterizer {
             last: b("last"),
             observed: b("observed"),
             pixgrad: b("pixgrad"),
+            bstate: b("bstate"),
             gacc: b("gacc"),
             gout: b("gout"),
             staging: GrowBuf::new(
@@ -599,6 +608,16 @@ impl WgpuRasterizer {
         cp.set_pipeline(&kernel.pipeline);
         cp.set_bind_group(0, &bg, &[(slot as u64 * SLOT) as u32]);
         cp.dispatch_workgroups(groups.0, groups.1, 1);
+        Ok(())
+    }
+
+    /// Submits `enc` and starts a new encoder when fewer than `k` uniform slots are left
+    /// (the recorded dispatches keep their order across submissions).
+    fn make_room(&self, enc: &mut Enc, k: usize) -> Result<()> {
+        if enc.slots.len() + k > MAX_SLOTS {
+            let full = std::mem::replace(enc, self.encoder());
+            self.submit(full)?;
+        }
         Ok(())
     }
 
@@ -936,22 +955,32 @@ impl WgpuRasterizer {
             if request.observed {
                 enc.encoder.clear_buffer(&b.observed.buf, 0, Some(nn * 4 + 4));
             }
-            self.dispatch(
-                &mut enc,
-                &self.kernels.raster_fwd,
-                &[
-                    whole(&b.ranges),
-                    whole(tv),
-                    whole(&b.splat),
-                    whole(&b.acc),
-                    whole(&b.final_t),
-                    whole(&b.last),
-                    whole(&b.observed),
-                    whole(&b.counters),
-                ],
-                PassUniform::default(),
-                (cam.tiles_x, cam.tiles_y),
-            )?;
+            // No tile list is longer than the visible Gaussians or the intersections.
+            let longest = total32.min(visible as u32).max(1);
+            let windows = longest.div_ceil(FWD_WINDOW);
+            for wi in 0..windows {
+                self.dispatch(
+                    &mut enc,
+                    &self.kernels.raster_fwd,
+                    &[
+                        whole(&b.ranges),
+                        whole(tv),
+                        whole(&b.splat),
+                        whole(&b.acc),
+                        whole(&b.final_t),
+                        whole(&b.last),
+                        whole(&b.observed),
+                        whole(&b.counters),
+                    ],
+                    PassUniform {
+                        shift: wi * FWD_WINDOW,
+                        nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                        mode: (wi == 0) as u32 | ((wi + 1 == windows) as u32) << 1,
+                        ..Default::default()
+                    },
+                    (cam.tiles_x, cam.tiles_y),
+                )?;
+            }
             let e = &mut enc.encoder;
             e.copy_buffer_to_buffer(&b.final_t.buf, 0, &b.staging.buf, ft_off, npix as u64 * 4);
             e.copy_buffer_to_buffer(&b.last.buf, 0, &b.staging.buf, last_off, npix as u64 * 4);
@@ -1030,10 +1059,12 @@ impl WgpuRasterizer {
             geo,
         }));
         out.final_t = final_t;
+        let max_last = last.iter().copied().max().unwrap_or(0);
         out.last_contributor = last;
         self.frame = Some(Frame {
             generation: self.generation,
             total: total32,
+            max_last,
             tiles_in_c,
         });
         Ok(out)
@@ -1141,6 +1172,7 @@ impl WgpuRasterizer {
         self.check_binding("the per-pixel gradients", npix as u64 * 36)?;
         let dev = self.device.clone();
         self.bufs.pixgrad.ensure(&dev, npix as u64 * 36);
+        self.bufs.bstate.ensure(&dev, npix as u64 * 36);
         self.bufs.gacc.ensure(&dev, nn * 64 + 4);
         self.bufs.gout.ensure(&dev, nn * gstride * 4 + 4);
         self.bufs.staging.ensure(&dev, nn * gstride * 4 + 4);
@@ -1151,26 +1183,37 @@ impl WgpuRasterizer {
         let b = &self.bufs;
         enc.encoder.clear_buffer(&b.gacc.buf, 0, Some(nn * 64 + 4));
         let tv = if frame.tiles_in_c { &b.vals_c } else { &b.vals_b };
-        self.dispatch(
-            &mut enc,
-            &self.kernels.raster_bwd,
-            &[
-                whole(&b.ranges),
-                whole(tv),
-                whole(&b.splat),
-                whole(&b.final_t),
-                whole(&b.last),
-                whole(&b.pixgrad),
-                whole(&b.gacc),
-            ],
-            PassUniform::default(),
-            (cam.tiles_x, cam.tiles_y),
-        )?;
+        let windows = frame.max_last.div_ceil(BWD_WINDOW);
+        for wi in (0..windows).rev() {
+            self.make_room(&mut enc, 1)?;
+            self.dispatch(
+                &mut enc,
+                &self.kernels.raster_bwd,
+                &[
+                    whole(&b.ranges),
+                    whole(tv),
+                    whole(&b.splat),
+                    whole(&b.final_t),
+                    whole(&b.last),
+                    whole(&b.pixgrad),
+                    whole(&b.gacc),
+                    whole(&b.bstate),
+                ],
+                PassUniform {
+                    shift: wi * BWD_WINDOW,
+                    nb: (wi + 1) * BWD_WINDOW,
+                    mode: (wi + 1 == windows) as u32,
+                    ..Default::default()
+                },
+                (cam.tiles_x, cam.tiles_y),
+            )?;
+        }
         let n32 = n as u32;
         let mut base = 0u32;
         while base < n32 {
             let m = (n32 - base).min(CHUNK) as u64;
             let bb = base as u64;
+            self.make_room(&mut enc, 1)?;
             self.dispatch_1d(
                 &mut enc,
                 &self.kernels.project_bwd,
@@ -1318,7 +1361,7 @@ impl Kernels {
                 "raster_fwd",
                 &[R, R, R, W, W, W, W, W],
             ),
-            raster_bwd: make(src(&bwd), "raster_bwd", &[R, R, R, R, R, R, W]),
+            raster_bwd: make(src(&bwd), "raster_bwd", &[R, R, R, R, R, R, W, W]),
         }
     }
 }

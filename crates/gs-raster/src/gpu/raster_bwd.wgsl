@@ -4,6 +4,10 @@
 // of the tile's pixels are reduced in workgroup memory and added to the global accumulators
 // with one atomic per component (native f32 atomics or a u32 compare-exchange loop).
 // Components: xy (0, 1), conic (2..5), opacity (5), features (6..14), |xy| (14, 15).
+//
+// Like the forward, the traversal runs in windows of list positions [pass_.shift, pass_.nb),
+// last window first, with the per-pixel state (T, the 8 "behind" sums) kept in `bstate`
+// between dispatches (pass_.mode 1 = first dispatch: start from T_final).
 
 @group(0) @binding(2) var<storage, read> ranges: array<u32>;
 @group(0) @binding(3) var<storage, read> gids: array<u32>;
@@ -12,6 +16,7 @@
 @group(0) @binding(6) var<storage, read> last: array<u32>;
 @group(0) @binding(7) var<storage, read> pixgrad: array<f32>;
 //GACC_DECL
+@group(0) @binding(9) var<storage, read_write> bstate: array<f32>;
 
 var<workgroup> red: array<f32, 2048>;
 var<workgroup> ml_atomic: atomic<u32>;
@@ -35,7 +40,7 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     var tf: array<f32, 2>;
     var lastq: array<u32, 2>;
     var gfin: array<f32, 2>;
-    var behind: array<f32, 16>;
+    var behind = array<f32, 16>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     var gch: array<f32, 16>;
     var my_max = 0u;
     for (var q = 0u; q < 2u; q++) {
@@ -51,6 +56,12 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
                 gch[q * 8u + c] = pixgrad[p * 9u + c];
             }
             gfin[q] = pixgrad[p * 9u + 8u];
+            if ((pass_.mode & 1u) == 0u) {
+                tr[q] = bstate[p * 9u];
+                for (var c = 0u; c < 8u; c++) {
+                    behind[q * 8u + c] = bstate[p * 9u + 1u + c];
+                }
+            }
             my_max = max(my_max, lastq[q]);
         }
     }
@@ -60,8 +71,10 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
         ml_plain = atomicLoad(&ml_atomic);
     }
     let ml = workgroupUniformLoad(&ml_plain);
-    for (var kk = 0u; kk < ml; kk++) {
-        let k = ml - 1u - kk;
+    let lo = pass_.shift;
+    let hi = min(pass_.nb, ml);
+    for (var kk = lo; kk < hi; kk++) {
+        let k = hi - 1u - (kk - lo);
         let gid = gids[start + k];
         let o = gid * SPLAT_STRIDE;
         let sx = splat[o];
@@ -145,5 +158,14 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             }
         }
         workgroupBarrier();
+    }
+    for (var q = 0u; q < 2u; q++) {
+        if (valid[q]) {
+            let p = (y0 + lys[q]) * cam.width + x0 + lxs[q];
+            bstate[p * 9u] = tr[q];
+            for (var c = 0u; c < 8u; c++) {
+                bstate[p * 9u + 1u + c] = behind[q * 8u + c];
+            }
+        }
     }
 }

@@ -2,6 +2,12 @@
 // tile's list (the CPU backend's rule: pixel box, alpha = min(0.99, o G), skip alpha below
 // the threshold, stop when T (1 - alpha) < 1e-4 without blending). The accumulators are
 // written channel-planar (plane c at c * npix): colour 0..3, normal 3..6, distance 6, depth 7.
+//
+// The list is walked in windows of list positions [pass_.shift, pass_.nb), one dispatch per
+// window, with the per-pixel state (accumulators, T, last) kept in the output buffers between
+// windows and "done" stored as the sign of T (T > 0 always): software Vulkan (llvmpipe) caps
+// the loop iterations of one invocation at 65535, and a bounded dispatch is also kinder to
+// GPU watchdogs. pass_.mode: 1 = first window, 2 = last window.
 
 @group(0) @binding(2) var<storage, read> ranges: array<u32>;
 @group(0) @binding(3) var<storage, read> gids: array<u32>;
@@ -41,11 +47,29 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     let geo = (cam.flags & 2u) != 0u;
     let depth = (cam.flags & 4u) != 0u;
     let obs = (cam.flags & 8u) != 0u;
-    var a: array<f32, 8>;
+    let lo = pass_.shift;
+    let hi = min(pass_.nb, len);
+    let first = (pass_.mode & 1u) != 0u;
+    let final_window = (pass_.mode & 2u) != 0u;
+    var a = array<f32, 8>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     var t = 1.0;
     var last_k = 0u;
-    var traversed = len;
-    for (var k = 0u; k < len; k++) {
+    var done = false;
+    if (!first) {
+        for (var c = 0u; c < 8u; c++) {
+            a[c] = acc[c * npix + p];
+        }
+        t = final_t[p];
+        done = t < 0.0;
+        t = abs(t);
+        last_k = last[p];
+    }
+    // Entries of this window the pixel went through (the forward pair count).
+    var traversed = 0u;
+    if (!done && hi > lo) {
+        traversed = hi - lo;
+    }
+    for (var k = lo; k < hi && !done; k++) {
         let gid = gids[start + k];
         let o = gid * SPLAT_STRIDE;
         let sx = splat[o];
@@ -66,7 +90,8 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
         alpha = min(alpha, MAX_ALPHA);
         let next_t = t * (1.0 - alpha);
         if (next_t < T_STOP) {
-            traversed = k + 1u;
+            traversed = k + 1u - lo;
+            done = true;
             break;
         }
         let w = alpha * t;
@@ -93,8 +118,14 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     for (var c = 0u; c < 8u; c++) {
         acc[c * npix + p] = a[c];
     }
-    final_t[p] = t;
+    if (done && !final_window) {
+        final_t[p] = -t;
+    } else {
+        final_t[p] = t;
+    }
     last[p] = last_k;
     add64(4u, traversed);
-    add64(6u, last_k);
+    if (final_window) {
+        add64(6u, last_k);
+    }
 }
