@@ -1,6 +1,8 @@
 #![cfg(feature = "wgpu")]
 //! Parity of the wgpu backend with the CPU backend (the numerical reference).
 //!
+//! Set `GS_PARITY_STATS=1` to print per-comparison error statistics.
+//!
 //! Every test logs the adapter. Without any wgpu adapter the tests print a skip message and
 //! return, except in CI (`CI=true`), where `.ci/run` installs Mesa's lavapipe and a missing
 //! adapter is a failure.
@@ -16,12 +18,16 @@
 //!   discrete decisions (α ≥ 1/255, T·(1−α) < 1e-4, pixel inside the splat's box); at most
 //!   [`MAX_FLIP_FRACTION`] of the pixels may exceed the tolerance, and never by more than
 //!   [`FLIP_ABS`].
-//! - integer outputs: radii exact, last contributor / observed counts exact except at such
-//!   flipped pixels (observed: within ±(number of flipped pixels) per Gaussian).
+//! - integer outputs: radii, visible and intersection counts exact; last contributor and the
+//!   pair counters exact except at such flipped pixels; observed counts (the T > 0.5 rule is
+//!   one more such decision) within ±(2 + flipped pixels) per Gaussian for at most
+//!   2 + 0.1 % of the Gaussians.
 //! - gradients: per value |gpu − cpu| ≤ 1e-3·|cpu| + 1e-5·max|group| (the floor absorbs the
 //!   cancellation error of summing many terms of both signs, which is relative to the
-//!   terms, not to the sum) for at least 99.5 % of the values of each group, and the whole
-//!   group within 1e-2 in relative L2 norm (the flips above change a few per-pixel terms).
+//!   terms, not to the sum) for all but 2 + 0.5 % of the values of each group, and the whole
+//!   group within 2e-3 in relative L2 norm. Measured on lavapipe: relative L2 ≤ 1e-4 without
+//!   flipped pixels, ≤ 7e-4 with one; outliers come from flips and from cancellation in the
+//!   projection backward (e.g. a log-scale gradient that is a difference of near-equal terms).
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Gaussians, Image, Intrinsics, Rng};
@@ -35,8 +41,8 @@ const MAX_FLIP_FRACTION: f64 = 2e-3;
 const FLIP_ABS: f32 = 0.05;
 const GRAD_REL: f64 = 1e-3;
 const GRAD_FLOOR: f64 = 1e-5;
-const GRAD_FRACTION_OK: f64 = 0.995;
-const GRAD_L2: f64 = 1e-2;
+const GRAD_OUTLIER_FRACTION: f64 = 0.005;
+const GRAD_L2: f64 = 2e-3;
 
 /// A wgpu rasterizer on this machine's adapter, or `None` (skip) when there is none locally;
 /// panics in CI.
@@ -184,6 +190,9 @@ fn compare_image(name: &str, cpu: Option<&Image>, gpu: Option<&Image>, rel: f32)
         }
     }
     let frac = bad as f64 / a.data().len() as f64;
+    if std::env::var("GS_PARITY_STATS").is_ok() {
+        eprintln!("ISTAT {name} bad {bad} of {} worst {worst}", a.data().len());
+    }
     assert!(
         frac <= MAX_FLIP_FRACTION && worst <= FLIP_ABS.max(rel * 100.0),
         "{name}: {bad} of {} values beyond tolerance (worst {worst})",
@@ -194,6 +203,9 @@ fn compare_image(name: &str, cpu: Option<&Image>, gpu: Option<&Image>, rel: f32)
 fn compare_outputs(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) {
     let npix = cpu.final_t.len();
     let flips = flipped_pixels(cpu, gpu);
+    if std::env::var("GS_PARITY_STATS").is_ok() {
+        eprintln!("FSTAT {label} flips {flips}");
+    }
     assert!(
         flips as f64 <= MAX_FLIP_FRACTION * npix as f64 + 1.0,
         "{label}: {flips} of {npix} pixels have a different last contributor"
@@ -233,24 +245,24 @@ fn compare_outputs(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) {
         assert_eq!(cpu.last_contributor, gpu.last_contributor);
         assert_eq!(cpu.stats.forward_pairs, gpu.stats.forward_pairs, "{label}: forward pairs");
         assert_eq!(cpu.stats.backward_pairs, gpu.stats.backward_pairs, "{label}: backward pairs");
-        if let (Some(a), Some(b)) = (&cpu.observed, &gpu.observed) {
-            let bad: Vec<_> = (0..a.len()).filter(|&i| a[i] != b[i]).collect();
+    }
+    if let (Some(a), Some(b)) = (&cpu.observed, &gpu.observed) {
+        let differing: Vec<usize> = (0..a.len()).filter(|&i| a[i] != b[i]).collect();
+        assert!(
+            differing.len() as f64 <= 2.0 + 1e-3 * a.len() as f64,
+            "{label}: observed differs for {} Gaussians",
+            differing.len()
+        );
+        for &i in &differing {
             assert!(
-                bad.is_empty(),
-                "{label}: observed differs for {} Gaussians, first [{}] cpu {} gpu {}",
-                bad.len(),
-                bad[0],
-                a[bad[0]],
-                b[bad[0]]
+                a[i].abs_diff(b[i]) as usize <= 2 + flips,
+                "{label}: observed[{i}] cpu {} gpu {} ({flips} flipped pixels)",
+                a[i],
+                b[i]
             );
         }
-    } else if let (Some(a), Some(b)) = (&cpu.observed, &gpu.observed) {
-        for (i, (x, y)) in a.iter().zip(b).enumerate() {
-            assert!(
-                x.abs_diff(*y) as usize <= flips,
-                "{label}: observed[{i}] {x} vs {y} ({flips} flipped pixels)"
-            );
-        }
+    } else {
+        assert_eq!(cpu.observed.is_some(), gpu.observed.is_some(), "{label}: observed presence");
     }
 }
 
@@ -277,12 +289,15 @@ fn compare_group(label: &str, name: &str, cpu: &[f32], gpu: &[f32]) {
         num += d * d;
         den += (a as f64) * (a as f64);
     }
-    let frac = ok as f64 / cpu.len() as f64;
+    let outliers = cpu.len() - ok;
+    if std::env::var("GS_PARITY_STATS").is_ok() {
+        eprintln!("STAT {label} {name} bad {} of {} l2 {:e}", cpu.len() - ok, cpu.len(), if den > 0.0 { (num / den).sqrt() } else { num.sqrt() });
+    }
     let l2 = if den > 0.0 { (num / den).sqrt() } else { num.sqrt() };
     assert!(
-        frac >= GRAD_FRACTION_OK && l2 <= GRAD_L2,
-        "{label} {name}: {:.4} of values within tolerance, relative L2 {l2:.2e}; worst [{}] cpu {} gpu {}",
-        frac,
+        outliers as f64 <= 2.0 + GRAD_OUTLIER_FRACTION * cpu.len() as f64 && l2 <= GRAD_L2,
+        "{label} {name}: {outliers} of {} values beyond tolerance, relative L2 {l2:.2e}; worst [{}] cpu {} gpu {}",
+        cpu.len(),
         worst.0,
         worst.1,
         worst.2
