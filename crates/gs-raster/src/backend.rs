@@ -153,3 +153,31 @@ impl Rasterizer {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn backend_names_parse_and_print() {
+        for b in [Backend::Cpu, Backend::Wgpu, Backend::Auto] {
+            assert_eq!(b.to_string().parse::<Backend>().unwrap(), b);
+        }
+        assert!(matches!(
+            "metal".parse::<Backend>(),
+            Err(RasterError::InvalidConfig(_))
+        ));
+        let r = Rasterizer::new(Backend::Cpu).unwrap();
+        assert_eq!((r.backend(), r.backend_name()), (Backend::Cpu, "cpu"));
+    }
+
+    #[cfg(not(feature = "wgpu"))]
+    #[test]
+    fn without_the_feature_wgpu_is_an_error_and_auto_is_cpu() {
+        assert!(matches!(
+            Rasterizer::new(Backend::Wgpu),
+            Err(RasterError::BackendUnavailable(_))
+        ));
+        assert_eq!(Rasterizer::new(Backend::Auto).unwrap().backend(), Backend::Cpu);
+    }
+}

@@ -264,6 +264,18 @@ enum StateInner {
     Gpu(gpu::GpuState),
 }
 
+impl ForwardState {
+    /// The CPU backend's state, if this came from the CPU backend.
+    #[cfg_attr(not(test), allow(dead_code))]
+    fn cpu(&self) -> Option<&CpuState> {
+        match &self.0 {
+            StateInner::Cpu(s) => Some(s),
+            #[cfg(feature = "wgpu")]
+            StateInner::Gpu(_) => None,
+        }
+    }
+}
+
 /// The CPU backend's forward state.
 #[derive(Debug, Clone)]
 struct CpuState {

@@ -469,7 +469,7 @@ fn parity_at_the_extremes() {
     for i in 0..g.len() {
         g.log_scales[i][2] = -9.0;
         // Rotate the flat axis (local z) to be nearly perpendicular to the view (world z).
-        g.rotations[i] = [0.7071, 0.7071 + 0.001 * (i % 5) as f32, 0.0, 0.0];
+        g.rotations[i] = [1.0, 1.0 + 0.0015 * (i % 5) as f32, 0.0, 0.0];
     }
     parity(&mut r, "grazing", &g, &cam, &cfg);
     // Saturated (opacity close to 1) stacks hit the 0.99 cap and the transmittance stop.
