@@ -266,7 +266,6 @@ enum StateInner {
 
 impl ForwardState {
     /// The CPU backend's state, if this came from the CPU backend.
-    #[cfg_attr(not(test), allow(dead_code))]
     fn cpu(&self) -> Option<&CpuState> {
         match &self.0 {
             StateInner::Cpu(s) => Some(s),
@@ -855,14 +854,10 @@ pub fn backward(
     grads: &OutputGradients,
 ) -> Result<GaussianGradients> {
     let cam = check_inputs(gaussians, camera, config)?;
-    let st = match &forward.state.0 {
-        StateInner::Cpu(st) => st,
-        #[cfg(feature = "wgpu")]
-        StateInner::Gpu(_) => {
-            return Err(RasterError::InvalidGradients(
-                "the forward render came from the wgpu backend; call backward on the same WgpuRasterizer".into(),
-            ));
-        }
+    let Some(st) = forward.state.cpu() else {
+        return Err(RasterError::InvalidGradients(
+            "the forward render came from the wgpu backend; call backward on the same WgpuRasterizer".into(),
+        ));
     };
     if st.n_gaussians != gaussians.len()
         || st.width != cam.width
