@@ -481,6 +481,34 @@ fn parity_at_the_extremes() {
 }
 
 #[test]
+fn parity_across_projection_chunks_and_long_tile_lists() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cfg = RasterConfig::default();
+    // 270k Gaussians: the per-Gaussian kernels run in chunks of 2^18; all but those around
+    // the chunk boundary (and a few at both ends) are behind the camera.
+    let mut g = random_scene(270_000, 1, 60, 1.0, (-3.5, -2.5));
+    for i in 0..g.len() {
+        let keep = i < 50 || i >= 269_950 || (262_000..262_300).contains(&i);
+        if !keep {
+            g.means[i][2] = -10.0;
+        }
+    }
+    let cam = camera(96, 64, 90.0, DVec3::new(0.4, -0.3, -4.0));
+    parity(&mut r, "chunks", &g, &cam, &cfg);
+    // One 16x16 tile with a 40k-entry list of faint, tiny Gaussians: pixels stay unsaturated
+    // past the forward window (32768 entries) and the backward runs ~160 windows.
+    let mut g = random_scene(40_000, 0, 61, 0.25, (-5.5, -5.0));
+    for o in g.opacity_logits.iter_mut() {
+        *o = gs_core::gaussians::inverse_sigmoid(0.006);
+    }
+    let cam = camera(16, 16, 40.0, DVec3::new(0.0, 0.0, -4.0));
+    let out = r.render(&g, &cam, &RenderRequest::all(), &cfg).unwrap();
+    let longest = out.last_contributor.iter().max().copied().unwrap_or(0);
+    assert!(longest > 33_000, "the list should reach past one forward window ({longest})");
+    parity(&mut r, "long list", &g, &cam, &cfg);
+}
+
+#[test]
 fn buffers_are_reused_across_calls_of_different_sizes() {
     let Some(mut r) = gpu(WgpuOptions::default()) else { return };
     let cfg = RasterConfig::default();

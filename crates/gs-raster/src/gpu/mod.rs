@@ -148,10 +148,12 @@ struct GrowBuf {
     cap: u64,
     usage: wgpu::BufferUsages,
     label: &'static str,
+    /// Geometric growth stops here (the storage-binding limit: buffers are bound whole).
+    limit: u64,
 }
 
 impl GrowBuf {
-    fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages) -> Self {
+    fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages, limit: u64) -> Self {
         let cap = 256;
         let buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -164,6 +166,7 @@ impl GrowBuf {
             cap,
             usage,
             label,
+            limit,
         }
     }
 
@@ -172,7 +175,8 @@ impl GrowBuf {
         if bytes <= self.cap {
             return;
         }
-        let cap = bytes.max(self.cap.saturating_mul(2)).next_multiple_of(256);
+        let grown = self.cap.saturating_mul(2).min(self.limit / 256 * 256);
+        let cap = bytes.next_multiple_of(4).max(grown);
         self.buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(self.label),
             size: cap,
@@ -399,7 +403,8 @@ impl WgpuRasterizer {
             return Err(gpu_err(format!("shader or pipeline creation failed: {e}")));
         }
         let st = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
-        let b = |l| GrowBuf::new(&device, l, st);
+        let max_binding = al.max_storage_buffer_binding_size as u64;
+        let b = |l| GrowBuf::new(&device, l, st, max_binding);
         let bufs = Buffers {
             params: b("params"),
             sh: b("sh"),
@@ -429,11 +434,13 @@ impl WgpuRasterizer {
                 &device,
                 "staging",
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                u64::MAX,
             ),
             pass: GrowBuf::new(
                 &device,
                 "pass",
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                u64::MAX,
             ),
         };
         let cam_buf = device.create_buffer(&wgpu::BufferDescriptor {
