@@ -159,6 +159,12 @@ mod tests {
     use super::*;
 
     #[test]
+    fn rasterizer_is_send() {
+        fn send<T: Send>() {}
+        send::<Rasterizer>();
+    }
+
+    #[test]
     fn backend_names_parse_and_print() {
         for b in [Backend::Cpu, Backend::Wgpu, Backend::Auto] {
             assert_eq!(b.to_string().parse::<Backend>().unwrap(), b);

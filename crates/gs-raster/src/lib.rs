@@ -1,6 +1,7 @@
 //! # gs-raster
 //!
-//! The differentiable 3D Gaussian splatting tile rasterizer of vagsl (CPU backend), with the
+//! The differentiable 3D Gaussian splatting tile rasterizer of vagsl (CPU backend, plus a wgpu
+//! backend behind the default `wgpu` feature), with the
 //! PGSR / VA-GS geometry channels of method-spec §2: colour, accumulated alpha A, rendered
 //! camera-space normal Ñ, rendered distance D, unbiased plane depth z = D / (−Ñ·K⁻¹p̄),
 //! expected depth, per-Gaussian radii and "observed" counts — and the exact backward of all of
@@ -32,6 +33,23 @@
 //!     &OutputGradients { color: Some(&ones), ..Default::default() }).unwrap();
 //! assert!(grads.opacity_logits[0] > 0.0);              // more opacity, more colour
 //! ```
+//!
+//! ## Backends
+//! - **CPU** ([`render`], [`backward`]): rayon over tiles, deterministic, the numerical
+//!   reference.
+//! - **wgpu** ([`WgpuRasterizer`], feature `wgpu`, on by default): WGSL compute kernels on
+//!   Vulkan / Metal / DX12 with the same inputs, outputs, errors and conventions; created once,
+//!   it keeps its device, pipelines and (geometrically growing) buffers across calls. Its
+//!   `backward` must be given its latest render (the forward state stays on the device);
+//!   mixing backends or passing an older render is an [`RasterError::InvalidGradients`].
+//!   Parity with the CPU backend (tests/wgpu_parity.rs): images within 1e-4, gradients within
+//!   1e-3 relative (+ a 1e-5·max floor), apart from the rare pixel where an ulp-level
+//!   difference flips a discrete decision (α ≥ 1/255, the transmittance stop, T > 0.5).
+//!   `RenderStats::box_pairs` is a CPU-only work estimate (0 on wgpu).
+//! - **Selection**: [`Rasterizer::new`]`(`[`Backend`]`)` with `"cpu" | "wgpu" | "auto"`;
+//!   `auto` uses wgpu only on a hardware adapter (not a software one such as lavapipe) and
+//!   the CPU otherwise. Built without the feature, `Backend::Wgpu` is a
+//!   [`RasterError::BackendUnavailable`] error and `auto` is the CPU.
 //!
 //! ## Conventions (one choice per row of rasterizer-anchors.md §0)
 //! - Pixel (i, j) is blended at its centre (i + 0.5, j + 0.5) (design.md §2).
