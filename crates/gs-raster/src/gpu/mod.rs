@@ -284,8 +284,9 @@ pub struct WgpuRasterizer {
     id: u64,
     generation: u64,
     frame: Option<Frame>,
-    /// Host scratch reused across calls (parameter and SH upload).
+    /// Host scratch reused across calls (parameter and SH upload, per-pixel gradients).
     scratch: Vec<f32>,
+    scratch_px: Vec<f32>,
 }
 
 impl std::fmt::Debug for WgpuRasterizer {
@@ -397,6 +398,11 @@ impl WgpuRasterizer {
             trace: wgpu::Trace::Off,
         }))
         .map_err(|e| RasterError::BackendUnavailable(format!("{}: {e}", describe(&info))))?;
+        // Errors of render/backward are caught by error scopes and returned; anything else
+        // (e.g. a lost device) is logged instead of wgpu's default panic.
+        device.on_uncaptured_error(std::sync::Arc::new(|e| {
+            eprintln!("gs-raster wgpu: uncaptured device error: {e}");
+        }));
         device.push_error_scope(wgpu::ErrorFilter::Validation);
         let kernels = Kernels::new(&device, native_atomics);
         if let Some(e) = pollster::block_on(device.pop_error_scope()) {
@@ -462,6 +468,7 @@ impl WgpuRasterizer {
             generation: 0,
             frame: None,
             scratch: Vec::new(),
+            scratch_px: Vec::new(),
         };
         r.bufs.pass.ensure(&r.device, SLOT * MAX_SLOTS as u64);
         r.bufs.counters.ensure(&r.device, 64);
@@ -1167,7 +1174,9 @@ impl WgpuRasterizer {
             .write_buffer(&self.cam_buf, 0, bytemuck::bytes_of(&cu));
         self.upload_gaussians(g);
         // Per-pixel channel gradients, folded on the host exactly as the CPU backend does.
-        let mut pg = Vec::with_capacity(npix * 9);
+        let mut pg = std::mem::take(&mut self.scratch_px);
+        pg.clear();
+        pg.reserve(npix * 9);
         for y in 0..h {
             for x in 0..w {
                 let (gc, ga) = crate::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
@@ -1185,7 +1194,7 @@ impl WgpuRasterizer {
         self.bufs.staging.ensure(&dev, nn * gstride * 4 + 4);
         self.queue
             .write_buffer(&self.bufs.pixgrad.buf, 0, bytemuck::cast_slice(&pg));
-        drop(pg);
+        self.scratch_px = pg;
         let mut enc = self.encoder();
         let b = &self.bufs;
         enc.encoder.clear_buffer(&b.gacc.buf, 0, Some(nn * 64 + 4));
@@ -1208,8 +1217,7 @@ impl WgpuRasterizer {
                 ],
                 PassUniform {
                     shift: wi * BWD_WINDOW,
-                    nb: (wi + 1) * BWD_WINDOW,
-                    mode: (wi + 1 == windows) as u32,
+                    nb: (wi + 1).saturating_mul(BWD_WINDOW),
                     ..Default::default()
                 },
                 (cam.tiles_x, cam.tiles_y),

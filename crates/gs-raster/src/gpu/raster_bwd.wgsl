@@ -7,7 +7,8 @@
 //
 // Like the forward, the traversal runs in windows of list positions [pass_.shift, pass_.nb),
 // last window first, with the per-pixel state (T, the 8 "behind" sums) kept in `bstate`
-// between dispatches (pass_.mode 1 = first dispatch: start from T_final).
+// between dispatches. A tile whose list ends below a window skips it; the first window that
+// reaches into its list (window end >= its largest last contributor) starts from T_final.
 
 @group(0) @binding(2) var<storage, read> ranges: array<u32>;
 @group(0) @binding(3) var<storage, read> gids: array<u32>;
@@ -56,12 +57,6 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
                 gch[q * 8u + c] = pixgrad[p * 9u + c];
             }
             gfin[q] = pixgrad[p * 9u + 8u];
-            if ((pass_.mode & 1u) == 0u) {
-                tr[q] = bstate[p * 9u];
-                for (var c = 0u; c < 8u; c++) {
-                    behind[q * 8u + c] = bstate[p * 9u + 1u + c];
-                }
-            }
             my_max = max(my_max, lastq[q]);
         }
     }
@@ -72,7 +67,21 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     }
     let ml = workgroupUniformLoad(&ml_plain);
     let lo = pass_.shift;
+    if (lo >= ml) {
+        return;
+    }
     let hi = min(pass_.nb, ml);
+    if (pass_.nb < ml) {
+        for (var q = 0u; q < 2u; q++) {
+            if (valid[q]) {
+                let p = (y0 + lys[q]) * cam.width + x0 + lxs[q];
+                tr[q] = bstate[p * 9u];
+                for (var c = 0u; c < 8u; c++) {
+                    behind[q * 8u + c] = bstate[p * 9u + 1u + c];
+                }
+            }
+        }
+    }
     for (var kk = lo; kk < hi; kk++) {
         let k = hi - 1u - (kk - lo);
         let gid = gids[start + k];
