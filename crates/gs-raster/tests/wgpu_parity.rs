@@ -578,6 +578,30 @@ fn parity_design_md_extremes() {
 }
 
 #[test]
+fn parity_in_bands_of_tile_rows() {
+    // A 1 MiB binding limit splits a 200x300 image into 3 bands of 8 tile rows (a 4000x3000
+    // image on lavapipe's 128 MiB limit takes the same path).
+    let Some(mut r) = gpu(WgpuOptions {
+        max_storage_binding: Some(1 << 20),
+        ..Default::default()
+    }) else {
+        return;
+    };
+    let cfg = RasterConfig::default();
+    let g = random_scene(3000, 1, 80, 1.2, (-3.5, -2.0));
+    for (w, h) in [(200, 300), (200, 257)] {
+        let cam = camera(w, h, 250.0, DVec3::new(0.4, -0.3, -4.0));
+        parity(&mut r, &format!("bands {w}x{h}"), &g, &cam, &cfg);
+    }
+    // Too wide for 4 tile rows in one binding: a clear error.
+    let cam = camera(2000, 64, 900.0, DVec3::new(0.4, -0.3, -4.0));
+    assert!(matches!(
+        r.render(&g, &cam, &RenderRequest::default(), &cfg),
+        Err(RasterError::Gpu(_))
+    ));
+}
+
+#[test]
 fn buffers_are_reused_across_calls_of_different_sizes() {
     let Some(mut r) = gpu(WgpuOptions::default()) else { return };
     let cfg = RasterConfig::default();

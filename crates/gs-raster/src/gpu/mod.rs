@@ -42,6 +42,8 @@ const CHUNK: u32 = 1 << 18;
 const SPLAT_STRIDE: u64 = 17;
 /// Floats per parameter record (mean 3, log-scale 3, quaternion 4, opacity logit).
 const PARAM_STRIDE: u64 = 11;
+/// Pixel rows per tile row.
+const TILE_ROWS_PX: u64 = crate::TILE_SIZE as u64;
 /// Bytes between two per-dispatch uniform slots.
 const SLOT: u64 = 256;
 /// Uniform slots per submission.
@@ -53,6 +55,8 @@ const BLOCK: u32 = 1024;
 /// are walked in windows with the per-pixel state kept in buffers between dispatches.
 const FWD_WINDOW: u32 = 32768;
 const BWD_WINDOW: u32 = 256;
+/// Largest per-pixel record bound to one kernel (the 9 floats of `pixgrad` / `bstate`).
+const MAX_PIXEL_BYTES: u64 = 36;
 
 static NEXT_ID: AtomicU64 = AtomicU64::new(1);
 
@@ -64,6 +68,10 @@ pub struct WgpuOptions {
     pub force_cas_atomics: bool,
     /// Refuse CPU (software) adapters such as lavapipe; `Backend::Auto` sets this.
     pub require_hardware: bool,
+    /// Assume a smaller maximum storage-binding size than the adapter's (bytes; `None` = the
+    /// adapter's). Large images are then processed in more bands of tile rows — tests use it
+    /// to exercise the banded path on small images.
+    pub max_storage_binding: Option<u64>,
 }
 
 #[repr(C)]
@@ -409,7 +417,9 @@ impl WgpuRasterizer {
             return Err(gpu_err(format!("shader or pipeline creation failed: {e}")));
         }
         let st = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
-        let max_binding = al.max_storage_buffer_binding_size as u64;
+        let max_binding = (al.max_storage_buffer_binding_size as u64)
+            .min(opts.max_storage_binding.unwrap_or(u64::MAX))
+            .max(1 << 16);
         let b = |l| GrowBuf::new(&device, l, st, max_binding);
         let bufs = Buffers {
             params: b("params"),
@@ -460,7 +470,7 @@ impl WgpuRasterizer {
             queue,
             info,
             native_atomics,
-            max_binding: al.max_storage_buffer_binding_size as u64,
+            max_binding,
             kernels,
             bufs,
             cam_buf,
@@ -528,6 +538,37 @@ impl WgpuRasterizer {
             )));
         }
         Ok(())
+    }
+
+    /// Bands of tile rows `(first row, rows, first pixel, pixels)` such that every per-pixel
+    /// buffer of a band fits one storage binding (one band unless the image is huge for this
+    /// adapter). Band starts are multiples of 4 tile rows, which keeps binding offsets
+    /// 256-byte aligned.
+    fn bands(&self, cam: &CamParams) -> Result<Vec<(u32, u32, u64, u64)>> {
+        let w = cam.width as u64;
+        let per_row = TILE_ROWS_PX * w * MAX_PIXEL_BYTES;
+        let fit = (self.max_binding / per_row) as u32;
+        let rows = if fit >= cam.tiles_y {
+            cam.tiles_y
+        } else {
+            fit / 4 * 4
+        };
+        if rows == 0 {
+            return Err(RasterError::Gpu(format!(
+                "an image {} pixels wide needs more than this adapter's {}-byte storage binding for 4 tile rows; use the CPU backend",
+                cam.width, self.max_binding
+            )));
+        }
+        let mut out = Vec::new();
+        let mut r0 = 0;
+        while r0 < cam.tiles_y {
+            let r = rows.min(cam.tiles_y - r0);
+            let y0 = (r0 * TILE_ROWS_PX as u32) as u64;
+            let y1 = ((r0 + r) * TILE_ROWS_PX as u32).min(cam.height) as u64;
+            out.push((r0, r, y0 * w, (y1 - y0) * w));
+            r0 += r;
+        }
+        Ok(out)
     }
 
     /// Uploads parameters and SH (packed, only the active degree's coefficients).
@@ -799,7 +840,7 @@ impl WgpuRasterizer {
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
         let nn = n as u64;
         self.check_binding("the splat buffer", nn * SPLAT_STRIDE * 4)?;
-        self.check_binding("the channel accumulators", npix as u64 * 8 * 4)?;
+        let bands = self.bands(cam)?;
         self.check_binding("the tile ranges", n_tiles * 8)?;
         if cam.tiles_x > 65535 || cam.tiles_y > 65535 {
             return Err(RasterError::Gpu(format!(
@@ -972,28 +1013,33 @@ impl WgpuRasterizer {
             // No tile list is longer than the visible Gaussians or the intersections.
             let longest = total32.min(visible as u32).max(1);
             let windows = longest.div_ceil(FWD_WINDOW);
-            for wi in 0..windows {
-                self.dispatch(
-                    &mut enc,
-                    &self.kernels.raster_fwd,
-                    &[
-                        whole(&b.ranges),
-                        whole(tv),
-                        whole(&b.splat),
-                        whole(&b.acc),
-                        whole(&b.final_t),
-                        whole(&b.last),
-                        whole(&b.observed),
-                        whole(&b.counters),
-                    ],
-                    PassUniform {
-                        shift: wi * FWD_WINDOW,
-                        nb: (wi + 1).saturating_mul(FWD_WINDOW),
-                        mode: (wi == 0) as u32 | ((wi + 1 == windows) as u32) << 1,
-                        ..Default::default()
-                    },
-                    (cam.tiles_x, cam.tiles_y),
-                )?;
+            for &(r0, rows, p0, bp) in &bands {
+                for wi in 0..windows {
+                    self.make_room(&mut enc, 1)?;
+                    self.dispatch(
+                        &mut enc,
+                        &self.kernels.raster_fwd,
+                        &[
+                            whole(&b.ranges),
+                            whole(tv),
+                            whole(&b.splat),
+                            range(&b.acc, p0 * 32, bp * 32),
+                            range(&b.final_t, p0 * 4, bp * 4),
+                            range(&b.last, p0 * 4, bp * 4),
+                            whole(&b.observed),
+                            whole(&b.counters),
+                        ],
+                        PassUniform {
+                            n: bp as u32,
+                            shift: wi * FWD_WINDOW,
+                            nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                            base: r0,
+                            mode: (wi == 0) as u32 | ((wi + 1 == windows) as u32) << 1,
+                            ..Default::default()
+                        },
+                        (cam.tiles_x, rows),
+                    )?;
+                }
             }
             let e = &mut enc.encoder;
             e.copy_buffer_to_buffer(&b.final_t.buf, 0, &b.staging.buf, ft_off, npix as u64 * 4);
@@ -1003,13 +1049,15 @@ impl WgpuRasterizer {
                 e.copy_buffer_to_buffer(&b.observed.buf, 0, &b.staging.buf, obs_off, nn * 4);
             }
             for (k, &p) in planes.iter().enumerate() {
-                e.copy_buffer_to_buffer(
-                    &b.acc.buf,
-                    p as u64 * npix as u64 * 4,
-                    &b.staging.buf,
-                    planes_off + k as u64 * npix as u64 * 4,
-                    npix as u64 * 4,
-                );
+                for &(_, _, p0, bp) in &bands {
+                    e.copy_buffer_to_buffer(
+                        &b.acc.buf,
+                        p0 * 32 + p as u64 * bp * 4,
+                        &b.staging.buf,
+                        planes_off + (k as u64 * npix as u64 + p0) * 4,
+                        bp * 4,
+                    );
+                }
             }
         }
         if nn > 0 {
@@ -1185,7 +1233,7 @@ impl WgpuRasterizer {
             }
         }
         let gstride = 15 + 3 * ncu;
-        self.check_binding("the per-pixel gradients", npix as u64 * 36)?;
+        let bands = self.bands(cam)?;
         let dev = self.device.clone();
         self.bufs.pixgrad.ensure(&dev, npix as u64 * 36);
         self.bufs.bstate.ensure(&dev, npix as u64 * 36);
@@ -1200,28 +1248,32 @@ impl WgpuRasterizer {
         enc.encoder.clear_buffer(&b.gacc.buf, 0, Some(nn * 64 + 4));
         let tv = if frame.tiles_in_c { &b.vals_c } else { &b.vals_b };
         let windows = frame.max_last.div_ceil(BWD_WINDOW);
-        for wi in (0..windows).rev() {
-            self.make_room(&mut enc, 1)?;
-            self.dispatch(
-                &mut enc,
-                &self.kernels.raster_bwd,
-                &[
-                    whole(&b.ranges),
-                    whole(tv),
-                    whole(&b.splat),
-                    whole(&b.final_t),
-                    whole(&b.last),
-                    whole(&b.pixgrad),
-                    whole(&b.gacc),
-                    whole(&b.bstate),
-                ],
-                PassUniform {
-                    shift: wi * BWD_WINDOW,
-                    nb: (wi + 1).saturating_mul(BWD_WINDOW),
-                    ..Default::default()
-                },
-                (cam.tiles_x, cam.tiles_y),
-            )?;
+        for &(r0, rows, p0, bp) in &bands {
+            for wi in (0..windows).rev() {
+                self.make_room(&mut enc, 1)?;
+                self.dispatch(
+                    &mut enc,
+                    &self.kernels.raster_bwd,
+                    &[
+                        whole(&b.ranges),
+                        whole(tv),
+                        whole(&b.splat),
+                        range(&b.final_t, p0 * 4, bp * 4),
+                        range(&b.last, p0 * 4, bp * 4),
+                        range(&b.pixgrad, p0 * 36, bp * 36),
+                        whole(&b.gacc),
+                        range(&b.bstate, p0 * 36, bp * 36),
+                    ],
+                    PassUniform {
+                        n: bp as u32,
+                        shift: wi * BWD_WINDOW,
+                        nb: (wi + 1).saturating_mul(BWD_WINDOW),
+                        base: r0,
+                        ..Default::default()
+                    },
+                    (cam.tiles_x, rows),
+                )?;
+            }
         }
         let n32 = n as u32;
         let mut base = 0u32;

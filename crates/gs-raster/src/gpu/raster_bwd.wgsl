@@ -9,6 +9,8 @@
 // last window first, with the per-pixel state (T, the 8 "behind" sums) kept in `bstate`
 // between dispatches. A tile whose list ends below a window skips it; the first window that
 // reaches into its list (window end >= its largest last contributor) starts from T_final.
+// Bands of tile rows as in the forward (pass_.base = first tile row; per-pixel buffers bound
+// from the band's first pixel).
 
 @group(0) @binding(2) var<storage, read> ranges: array<u32>;
 @group(0) @binding(3) var<storage, read> gids: array<u32>;
@@ -25,9 +27,11 @@ var<workgroup> ml_plain: u32;
 
 @compute @workgroup_size(128)
 fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    let tile = wid.y * cam.tiles_x + wid.x;
+    let tile_y = wid.y + pass_.base;
+    let tile = tile_y * cam.tiles_x + wid.x;
     let x0 = wid.x * TILE;
-    let y0 = wid.y * TILE;
+    let y0 = tile_y * TILE;
+    let yb = pass_.base * TILE;
     let tw = min(cam.width - x0, TILE);
     let th = min(cam.height - y0, TILE);
     let start = ranges[2u * tile];
@@ -49,7 +53,7 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
         lys[q] = li / 16u + 8u * q;
         valid[q] = lxs[q] < tw && lys[q] < th;
         if (valid[q]) {
-            let p = (y0 + lys[q]) * cam.width + x0 + lxs[q];
+            let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
             tr[q] = final_t[p];
             tf[q] = final_t[p];
             lastq[q] = last[p];
@@ -74,7 +78,7 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     if (pass_.nb < ml) {
         for (var q = 0u; q < 2u; q++) {
             if (valid[q]) {
-                let p = (y0 + lys[q]) * cam.width + x0 + lxs[q];
+                let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
                 tr[q] = bstate[p * 9u];
                 for (var c = 0u; c < 8u; c++) {
                     behind[q * 8u + c] = bstate[p * 9u + 1u + c];
@@ -170,7 +174,7 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     }
     for (var q = 0u; q < 2u; q++) {
         if (valid[q]) {
-            let p = (y0 + lys[q]) * cam.width + x0 + lxs[q];
+            let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
             bstate[p * 9u] = tr[q];
             for (var c = 0u; c < 8u; c++) {
                 bstate[p * 9u + 1u + c] = behind[q * 8u + c];

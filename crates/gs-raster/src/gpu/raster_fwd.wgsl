@@ -8,6 +8,10 @@
 // windows and "done" stored as the sign of T (T > 0 always): software Vulkan (llvmpipe) caps
 // the loop iterations of one invocation at 65535, and a bounded dispatch is also kinder to
 // GPU watchdogs. pass_.mode: 1 = first window, 2 = last window.
+//
+// Images whose per-pixel buffers exceed one storage binding are processed in bands of tile
+// rows: rows [pass_.base, ...) with the per-pixel buffers bound from the band's first pixel;
+// pass_.n is the band's pixel count (the plane stride).
 
 @group(0) @binding(2) var<storage, read> ranges: array<u32>;
 @group(0) @binding(3) var<storage, read> gids: array<u32>;
@@ -28,19 +32,20 @@ fn add64(i: u32, v: u32) {
 @compute @workgroup_size(16, 16)
 fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let px = wid.x * TILE + lid.x;
-    let py = wid.y * TILE + lid.y;
+    let tile_y = wid.y + pass_.base;
+    let py = tile_y * TILE + lid.y;
     if (px >= cam.width || py >= cam.height) {
         return;
     }
-    let tile = wid.y * cam.tiles_x + wid.x;
+    let tile = tile_y * cam.tiles_x + wid.x;
     let x0 = wid.x * TILE;
-    let y0 = wid.y * TILE;
+    let y0 = tile_y * TILE;
     let tw = min(cam.width - x0, TILE);
     let th = min(cam.height - y0, TILE);
     let start = ranges[2u * tile];
     let len = ranges[2u * tile + 1u] - start;
-    let npix = cam.width * cam.height;
-    let p = py * cam.width + px;
+    let npix = pass_.n;
+    let p = (py - pass_.base * TILE) * cam.width + px;
     let fx = f32(px) + 0.5;
     let fy = f32(py) + 0.5;
     let color = (cam.flags & 1u) != 0u;
