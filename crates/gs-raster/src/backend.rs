@@ -136,8 +136,8 @@ impl Rasterizer {
         }
     }
 
-    /// Backward like [`crate::backward`]; `forward` must come from this rasterizer (for wgpu:
-    /// its latest render).
+    /// Backward like [`crate::backward`]; `forward` must come from this rasterizer (for wgpu,
+    /// backward right after its render is fastest; an older render's device state is rebuilt).
     pub fn backward(
         &mut self,
         gaussians: &Gaussians,

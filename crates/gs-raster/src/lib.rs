@@ -39,9 +39,10 @@
 //!   reference.
 //! - **wgpu** ([`WgpuRasterizer`], feature `wgpu`, on by default): WGSL compute kernels on
 //!   Vulkan / Metal / DX12 with the same inputs, outputs, errors and conventions; created once,
-//!   it keeps its device, pipelines and (geometrically growing) buffers across calls. Its
-//!   `backward` must be given its latest render (the forward state stays on the device);
-//!   mixing backends or passing an older render is an [`RasterError::InvalidGradients`].
+//!   it keeps its device, pipelines and (geometrically growing) buffers across calls. The
+//!   forward state of its latest render stays on the device (`backward` right after `render`
+//!   is the fast path; an older render's state is rebuilt by one extra forward); mixing
+//!   backends or rasterizers is an [`RasterError::InvalidGradients`].
 //!   Parity with the CPU backend (tests/wgpu_parity.rs): images within 1e-4, gradients within
 //!   1e-3 relative (+ a 1e-5·max floor), apart from the rare pixel where an ulp-level
 //!   difference flips a discrete decision (α ≥ 1/255, the transmittance stop, T > 0.5).

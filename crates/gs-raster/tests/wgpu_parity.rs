@@ -672,9 +672,22 @@ fn errors_match_the_cpu_backend_and_states_do_not_mix() {
         gs_raster::backward(&g, &cam, &cfg, &gpu_out, &og),
         Err(RasterError::InvalidGradients(_))
     ));
-    let _newer = r.render(&g, &cam, &req, &cfg).unwrap();
+    // An older render of the same rasterizer: its device state is rebuilt, same gradients.
+    let g2 = random_scene(80, 1, 41, 1.0, (-3.5, -2.0));
+    let _newer = r.render(&g2, &cam, &RenderRequest::all(), &cfg).unwrap();
+    let stale = r.backward(&g, &cam, &cfg, &gpu_out, &og).unwrap();
+    let fresh_out = r.render(&g, &cam, &req, &cfg).unwrap();
+    let fresh = r.backward(&g, &cam, &cfg, &fresh_out, &og).unwrap();
+    // (Equal up to the order of the float atomics, which varies between runs.)
+    compare_grads("rebuilt state", &fresh, &stale);
+    // ... but not with different Gaussians than the render's.
+    let _newer = r.render(&g2, &cam, &req, &cfg).unwrap();
+    let mut moved = g.clone();
+    for m in moved.means.iter_mut() {
+        m[0] += 0.5;
+    }
     assert!(matches!(
-        r.backward(&g, &cam, &cfg, &gpu_out, &og),
+        r.backward(&moved, &cam, &cfg, &gpu_out, &og),
         Err(RasterError::InvalidGradients(_))
     ));
     // Gradient-shape errors as on the CPU.

@@ -124,6 +124,8 @@ pub(crate) struct GpuState {
     width: u32,
     height: u32,
     request: RenderRequest,
+    /// Intersections of the render (checked when the device state is rebuilt).
+    total: u32,
     final_t: Vec<f32>,
     /// Per pixel Ñ (3), D, Σ w t_z when plane or expected depth was rendered, else empty.
     geo: Vec<[f32; 5]>,
@@ -277,9 +279,10 @@ fn grid(groups: u32) -> (u32, u32) {
 /// The wgpu rasterizer: created once (adapter, device, pipelines), then `render` /
 /// `backward` as often as needed with the same argument and result types as the CPU
 /// [`crate::render`] / [`crate::backward`]. Device buffers persist across calls and grow
-/// geometrically. A backward must follow the render it differentiates on the same
-/// rasterizer, before the next render (otherwise it returns
-/// [`RasterError::InvalidGradients`]).
+/// geometrically. The device keeps the state of the latest render; the backward of an older
+/// render of the same rasterizer first rebuilds that state (one extra forward, same result),
+/// and a render from the CPU backend or another rasterizer is a
+/// [`RasterError::InvalidGradients`] error.
 pub struct WgpuRasterizer {
     device: wgpu::Device,
     queue: wgpu::Queue,
@@ -548,10 +551,11 @@ impl WgpuRasterizer {
         let w = cam.width as u64;
         let per_row = TILE_ROWS_PX * w * MAX_PIXEL_BYTES;
         let fit = (self.max_binding / per_row) as u32;
-        let rows = if fit >= cam.tiles_y {
+        // At most 65532 tile rows per dispatch (the workgroup-count limit, a multiple of 4).
+        let rows = if fit >= cam.tiles_y && cam.tiles_y <= 65535 {
             cam.tiles_y
         } else {
-            fit / 4 * 4
+            fit.min(65532) / 4 * 4
         };
         if rows == 0 {
             return Err(RasterError::Gpu(format!(
@@ -842,10 +846,10 @@ impl WgpuRasterizer {
         self.check_binding("the splat buffer", nn * SPLAT_STRIDE * 4)?;
         let bands = self.bands(cam)?;
         self.check_binding("the tile ranges", n_tiles * 8)?;
-        if cam.tiles_x > 65535 || cam.tiles_y > 65535 {
+        if cam.tiles_x > 65535 {
             return Err(RasterError::Gpu(format!(
-                "{}x{} tiles exceed 65535 workgroups per dimension",
-                cam.tiles_x, cam.tiles_y
+                "{} tile columns exceed 65535 workgroups per dimension",
+                cam.tiles_x
             )));
         }
         let flags = request.color as u32
@@ -1117,6 +1121,7 @@ impl WgpuRasterizer {
             width: cam.width,
             height: cam.height,
             request: *request,
+            total: total32,
             final_t: final_t.clone(),
             geo,
         }));
@@ -1132,8 +1137,9 @@ impl WgpuRasterizer {
         Ok(out)
     }
 
-    /// Backward like [`crate::backward`]; `forward` must be the latest render of this
-    /// rasterizer (its device buffers hold that render's state).
+    /// Backward like [`crate::backward`] (same inputs as the render of `forward`, which must
+    /// come from this rasterizer). Fastest right after that render; for an older render the
+    /// device state is rebuilt first.
     pub fn backward(
         &mut self,
         gaussians: &Gaussians,
@@ -1156,14 +1162,6 @@ impl WgpuRasterizer {
                 "the forward render came from another WgpuRasterizer".into(),
             ));
         }
-        let frame = match self.frame {
-            Some(f) if f.generation == st.generation => f,
-            _ => {
-                return Err(RasterError::InvalidGradients(
-                    "the forward render is not the latest render of this rasterizer (its device state was overwritten); render again before backward".into(),
-                ));
-            }
-        };
         if st.n != gaussians.len() || st.width != cam.width || st.height != cam.height {
             return Err(RasterError::InvalidGradients(format!(
                 "forward state ({} Gaussians, {}x{}) does not match the inputs ({} Gaussians, {}x{})",
@@ -1176,6 +1174,23 @@ impl WgpuRasterizer {
             )));
         }
         crate::check_all_grads(grads, &st.request, cam.width, cam.height)?;
+        let frame = match self.frame {
+            Some(f) if f.generation == st.generation => f,
+            _ => {
+                // An older render of this rasterizer: a later render overwrote its device
+                // state. The forward is deterministic, so rebuild that state from the same
+                // inputs (one extra forward) and check that it is the same render.
+                self.render(gaussians, camera, &st.request, config)?;
+                match self.frame {
+                    Some(f) if f.total == st.total => f,
+                    _ => {
+                        return Err(RasterError::InvalidGradients(
+                            "the Gaussians, camera or config differ from those of the forward render".into(),
+                        ));
+                    }
+                }
+            }
+        };
         let n = gaussians.len();
         let mut out = GaussianGradients::zeros(n);
         let color = grads.color.is_some();
