@@ -161,10 +161,21 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             red[c * 128u + li] = g[c];
         }
         workgroupBarrier();
+        // Two-level reduction: 128 threads sum 16 values each (component li / 8, segment
+        // li % 8), then 16 threads sum the 8 segment sums of their component.
+        {
+            let base = (li / 8u) * 128u + (li % 8u) * 16u;
+            var s = 0.0;
+            for (var j = 0u; j < 16u; j++) {
+                s += red[base + j];
+            }
+            red[base] = s;
+        }
+        workgroupBarrier();
         if (li < 16u) {
             var s = 0.0;
-            for (var j = 0u; j < 128u; j++) {
-                s += red[li * 128u + j];
+            for (var j = 0u; j < 8u; j++) {
+                s += red[li * 128u + j * 16u];
             }
             if (s != 0.0) {
                 add_grad(gid * 16u + li, s);
