@@ -602,6 +602,25 @@ fn parity_in_bands_of_tile_rows() {
 }
 
 #[test]
+fn a_gaussian_covering_more_tiles_than_one_emit_window() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    // 144 x 228 = 32832 tiles (> 32768, the per-dispatch window of `isect_emit`), one
+    // screen-filling Gaussian plus a few small ones; alpha only (8.4 M pixels).
+    let mut g = random_scene(20, 0, 90, 1.0, (-3.0, -2.5));
+    g.push([0.0, 0.0, 0.5], [1.5, 1.5, -3.0], [1.0, 0.0, 0.0, 0.0], -2.0, g.sh[0]);
+    let cam = camera(2304, 3648, 1500.0, DVec3::new(0.4, -0.3, -4.0));
+    let cfg = RasterConfig::default();
+    let req = RenderRequest {
+        color: false,
+        ..RenderRequest::default()
+    };
+    let cpu = gs_raster::render(&g, &cam, &req, &cfg).unwrap();
+    let gpu = r.render(&g, &cam, &req, &cfg).unwrap();
+    assert!(cpu.radii[20] > 2000, "the last Gaussian must cover the image");
+    compare_outputs("32k tiles", &cpu, &gpu);
+}
+
+#[test]
 fn buffers_are_reused_across_calls_of_different_sizes() {
     let Some(mut r) = gpu(WgpuOptions::default()) else { return };
     let cfg = RasterConfig::default();

@@ -17,12 +17,16 @@ fn isect_emit(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
     }
     let gid = vals[k];
     let r = gid * 5u;
-    var o = offsets[k];
-    for (var ty = proj[r + 1u]; ty < proj[r + 3u]; ty++) {
-        for (var tx = proj[r]; tx < proj[r + 2u]; tx++) {
-            tile_keys[o] = ty * cam.tiles_x + tx;
-            tile_vals[o] = gid;
-            o += 1u;
-        }
+    let x0 = proj[r];
+    let y0 = proj[r + 1u];
+    let rw = proj[r + 2u] - x0;
+    let area = rw * (proj[r + 3u] - y0);
+    // Rectangle entries [pass_.shift, pass_.nb) in row-major order (one dispatch per window
+    // of 32768 entries: llvmpipe caps an invocation at 65535 loop iterations).
+    let end = min(area, pass_.nb);
+    for (var j = pass_.shift; j < end; j++) {
+        let o = offsets[k] + j;
+        tile_keys[o] = (y0 + j / rw) * cam.tiles_x + x0 + j % rw;
+        tile_vals[o] = gid;
     }
 }

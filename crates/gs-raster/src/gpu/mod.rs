@@ -981,22 +981,27 @@ impl WgpuRasterizer {
         let b = &self.bufs;
         let mut tiles_in_c = false;
         if total32 > 0 {
-            self.dispatch_1d(
-                &mut enc,
-                &self.kernels.isect_emit,
-                &[
-                    whole(&b.keys_a),
-                    whole(&b.vals_a),
-                    whole(&b.proj),
-                    whole(&b.counts),
-                    whole(&b.keys_b),
-                    whole(&b.vals_b),
-                ],
-                PassUniform {
-                    n: n32,
-                    ..Default::default()
-                },
-            )?;
+            // No rectangle has more entries than there are tiles.
+            for wi in 0..(n_tiles as u32).div_ceil(FWD_WINDOW) {
+                self.dispatch_1d(
+                    &mut enc,
+                    &self.kernels.isect_emit,
+                    &[
+                        whole(&b.keys_a),
+                        whole(&b.vals_a),
+                        whole(&b.proj),
+                        whole(&b.counts),
+                        whole(&b.keys_b),
+                        whole(&b.vals_b),
+                    ],
+                    PassUniform {
+                        n: n32,
+                        shift: wi * FWD_WINDOW,
+                        nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                        ..Default::default()
+                    },
+                )?;
+            }
             let bits = (32 - (n_tiles.max(2) as u32 - 1).leading_zeros()).max(1);
             tiles_in_c =
                 self.radix_sort(&mut enc, &b.keys_b, &b.vals_b, &b.keys_c, &b.vals_c, total32, bits)?;
