@@ -326,6 +326,10 @@ fn adapter_rank(t: wgpu::DeviceType) -> u32 {
 
 /// The best adapter of this machine that supports compute, if any.
 fn pick_adapter(require_hardware: bool) -> Option<(wgpu::Instance, wgpu::Adapter)> {
+    // `Instance::new` panics when no backend is compiled in for this platform.
+    if wgpu::Instance::enabled_backend_features().is_empty() {
+        return None;
+    }
     let instance = wgpu::Instance::new(&wgpu::InstanceDescriptor {
         backends: wgpu::Backends::PRIMARY,
         ..Default::default()
