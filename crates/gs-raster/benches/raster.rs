@@ -6,6 +6,12 @@
 //! Throughput is reported in Gaussian-pixel pairs: `RenderStats::forward_pairs` (per pixel,
 //! the tile-list entries it went through before saturating) and `backward_pairs` (entries up
 //! to its last contributor). the workspace `BENCHMARKS.md` records measured numbers.
+//!
+//! With the `wgpu` feature (default) the same scenes also run on the wgpu backend
+//! (`raster_wgpu_640x480`, skipped with a message when there is no adapter). On a machine
+//! without a GPU that adapter is Mesa's lavapipe (software Vulkan on the CPU): those figures
+//! measure the kernels' CPU emulation, not GPU speed. `GS_RASTER_WGPU_REPORT=1` prints plain
+//! wall-clock timings (5 calls) instead of running criterion on the wgpu cases.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use gs_core::gaussians::{inverse_sigmoid, rgb_to_sh_dc};
@@ -252,6 +258,9 @@ fn bench(c: &mut Criterion) {
     }
     group.finish();
 
+    #[cfg(feature = "wgpu")]
+    bench_wgpu(c, &counts, &cam, &req, &req_color, &cfg);
+
     // Naive single-threaded reference vs the tiled path on the same reduced case (the naive
     // path is O(pixels × Gaussians)).
     let mut naive = c.benchmark_group("naive_ratio_160x120_10k");
@@ -272,6 +281,104 @@ fn bench(c: &mut Criterion) {
         b.iter(|| pool.install(|| render(&g, &cam_s, &req_color, &cfg).unwrap()))
     });
     naive.finish();
+}
+
+/// The wgpu backend on the same scenes and requests.
+#[cfg(feature = "wgpu")]
+fn bench_wgpu(
+    c: &mut Criterion,
+    counts: &[usize],
+    cam: &Camera,
+    req: &RenderRequest,
+    req_color: &RenderRequest,
+    cfg: &RasterConfig,
+) {
+    let mut r = match gs_raster::WgpuRasterizer::new() {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("wgpu benches skipped: {e}");
+            return;
+        }
+    };
+    let software = if r.is_software() {
+        " — software Vulkan on the CPU, not GPU speed"
+    } else {
+        ""
+    };
+    eprintln!(
+        "wgpu adapter: {}{software}; native f32 atomics: {}",
+        r.adapter_description(),
+        r.native_f32_atomics()
+    );
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let gc = Image::filled(w, h, 3, 0.01).unwrap();
+    let g1 = Image::filled(w, h, 1, 0.01).unwrap();
+    let og = OutputGradients {
+        color: Some(&gc),
+        alpha: Some(&g1),
+        plane_depth: Some(&g1),
+        normal: Some(&gc),
+        ..Default::default()
+    };
+    let ogc = OutputGradients {
+        color: Some(&gc),
+        ..Default::default()
+    };
+    let report = std::env::var("GS_RASTER_WGPU_REPORT").is_ok();
+    let mut group = c.benchmark_group("raster_wgpu_640x480");
+    group.sample_size(10);
+    for &n in counts {
+        let g = scene(n, 7);
+        let out = r.render(&g, cam, req, cfg).unwrap();
+        let st = out.stats;
+        let time = |name: &str, pairs: u64, f: &mut dyn FnMut()| {
+            f(); // warm-up (buffer growth, pipeline caches)
+            let t0 = std::time::Instant::now();
+            for _ in 0..5 {
+                f();
+            }
+            let dt = t0.elapsed().as_secs_f64() / 5.0;
+            eprintln!(
+                "wgpu n={n} {name}: {:.1} ms/call, {:.0} M pairs/s",
+                dt * 1e3,
+                pairs as f64 / dt / 1e6
+            );
+        };
+        if report {
+            time("forward_color", st.forward_pairs, &mut || {
+                drop(r.render(&g, cam, req_color, cfg).unwrap())
+            });
+            time("forward_geometry", st.forward_pairs, &mut || {
+                drop(r.render(&g, cam, req, cfg).unwrap())
+            });
+            // A backward needs the latest render of the rasterizer: render + backward.
+            time("forward_geometry+backward_color", st.backward_pairs, &mut || {
+                let o = r.render(&g, cam, req, cfg).unwrap();
+                drop(r.backward(&g, cam, cfg, &o, &ogc).unwrap())
+            });
+            time("forward_geometry+backward_geometry", st.backward_pairs, &mut || {
+                let o = r.render(&g, cam, req, cfg).unwrap();
+                drop(r.backward(&g, cam, cfg, &o, &og).unwrap())
+            });
+            continue;
+        }
+        group.throughput(Throughput::Elements(st.forward_pairs));
+        group.bench_function(BenchmarkId::new("forward_color", n), |b| {
+            b.iter(|| r.render(&g, cam, req_color, cfg).unwrap())
+        });
+        group.bench_function(BenchmarkId::new("forward_geometry", n), |b| {
+            b.iter(|| r.render(&g, cam, req, cfg).unwrap())
+        });
+        let out = r.render(&g, cam, req, cfg).unwrap();
+        group.throughput(Throughput::Elements(st.backward_pairs));
+        group.bench_function(BenchmarkId::new("backward_geometry", n), |b| {
+            b.iter(|| r.backward(&g, cam, cfg, &out, &og).unwrap())
+        });
+        group.bench_function(BenchmarkId::new("backward_color", n), |b| {
+            b.iter(|| r.backward(&g, cam, cfg, &out, &ogc).unwrap())
+        });
+    }
+    group.finish();
 }
 
 criterion_group!(benches, bench);

@@ -1,6 +1,7 @@
 //! # gs-raster
 //!
-//! The differentiable 3D Gaussian splatting tile rasterizer of vagsl (CPU backend), with the
+//! The differentiable 3D Gaussian splatting tile rasterizer of vagsl (CPU backend, plus a wgpu
+//! backend behind the default `wgpu` feature), with the
 //! PGSR / VA-GS geometry channels of method-spec §2: colour, accumulated alpha A, rendered
 //! camera-space normal Ñ, rendered distance D, unbiased plane depth z = D / (−Ñ·K⁻¹p̄),
 //! expected depth, per-Gaussian radii and "observed" counts — and the exact backward of all of
@@ -33,6 +34,24 @@
 //! assert!(grads.opacity_logits[0] > 0.0);              // more opacity, more colour
 //! ```
 //!
+//! ## Backends
+//! - **CPU** ([`render`], [`backward`]): rayon over tiles, deterministic, the numerical
+//!   reference.
+//! - **wgpu** ([`WgpuRasterizer`], feature `wgpu`, on by default): WGSL compute kernels on
+//!   Vulkan / Metal / DX12 with the same inputs, outputs, errors and conventions; created once,
+//!   it keeps its device, pipelines and (geometrically growing) buffers across calls. The
+//!   forward state of its latest render stays on the device (`backward` right after `render`
+//!   is the fast path; an older render's state is rebuilt by one extra forward); mixing
+//!   backends or rasterizers is an [`RasterError::InvalidGradients`].
+//!   Parity with the CPU backend (tests/wgpu_parity.rs): images within 1e-4, gradients within
+//!   1e-3 relative (+ a 1e-5·max floor), apart from the rare pixel where an ulp-level
+//!   difference flips a discrete decision (α ≥ 1/255, the transmittance stop, T > 0.5).
+//!   `RenderStats::box_pairs` is a CPU-only work estimate (0 on wgpu).
+//! - **Selection**: [`Rasterizer::new`]`(`[`Backend`]`)` with `"cpu" | "wgpu" | "auto"`;
+//!   `auto` uses wgpu only on a hardware adapter (not a software one such as lavapipe) and
+//!   the CPU otherwise. Built without the feature, `Backend::Wgpu` is a
+//!   [`RasterError::BackendUnavailable`] error and `auto` is the CPU.
+//!
 //! ## Conventions (one choice per row of rasterizer-anchors.md §0)
 //! - Pixel (i, j) is blended at its centre (i + 0.5, j + 0.5) (design.md §2).
 //! - α = min(0.99, o·G); α < 1/255 skipped (tested as σ > ln(o·255), the identical decision
@@ -47,8 +66,15 @@
 // `!(a > b)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
+mod backend;
+#[cfg(feature = "wgpu")]
+mod gpu;
 mod project;
 mod raster;
+
+pub use backend::{Backend, Rasterizer};
+#[cfg(feature = "wgpu")]
+pub use gpu::{WgpuOptions, WgpuRasterizer, hardware_adapter_available, probe_adapter};
 
 use gs_core::{Camera, Gaussians, Image};
 use project::{CamParams, Features, Splat, SplatGrad};
@@ -92,9 +118,17 @@ pub enum RasterError {
         /// The cap.
         cap: usize,
     },
-    /// Output gradients that do not match the forward render (missing channel, wrong size).
+    /// Output gradients that do not match the forward render (missing channel, wrong size),
+    /// or a forward render from another backend / an older render of the same rasterizer.
     #[error("invalid output gradients: {0}")]
     InvalidGradients(String),
+    /// The requested backend cannot be used here (no adapter, or built without the feature).
+    #[error("backend unavailable: {0}")]
+    BackendUnavailable(String),
+    /// The GPU backend failed (device lost, out of memory, or an input beyond the adapter's
+    /// limits, e.g. a buffer larger than its maximum storage binding).
+    #[error("GPU backend error: {0}")]
+    Gpu(String),
 }
 
 /// Result alias of gs-raster.
@@ -237,9 +271,32 @@ pub struct RenderStats {
     pub box_pairs: u64,
 }
 
-/// What the backward needs from the forward (per-pixel and per-Gaussian state).
+/// What the backward needs from the forward: the CPU backend's per-pixel and per-Gaussian
+/// state, or a handle to the wgpu backend's device-resident state.
 #[derive(Debug, Clone)]
-pub struct ForwardState {
+pub struct ForwardState(StateInner);
+
+#[derive(Debug, Clone)]
+enum StateInner {
+    Cpu(CpuState),
+    #[cfg(feature = "wgpu")]
+    Gpu(gpu::GpuState),
+}
+
+impl ForwardState {
+    /// The CPU backend's state, if this came from the CPU backend.
+    fn cpu(&self) -> Option<&CpuState> {
+        match &self.0 {
+            StateInner::Cpu(s) => Some(s),
+            #[cfg(feature = "wgpu")]
+            StateInner::Gpu(_) => None,
+        }
+    }
+}
+
+/// The CPU backend's forward state.
+#[derive(Debug, Clone)]
+struct CpuState {
     n_gaussians: usize,
     width: u32,
     height: u32,
@@ -546,7 +603,7 @@ pub fn render(
     } else {
         Vec::new()
     };
-    out.state = ForwardState {
+    out.state = ForwardState(StateInner::Cpu(CpuState {
         n_gaussians: gaussians.len(),
         width: cam.width,
         height: cam.height,
@@ -558,7 +615,7 @@ pub fn render(
         final_t: final_t.clone(),
         last: last.clone(),
         geo: geo_state,
-    };
+    }));
     out.final_t = final_t;
     out.last_contributor = last;
     Ok(out)
@@ -645,7 +702,7 @@ fn assemble(
         stats: RenderStats::default(),
         final_t: Vec::new(),
         last_contributor: Vec::new(),
-        state: ForwardState {
+        state: ForwardState(StateInner::Cpu(CpuState {
             n_gaussians: 0,
             width: cam.width,
             height: cam.height,
@@ -657,7 +714,7 @@ fn assemble(
             final_t: Vec::new(),
             last: Vec::new(),
             geo: Vec::new(),
-        },
+        })),
     })
 }
 
@@ -731,6 +788,81 @@ fn check_grad(
     Ok(())
 }
 
+/// Checks every given output gradient against the rendered channels and the image size.
+fn check_all_grads(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
+    check_grad(grads.color, req.color, "color", w, h, 3)?;
+    check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
+    check_grad(grads.normal, req.normal, "normal", w, h, 3)?;
+    check_grad(grads.distance, req.distance, "distance", w, h, 1)?;
+    check_grad(grads.plane_depth, req.plane_depth, "plane_depth", w, h, 1)?;
+    check_grad(
+        grads.expected_depth,
+        req.expected_depth,
+        "expected_depth",
+        w,
+        h,
+        1,
+    )
+}
+
+/// Per-pixel channel gradients of pixel (x, y) for the backward traversal (shared by both
+/// backends): ∂L/∂(colour, Ñ, D, Σ w t_z) with plane depth folded into Ñ and D and expected
+/// depth into the depth sum and alpha, and the coefficient of the T_final term
+/// (g_A − bg·g_C − expected-depth term). `geo` holds per pixel Ñ (3), D, Σ w t_z (it may be
+/// empty when neither plane depth nor expected depth gradients are given).
+fn pixel_grads(
+    cam: &CamParams,
+    config: &RasterConfig,
+    grads: &OutputGradients,
+    final_t: &[f32],
+    geo: &[[f32; 5]],
+    x: usize,
+    y: usize,
+) -> ([f32; 8], f32) {
+    let p = y * cam.width as usize + x;
+    let bg = config.background;
+    let min_den = config.plane_depth_min_denominator;
+    let mut gc = [0.0f32; 8];
+    let mut g_alpha = grads.alpha.map_or(0.0, |im| im.get(x, y, 0));
+    if let Some(im) = grads.color {
+        for c in 0..3 {
+            gc[c] = im.get(x, y, c);
+        }
+        g_alpha -= bg[0] * gc[0] + bg[1] * gc[1] + bg[2] * gc[2];
+    }
+    if let Some(im) = grads.normal {
+        for c in 0..3 {
+            gc[3 + c] = im.get(x, y, c);
+        }
+    }
+    if let Some(im) = grads.distance {
+        gc[6] = im.get(x, y, 0);
+    }
+    if let Some(im) = grads.plane_depth {
+        let gz = im.get(x, y, 0);
+        let gs = &geo[p];
+        let ray = pixel_ray(cam, x, y);
+        if let Some((_, den)) = plane_depth_at([gs[0], gs[1], gs[2]], gs[3], ray, min_den) {
+            // z = D / den, den = −Ñ·r + ε: ∂z/∂D = 1/den, ∂z/∂Ñ = D·r/den².
+            gc[6] += gz / den;
+            let k = gz * gs[3] / (den * den);
+            for c in 0..3 {
+                gc[3 + c] += k * ray[c];
+            }
+        }
+    }
+    if let Some(im) = grads.expected_depth {
+        let a = 1.0 - final_t[p];
+        if a > 0.0 {
+            let ge = im.get(x, y, 0);
+            let s = geo[p][4];
+            gc[7] = ge / a;
+            g_alpha -= ge * s / (a * a);
+        }
+    }
+    (gc, g_alpha)
+}
+
 /// Backward pass: gradients of the Gaussian parameters given gradients of the rendered maps.
 /// `gaussians`, `camera` and `config` must be those of the `forward` render.
 pub fn backward(
@@ -741,7 +873,11 @@ pub fn backward(
     grads: &OutputGradients,
 ) -> Result<GaussianGradients> {
     let cam = check_inputs(gaussians, camera, config)?;
-    let st = &forward.state;
+    let Some(st) = forward.state.cpu() else {
+        return Err(RasterError::InvalidGradients(
+            "the forward render came from the wgpu backend; call backward on the same WgpuRasterizer".into(),
+        ));
+    };
     if st.n_gaussians != gaussians.len()
         || st.width != cam.width
         || st.height != cam.height
@@ -757,21 +893,8 @@ pub fn backward(
             cam.height
         )));
     }
-    let req = &st.request;
     let (w, h) = (cam.width, cam.height);
-    check_grad(grads.color, req.color, "color", w, h, 3)?;
-    check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
-    check_grad(grads.normal, req.normal, "normal", w, h, 3)?;
-    check_grad(grads.distance, req.distance, "distance", w, h, 1)?;
-    check_grad(grads.plane_depth, req.plane_depth, "plane_depth", w, h, 1)?;
-    check_grad(
-        grads.expected_depth,
-        req.expected_depth,
-        "expected_depth",
-        w,
-        h,
-        1,
-    )?;
+    check_all_grads(grads, &st.request, w, h)?;
     let color = grads.color.is_some();
     let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
     let depth = grads.expected_depth.is_some();
@@ -790,52 +913,8 @@ pub fn backward(
         threshold: config.alpha_threshold,
     };
     let wu = w as usize;
-    let bg = config.background;
-    let min_den = config.plane_depth_min_denominator;
-    // Per-pixel channel gradients, with plane depth folded into Ñ and D and expected depth into
-    // the depth sum and alpha.
-    let pixel_grads = |x: usize, y: usize| -> ([f32; 8], f32) {
-        let p = y * wu + x;
-        let mut gc = [0.0f32; 8];
-        let mut g_alpha = grads.alpha.map_or(0.0, |im| im.get(x, y, 0));
-        if let Some(im) = grads.color {
-            for c in 0..3 {
-                gc[c] = im.get(x, y, c);
-            }
-            g_alpha -= bg[0] * gc[0] + bg[1] * gc[1] + bg[2] * gc[2];
-        }
-        if let Some(im) = grads.normal {
-            for c in 0..3 {
-                gc[3 + c] = im.get(x, y, c);
-            }
-        }
-        if let Some(im) = grads.distance {
-            gc[6] = im.get(x, y, 0);
-        }
-        if let Some(im) = grads.plane_depth {
-            let gz = im.get(x, y, 0);
-            let gs = &st.geo[p];
-            let ray = pixel_ray(&cam, x, y);
-            if let Some((_, den)) = plane_depth_at([gs[0], gs[1], gs[2]], gs[3], ray, min_den) {
-                // z = D / den, den = −Ñ·r + ε: ∂z/∂D = 1/den, ∂z/∂Ñ = D·r/den².
-                gc[6] += gz / den;
-                let k = gz * gs[3] / (den * den);
-                for c in 0..3 {
-                    gc[3 + c] += k * ray[c];
-                }
-            }
-        }
-        if let Some(im) = grads.expected_depth {
-            let a = 1.0 - st.final_t[p];
-            if a > 0.0 {
-                let ge = im.get(x, y, 0);
-                let s = st.geo[p][4];
-                gc[7] = ge / a;
-                g_alpha -= ge * s / (a * a);
-            }
-        }
-        (gc, g_alpha)
-    };
+    let pixel_grads =
+        |x: usize, y: usize| pixel_grads(&cam, config, grads, &st.final_t, &st.geo, x, y);
     let ts = TILE_SIZE as usize;
     let gin = |tile: usize| -> raster::TileGradIn {
         let tx = tile % cam.tiles_x as usize;

@@ -398,7 +398,7 @@ fn splat_level_gradients_match_finite_differences() {
     };
     let grads = backward(&g, &cam, &cfg, &out, &og).unwrap();
     // Re-run the tile forward with perturbed splats.
-    let st = &out.state;
+    let st = out.state.cpu().expect("the CPU render returns a CPU state");
     let cp = CamParams::new(&cam);
     let eval = |splats: &[Splat], feats: &[Features]| -> f64 {
         let ctx = raster::Ctx {

@@ -1,0 +1,189 @@
+//! Backend selection: the CPU reference backend or the wgpu (WGSL compute) backend behind one
+//! object with the same `render` / `backward` signatures.
+
+use crate::{
+    GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, RenderRequest,
+    Result,
+};
+use gs_core::{Camera, Gaussians};
+
+/// Which rasterizer backend to use (`"cpu" | "wgpu" | "auto"` via [`std::str::FromStr`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Backend {
+    /// The CPU backend (rayon over tiles; the numerical reference).
+    Cpu,
+    /// The wgpu backend on the best adapter found, software adapters (lavapipe) included.
+    Wgpu,
+    /// wgpu when a hardware GPU adapter exists, else the CPU backend.
+    #[default]
+    Auto,
+}
+
+impl std::str::FromStr for Backend {
+    type Err = RasterError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "cpu" => Ok(Backend::Cpu),
+            "wgpu" | "gpu" => Ok(Backend::Wgpu),
+            "auto" => Ok(Backend::Auto),
+            other => Err(RasterError::InvalidConfig(format!(
+                "unknown backend {other:?}; expected cpu, wgpu or auto"
+            ))),
+        }
+    }
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Backend::Cpu => "cpu",
+            Backend::Wgpu => "wgpu",
+            Backend::Auto => "auto",
+        })
+    }
+}
+
+enum Inner {
+    Cpu,
+    #[cfg(feature = "wgpu")]
+    Wgpu(Box<crate::gpu::WgpuRasterizer>),
+}
+
+/// A rasterizer of the chosen backend. Create it once and reuse it: the wgpu backend keeps its
+/// device, pipelines and buffers across calls.
+pub struct Rasterizer {
+    inner: Inner,
+}
+
+impl std::fmt::Debug for Rasterizer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Rasterizer({})", self.description())
+    }
+}
+
+impl Rasterizer {
+    /// Creates the rasterizer. `Backend::Wgpu` fails with [`RasterError::BackendUnavailable`]
+    /// when there is no adapter or the crate was built without the `wgpu` feature;
+    /// `Backend::Auto` picks wgpu on a hardware (non-CPU) adapter and the CPU otherwise.
+    pub fn new(backend: Backend) -> Result<Self> {
+        match backend {
+            Backend::Cpu => Ok(Self { inner: Inner::Cpu }),
+            #[cfg(feature = "wgpu")]
+            Backend::Wgpu => Ok(Self {
+                inner: Inner::Wgpu(Box::new(crate::gpu::WgpuRasterizer::new()?)),
+            }),
+            #[cfg(not(feature = "wgpu"))]
+            Backend::Wgpu => Err(RasterError::BackendUnavailable(
+                "gs-raster was built without the `wgpu` feature".into(),
+            )),
+            #[cfg(feature = "wgpu")]
+            Backend::Auto => {
+                let opts = crate::gpu::WgpuOptions {
+                    require_hardware: true,
+                    ..Default::default()
+                };
+                match crate::gpu::WgpuRasterizer::with_options(opts) {
+                    Ok(r) => Ok(Self {
+                        inner: Inner::Wgpu(Box::new(r)),
+                    }),
+                    Err(_) => Ok(Self { inner: Inner::Cpu }),
+                }
+            }
+            #[cfg(not(feature = "wgpu"))]
+            Backend::Auto => Ok(Self { inner: Inner::Cpu }),
+        }
+    }
+
+    /// The backend in use (`Cpu` or `Wgpu`, never `Auto`).
+    pub fn backend(&self) -> Backend {
+        match self.inner {
+            Inner::Cpu => Backend::Cpu,
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(_) => Backend::Wgpu,
+        }
+    }
+
+    /// `"cpu"` or `"wgpu"`.
+    pub fn backend_name(&self) -> &'static str {
+        match self.inner {
+            Inner::Cpu => "cpu",
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(_) => "wgpu",
+        }
+    }
+
+    /// A human-readable description (the adapter for wgpu) for logs.
+    pub fn description(&self) -> String {
+        match &self.inner {
+            Inner::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => format!("wgpu on {}", r.adapter_description()),
+        }
+    }
+
+    /// Renders like [`crate::render`].
+    pub fn render(
+        &mut self,
+        gaussians: &Gaussians,
+        camera: &Camera,
+        request: &RenderRequest,
+        config: &RasterConfig,
+    ) -> Result<RenderOutput> {
+        match &mut self.inner {
+            Inner::Cpu => crate::render(gaussians, camera, request, config),
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.render(gaussians, camera, request, config),
+        }
+    }
+
+    /// Backward like [`crate::backward`]; `forward` must come from this rasterizer (for wgpu,
+    /// backward right after its render is fastest; an older render's device state is rebuilt).
+    pub fn backward(
+        &mut self,
+        gaussians: &Gaussians,
+        camera: &Camera,
+        config: &RasterConfig,
+        forward: &RenderOutput,
+        grads: &OutputGradients,
+    ) -> Result<GaussianGradients> {
+        match &mut self.inner {
+            Inner::Cpu => crate::backward(gaussians, camera, config, forward, grads),
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.backward(gaussians, camera, config, forward, grads),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rasterizer_is_send() {
+        fn send<T: Send>() {}
+        send::<Rasterizer>();
+    }
+
+    #[test]
+    fn backend_names_parse_and_print() {
+        for b in [Backend::Cpu, Backend::Wgpu, Backend::Auto] {
+            assert_eq!(b.to_string().parse::<Backend>().unwrap(), b);
+        }
+        assert!(matches!(
+            "metal".parse::<Backend>(),
+            Err(RasterError::InvalidConfig(_))
+        ));
+        let r = Rasterizer::new(Backend::Cpu).unwrap();
+        assert_eq!((r.backend(), r.backend_name()), (Backend::Cpu, "cpu"));
+    }
+
+    #[cfg(not(feature = "wgpu"))]
+    #[test]
+    fn without_the_feature_wgpu_is_an_error_and_auto_is_cpu() {
+        assert!(matches!(
+            Rasterizer::new(Backend::Wgpu),
+            Err(RasterError::BackendUnavailable(_))
+        ));
+        assert_eq!(Rasterizer::new(Backend::Auto).unwrap().backend(), Backend::Cpu);
+    }
+}

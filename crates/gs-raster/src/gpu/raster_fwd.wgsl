@@ -1,0 +1,136 @@
+// Forward blend: one workgroup per 16x16 tile, one thread per pixel, front to back over the
+// tile's list (the CPU backend's rule: pixel box, alpha = min(0.99, o G), skip alpha below
+// the threshold, stop when T (1 - alpha) < 1e-4 without blending). The accumulators are
+// written channel-planar (plane c at c * npix): colour 0..3, normal 3..6, distance 6, depth 7.
+//
+// The list is walked in windows of list positions [pass_.shift, pass_.nb), one dispatch per
+// window, with the per-pixel state (accumulators, T, last) kept in the output buffers between
+// windows and "done" stored as the sign of T (T > 0 always): software Vulkan (llvmpipe) caps
+// the loop iterations of one invocation at 65535, and a bounded dispatch is also kinder to
+// GPU watchdogs. pass_.mode: 1 = first window, 2 = last window.
+//
+// Images whose per-pixel buffers exceed one storage binding are processed in bands of tile
+// rows: rows [pass_.base, ...) with the per-pixel buffers bound from the band's first pixel;
+// pass_.n is the band's pixel count (the plane stride).
+
+@group(0) @binding(2) var<storage, read> ranges: array<u32>;
+@group(0) @binding(3) var<storage, read> gids: array<u32>;
+@group(0) @binding(4) var<storage, read> splat: array<f32>;
+@group(0) @binding(5) var<storage, read_write> acc: array<f32>;
+@group(0) @binding(6) var<storage, read_write> final_t: array<f32>;
+@group(0) @binding(7) var<storage, read_write> last: array<u32>;
+@group(0) @binding(8) var<storage, read_write> observed: array<atomic<u32>>;
+@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>>;
+
+fn add64(i: u32, v: u32) {
+    let old = atomicAdd(&counters[i], v);
+    if (old + v < old) {
+        atomicAdd(&counters[i + 1u], 1u);
+    }
+}
+
+@compute @workgroup_size(16, 16)
+fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    let px = wid.x * TILE + lid.x;
+    let tile_y = wid.y + pass_.base;
+    let py = tile_y * TILE + lid.y;
+    if (px >= cam.width || py >= cam.height) {
+        return;
+    }
+    let tile = tile_y * cam.tiles_x + wid.x;
+    let x0 = wid.x * TILE;
+    let y0 = tile_y * TILE;
+    let tw = min(cam.width - x0, TILE);
+    let th = min(cam.height - y0, TILE);
+    let start = ranges[2u * tile];
+    let len = ranges[2u * tile + 1u] - start;
+    let npix = pass_.n;
+    let p = (py - pass_.base * TILE) * cam.width + px;
+    let fx = f32(px) + 0.5;
+    let fy = f32(py) + 0.5;
+    let color = (cam.flags & 1u) != 0u;
+    let geo = (cam.flags & 2u) != 0u;
+    let depth = (cam.flags & 4u) != 0u;
+    let obs = (cam.flags & 8u) != 0u;
+    let lo = pass_.shift;
+    let hi = min(pass_.nb, len);
+    let first = (pass_.mode & 1u) != 0u;
+    let final_window = (pass_.mode & 2u) != 0u;
+    var a = array<f32, 8>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    var t = 1.0;
+    var last_k = 0u;
+    var done = false;
+    if (!first) {
+        for (var c = 0u; c < 8u; c++) {
+            a[c] = acc[c * npix + p];
+        }
+        t = final_t[p];
+        done = t < 0.0;
+        t = abs(t);
+        last_k = last[p];
+    }
+    // Entries of this window the pixel went through (the forward pair count).
+    var traversed = 0u;
+    if (!done && hi > lo) {
+        traversed = hi - lo;
+    }
+    for (var k = lo; k < hi && !done; k++) {
+        let gid = gids[start + k];
+        let o = gid * SPLAT_STRIDE;
+        let sx = splat[o];
+        let sy = splat[o + 1u];
+        if (!in_box(sx, splat[o + 7u], x0, tw, lid.x) || !in_box(sy, splat[o + 8u], y0, th, lid.y)) {
+            continue;
+        }
+        let dx = fx - sx;
+        let dy = fy - sy;
+        let sigma = 0.5 * (splat[o + 2u] * dx * dx + splat[o + 4u] * dy * dy) + splat[o + 3u] * dx * dy;
+        if (!(sigma >= 0.0 && sigma <= splat[o + 6u])) {
+            continue;
+        }
+        var alpha = splat[o + 5u] * exp_neg(sigma);
+        if (alpha < cam.threshold) {
+            continue;
+        }
+        alpha = min(alpha, MAX_ALPHA);
+        let next_t = t * (1.0 - alpha);
+        if (next_t < T_STOP) {
+            traversed = k + 1u - lo;
+            done = true;
+            break;
+        }
+        let w = alpha * t;
+        if (color) {
+            a[0] += w * splat[o + 9u];
+            a[1] += w * splat[o + 10u];
+            a[2] += w * splat[o + 11u];
+        }
+        if (geo) {
+            a[3] += w * splat[o + 12u];
+            a[4] += w * splat[o + 13u];
+            a[5] += w * splat[o + 14u];
+            a[6] += w * splat[o + 15u];
+        }
+        if (depth) {
+            a[7] += w * splat[o + 16u];
+        }
+        if (obs && t > 0.5) {
+            atomicAdd(&observed[gid], 1u);
+        }
+        t = next_t;
+        last_k = k + 1u;
+    }
+    for (var c = 0u; c < 8u; c++) {
+        acc[c * npix + p] = a[c];
+    }
+    if (done && !final_window) {
+        final_t[p] = -t;
+    } else {
+        final_t[p] = t;
+    }
+    last[p] = last_k;
+    add64(4u, traversed);
+    if (final_window) {
+        add64(6u, last_k);
+    }
+}
