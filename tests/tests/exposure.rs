@@ -5,7 +5,7 @@
 //! Release only (two short trainings).
 
 use gs_core::{Image, Rng};
-use gs_train::{LossSwitches, TrainConfig, Trainer, evaluate_images};
+use gs_train::{LossSwitches, TrainConfig, Trainer};
 
 /// Held-out PSNR after fitting each view's per-channel gain (least squares): the model keeps
 /// one reference exposure, which a held-out photo need not share, so the comparison fits that
@@ -42,7 +42,7 @@ fn train_colour(scene: &gs_core::Scene, train: &[usize], test: &[usize], exposur
     };
     let mut trainer = Trainer::new(scene, train.to_vec(), config).unwrap();
     trainer.run(|_, _| true).unwrap();
-    let m = evaluate_images(trainer.gaussians(), scene, test, trainer.raster_config(), None).unwrap();
+    let m = trainer.evaluate_images(test, None).unwrap();
     let fitted = psnr_after_gain_fit(trainer.gaussians(), scene, test, trainer.raster_config());
     let gains = trainer.state().exposure.as_ref().map(|e| e.params.iter().map(|p| [p[0], p[1], p[2]]).collect()).unwrap_or_default();
     (m.psnr, fitted, gains)

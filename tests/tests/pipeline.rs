@@ -3,7 +3,7 @@
 //! reach (the TSDF of the exact GT depth maps at the same voxel size). Release only.
 
 use gs_core::{Scene, TriangleMesh};
-use gs_train::{LossSwitches, MeshOptions, TrainConfig, Trainer, extract_mesh};
+use gs_train::{LossSwitches, MeshOptions, TrainConfig, Trainer};
 use gs_tsdf::{EvalOptions, PointMetrics, TsdfConfig, TsdfVolume, evaluate_meshes};
 
 /// Iterations of both runs (`VAGSL_PIPELINE_ITERATIONS` overrides, for longer experiments).
@@ -21,7 +21,7 @@ fn train_and_mesh(scene: &Scene, train: &[usize], config: TrainConfig) -> (Trian
     let mut trainer = Trainer::new(scene, train.to_vec(), config).unwrap();
     trainer.run(|_, _| true).unwrap();
     let (mesh, _) =
-        extract_mesh(trainer.gaussians(), scene, train, trainer.raster_config(), trainer.extent(), &MeshOptions::default())
+        trainer.extract_mesh(train, &MeshOptions::default())
             .unwrap();
     (mesh, trainer.gaussians().len(), t0.elapsed().as_secs_f64())
 }

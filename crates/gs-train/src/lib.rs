@@ -7,15 +7,14 @@
 //! extraction from rendered plane depths and held-out image metrics.
 //!
 //! ```no_run
-//! use gs_train::{Trainer, TrainConfig, Preset, MeshOptions, extract_mesh};
+//! use gs_train::{Trainer, TrainConfig, Preset, MeshOptions};
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let scene = gs_io::load_scene(std::path::Path::new("scene"), &Default::default())?;
 //! let (train, _test) = scene.split(true);
 //! let config = TrainConfig::preset(Preset::Fast);
 //! let mut trainer = Trainer::new(&scene, train.clone(), config)?;
 //! trainer.run(|_, report| { println!("{} {:.4}", report.iteration, report.losses.total); true })?;
-//! let (mesh, _) = extract_mesh(trainer.gaussians(), &scene, &train, trainer.raster_config(),
-//!     trainer.extent(), &MeshOptions::default())?;
+//! let (mesh, _) = trainer.extract_mesh(&train, &MeshOptions::default())?;
 //! gs_io::write_mesh_ply(std::path::Path::new("mesh.ply"), &mesh)?;
 //! # Ok(()) }
 //! ```

@@ -4,7 +4,7 @@
 use crate::error::{Result, TrainError};
 use gs_core::{Gaussians, Image, Scene, TriangleMesh};
 use gs_losses::{Lpips, psnr, ssim_metric};
-use gs_raster::{RasterConfig, RenderRequest, render};
+use gs_raster::{RasterConfig, Rasterizer, RenderRequest};
 use gs_tsdf::{ComponentFilter, TsdfConfig, TsdfVolume, clean_mesh};
 use serde::Serialize;
 
@@ -72,11 +72,13 @@ pub struct MeshReport {
 
 /// Renders plane depth and colour of `views`, fuses them into a TSDF, runs marching cubes and
 /// the clean-up (components ≥ 50 triangles or the largest, degenerate and unreferenced
-/// elements removed). `extent` is the scene extent r for the defaults.
+/// elements removed). `extent` is the scene extent r for the defaults. Renders with
+/// `rasterizer` (any backend) and the settings `raster`.
 pub fn extract_mesh(
     gaussians: &Gaussians,
     scene: &Scene,
     views: &[usize],
+    rasterizer: &mut Rasterizer,
     raster: &RasterConfig,
     extent: f64,
     opts: &MeshOptions,
@@ -100,7 +102,7 @@ pub fn extract_mesh(
     for &i in views {
         let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
         let t0 = std::time::Instant::now();
-        let out = render(gaussians, &view.camera, &req, raster)?;
+        let out = rasterizer.render(gaussians, &view.camera, &req, raster)?;
         let mut depth = out.plane_depth.expect("requested");
         let alpha = out.alpha.expect("requested");
         for (d, a) in depth.data_mut().iter_mut().zip(alpha.data()) {
@@ -167,6 +169,7 @@ pub fn evaluate_images(
     gaussians: &Gaussians,
     scene: &Scene,
     views: &[usize],
+    rasterizer: &mut Rasterizer,
     raster: &RasterConfig,
     lpips: Option<&Lpips>,
 ) -> Result<ImageMetrics> {
@@ -177,7 +180,7 @@ pub fn evaluate_images(
     let mut out = Vec::with_capacity(views.len());
     for &i in views {
         let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
-        let mut img: Image = render(gaussians, &view.camera, &req, raster)?.color.expect("requested");
+        let mut img: Image = rasterizer.render(gaussians, &view.camera, &req, raster)?.color.expect("requested");
         img.data_mut().iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
         out.push(ViewMetrics {
             name: view.name.clone(),

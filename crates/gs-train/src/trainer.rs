@@ -19,7 +19,7 @@ use gs_mvs::{
     FeatureReference, FeatureSource, NccMode, PhotometricConfig, PhotometricReference,
     PhotometricSource, SourceSelection, SourceViewSelector, feature_loss, photometric_loss,
 };
-use gs_raster::{OutputGradients, RasterConfig, RenderRequest, backward, render};
+use gs_raster::{Backend, OutputGradients, RasterConfig, Rasterizer, RenderRequest};
 use serde::Serialize;
 
 /// RNG stream tags (xor-ed into the iteration) so the per-iteration draws are independent.
@@ -93,6 +93,7 @@ pub struct Trainer<'s> {
     train_views: Vec<usize>,
     extent: f64,
     raster: RasterConfig,
+    rasterizer: Rasterizer,
     selector: SourceViewSelector,
     state: TrainState,
     guides: Vec<Option<EdgeGuide>>,
@@ -183,6 +184,7 @@ impl<'s> Trainer<'s> {
             train_views,
             extent,
             raster,
+            rasterizer: Rasterizer::new(Backend::Cpu)?,
             selector,
             state,
             guides: (0..k).map(|_| None).collect(),
@@ -215,6 +217,40 @@ impl<'s> Trainer<'s> {
     /// Scene extent r of the training cameras.
     pub fn extent(&self) -> f64 {
         self.extent
+    }
+
+    /// Switches the rasterizer backend (the CPU by default; `Auto` picks wgpu on a hardware
+    /// GPU). Bit-identical resume holds for the CPU backend; wgpu's atomics make its gradient
+    /// sums order-dependent.
+    pub fn set_backend(&mut self, backend: Backend) -> Result<()> {
+        self.set_rasterizer(Rasterizer::new(backend)?);
+        Ok(())
+    }
+
+    /// Uses `rasterizer` from now on (see [`Trainer::set_backend`]).
+    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer) {
+        self.rasterizer = rasterizer;
+    }
+
+    /// The rasterizer in use.
+    pub fn rasterizer(&self) -> &Rasterizer {
+        &self.rasterizer
+    }
+
+    /// The rasterizer in use, for rendering the result ([`crate::extract_mesh`] …).
+    pub fn rasterizer_mut(&mut self) -> &mut Rasterizer {
+        &mut self.rasterizer
+    }
+
+    /// [`crate::extract_mesh`] of the current model over `views` (indices into the scene) with
+    /// this trainer's rasterizer and settings.
+    pub fn extract_mesh(&mut self, views: &[usize], opts: &crate::MeshOptions) -> Result<(gs_core::TriangleMesh, crate::MeshReport)> {
+        crate::output::extract_mesh(&self.state.gaussians, self.scene, views, &mut self.rasterizer, &self.raster, self.extent, opts)
+    }
+
+    /// [`crate::evaluate_images`] of the current model on `views` (indices into the scene).
+    pub fn evaluate_images(&mut self, views: &[usize], lpips: Option<&gs_losses::Lpips>) -> Result<crate::ImageMetrics> {
+        crate::output::evaluate_images(&self.state.gaussians, self.scene, views, &mut self.rasterizer, &self.raster, lpips)
     }
 
     /// The rasterizer settings used for training (and for rendering the result).
@@ -322,9 +358,10 @@ impl<'s> Trainer<'s> {
     }
 
     /// Renders the plane depth of training slot `slot` without gradients (source views).
-    fn source_plane_depth(&self, slot: usize) -> Result<Image> {
+    fn source_plane_depth(&mut self, slot: usize) -> Result<Image> {
         let req = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
-        let out = render(&self.state.gaussians, &self.scene.views[self.train_views[slot]].camera, &req, &self.raster)?;
+        let out =
+            self.rasterizer.render(&self.state.gaussians, &self.scene.views[self.train_views[slot]].camera, &req, &self.raster)?;
         Ok(out.plane_depth.expect("requested"))
     }
 
@@ -377,7 +414,7 @@ impl<'s> Trainer<'s> {
             expected_depth: false,
             observed: false,
         };
-        let out = render(&self.state.gaussians, camera, &request, &self.raster)?;
+        let out = self.rasterizer.render(&self.state.gaussians, camera, &request, &self.raster)?;
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
         let corrected = match &self.state.exposure {
             Some(e) => Some(crate::exposure::apply(out.color.as_ref().expect("requested"), &e.params[slot])?),
@@ -492,7 +529,7 @@ impl<'s> Trainer<'s> {
             }
             None => li.grad_rendered,
         };
-        let grads = backward(
+        let grads = self.rasterizer.backward(
             &self.state.gaussians,
             camera,
             &self.raster,
@@ -561,11 +598,11 @@ impl<'s> Trainer<'s> {
 
     /// For every Gaussian, the number of training views in which it was observed (contributed
     /// while T > 0.5), for the multi-view trim.
-    pub fn views_observed(&self) -> Result<Vec<u32>> {
+    pub fn views_observed(&mut self) -> Result<Vec<u32>> {
         let mut counts = vec![0u32; self.state.gaussians.len()];
         let req = RenderRequest { color: false, alpha: false, observed: true, ..RenderRequest::default() };
         for &i in &self.train_views {
-            let out = render(&self.state.gaussians, &self.scene.views[i].camera, &req, &self.raster)?;
+            let out = self.rasterizer.render(&self.state.gaussians, &self.scene.views[i].camera, &req, &self.raster)?;
             for (c, &o) in counts.iter_mut().zip(out.observed.as_ref().expect("requested")) {
                 *c += (o > 0) as u32;
             }

@@ -18,6 +18,9 @@ pub struct EvalImagesArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
+    #[arg(long, default_value = "auto")]
+    pub backend: gs_raster::Backend,
 }
 
 /// Runs `vagsl eval-images`; writes RUN/eval_images.json.
@@ -25,7 +28,8 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
     let run = OpenRun::open(&args.run)?;
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
     let views = if args.train { &run.train } else { &run.test };
-    let metrics = gs_train::evaluate_images(&run.gaussians, &run.scene, views, &run.raster(), lpips.as_ref())?;
+    let mut rasterizer = super::rasterizer(args.backend)?;
+    let metrics = gs_train::evaluate_images(&run.gaussians, &run.scene, views, &mut rasterizer, &run.raster(), lpips.as_ref())?;
     write_json(&run.dir.join(if args.train { "eval_images_train.json" } else { "eval_images.json" }), &metrics)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&metrics)?);

@@ -12,6 +12,9 @@ pub struct MeshArgs {
     /// A `vagsl train` output folder (its rendered plane depths are fused), or with
     /// `--depth-dir` a scene folder whose depth maps are given.
     pub run: PathBuf,
+    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
+    #[arg(long, default_value = "auto")]
+    pub backend: gs_raster::Backend,
     /// Fuse these depth maps instead of rendering a run: one per view of the scene, named
     /// `<stem>.exr`, `<stem>_depth.exr`, `depth_<stem>.npy` or `<stem>.npy` (camera z, 0 = none).
     #[arg(long)]
@@ -104,7 +107,8 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         use_masks: args.masks,
         ..Default::default()
     };
-    let (mesh, report) = extract_mesh(&run.gaussians, &run.scene, &run.train, &run.raster(), run.extent(), &opts)?;
+    let mut rasterizer = super::rasterizer(args.backend)?;
+    let (mesh, report) = extract_mesh(&run.gaussians, &run.scene, &run.train, &mut rasterizer, &run.raster(), run.extent(), &opts)?;
     let path = args.output.clone().unwrap_or_else(|| run.dir.join("mesh.ply"));
     gs_io::write_mesh_ply(&path, &mesh)?;
     write_json(&report_path(&path), &report)?;

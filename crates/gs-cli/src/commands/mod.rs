@@ -8,3 +8,11 @@ pub mod mesh;
 pub mod render;
 pub mod tradeoff;
 pub mod train;
+
+/// The rasterizer of `--backend` (cpu, wgpu, or auto = wgpu on a hardware GPU, else the CPU),
+/// announced on stderr so a user sees which one ran.
+pub fn rasterizer(backend: gs_raster::Backend) -> anyhow::Result<gs_raster::Rasterizer> {
+    let r = gs_raster::Rasterizer::new(backend)?;
+    eprintln!("rasterizer: {} (--backend {backend})", r.description());
+    Ok(r)
+}

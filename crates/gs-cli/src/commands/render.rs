@@ -3,7 +3,7 @@
 use crate::run_dir::OpenRun;
 use anyhow::{Context, Result};
 use gs_core::Image;
-use gs_raster::{RenderRequest, render};
+use gs_raster::RenderRequest;
 use std::path::PathBuf;
 
 /// Which views to render.
@@ -22,6 +22,9 @@ pub enum Split {
 pub struct RenderArgs {
     /// A `vagsl train` output folder.
     pub run: PathBuf,
+    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
+    #[arg(long, default_value = "auto")]
+    pub backend: gs_raster::Backend,
     /// Which views.
     #[arg(long, value_enum, default_value = "test")]
     pub split: Split,
@@ -60,9 +63,10 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
     let req = RenderRequest { color: true, alpha: true, normal: true, distance: true, plane_depth: true, ..Default::default() };
     let raster = run.raster();
+    let mut rasterizer = super::rasterizer(args.backend)?;
     for &i in &views {
         let view = &run.scene.views[i];
-        let out = render(&run.gaussians, &view.camera, &req, &raster)?;
+        let out = rasterizer.render(&run.gaussians, &view.camera, &req, &raster)?;
         let stem = std::path::Path::new(&view.name).file_stem().map_or(view.name.clone(), |s| s.to_string_lossy().into_owned());
         gs_io::write_png(&dir.join(format!("{stem}.png")), out.color.as_ref().expect("requested"))?;
         gs_io::write_depth_exr(&dir.join(format!("{stem}_depth.exr")), out.plane_depth.as_ref().expect("requested"))?;

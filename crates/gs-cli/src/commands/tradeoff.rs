@@ -6,7 +6,7 @@ use crate::commands::eval_mesh::{gt_crop, read_mesh};
 use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, write_json};
 use anyhow::{Context, Result, bail};
 use gs_core::TriangleMesh;
-use gs_train::{LossSwitches, MeshOptions, Preset, TrainConfig, Trainer, evaluate_images, extract_mesh};
+use gs_train::{LossSwitches, MeshOptions, Preset, TrainConfig, Trainer};
 use gs_tsdf::{Aabb, EvalOptions, evaluate_meshes};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -18,6 +18,9 @@ use std::time::Instant;
 pub struct TradeoffArgs {
     /// Scene folder. Omit for the built-in scene (its exact object mesh is the default GT).
     pub scene: Option<PathBuf>,
+    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
+    #[arg(long, default_value = "auto")]
+    pub backend: gs_raster::Backend,
     /// Ground-truth mesh (PLY/OBJ) the meshes are scored against.
     #[arg(long)]
     pub gt: Option<PathBuf>,
@@ -180,11 +183,12 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         eprintln!("[tradeoff] {name}: {} iterations", config.iterations);
         let t0 = Instant::now();
         let mut trainer = Trainer::new(&scene, train.clone(), config.clone())?;
+        trainer.set_backend(args.backend)?;
         trainer.run(|_, _| true)?;
         let train_seconds = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (mesh, _) =
-            extract_mesh(trainer.gaussians(), &scene, &train, trainer.raster_config(), trainer.extent(), &MeshOptions::default())?;
+            trainer.extract_mesh(&train, &MeshOptions::default())?;
         let mesh_seconds = t1.elapsed().as_secs_f64();
         let run_config = RunConfig { scene: source.clone(), train_views: names(&train), test_views: names(&test), train: config.clone() };
         write_json(&dir.join("config.json"), &run_config)?;
@@ -194,7 +198,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         let psnr = if test.is_empty() {
             None
         } else {
-            Some(evaluate_images(trainer.gaussians(), &scene, &test, trainer.raster_config(), None)?.psnr)
+            Some(trainer.evaluate_images(&test, None)?.psnr)
         };
         let rung = Rung {
             name: name.to_string(),

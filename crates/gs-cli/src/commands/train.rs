@@ -28,6 +28,9 @@ pub enum PresetArg {
 pub struct TrainArgs {
     /// Scene folder (`images/` + `sparse/0`). Omit for the built-in scene.
     pub scene: Option<PathBuf>,
+    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
+    #[arg(long, default_value = "auto")]
+    pub backend: gs_raster::Backend,
     /// Output folder (created): config.json, point_cloud.ply, report.json, checkpoint.bin.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -269,6 +272,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         Some(state) => Trainer::with_state(&scene, train_idx.clone(), config.clone(), state)?,
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
+    trainer.set_rasterizer(super::rasterizer(args.backend)?);
     if config.ncc_scale > 1 {
         trainer.set_grey_images(crate::run_dir::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
