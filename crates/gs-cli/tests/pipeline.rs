@@ -44,12 +44,19 @@ fn builtin_scene_end_to_end() {
     let mesh = gs_io::read_mesh_ply(&out.join("mesh.ply")).unwrap();
     assert!(!mesh.triangles.is_empty());
 
-    let (ok, _, err) = vagsl(&["render", o, "--split", "test"]);
+    let mesh_path = out.join("mesh.ply");
+    let (ok, _, err) = vagsl(&["render", o, "--split", "test", "--mesh", mesh_path.to_str().unwrap()]);
     assert!(ok, "{err}");
     let renders = out.join("renders/test");
-    for f in ["0000.png", "0000_depth.exr", "0000_normal.png"] {
+    for f in ["0000.png", "0000_depth.exr", "0000_normal.png", "0000_mesh.png"] {
         assert!(renders.join(f).is_file(), "{f} missing");
     }
+    // The mesh screenshot shows the fused surface: most pixels are shaded, not background.
+    let shot = image::open(renders.join("0000_mesh.png")).unwrap().to_rgb8();
+    let lit = shot.pixels().filter(|p| p[0] > 20).count();
+    assert!(lit > shot.len() / 3 / 4, "only {lit} shaded pixels in the mesh screenshot");
+    let (ok, _, err) = vagsl(&["render", o, "--mesh", "/nonexistent/m.ply"]);
+    assert!(!ok && err.contains("/nonexistent/m.ply"), "{err}");
 
     let (ok, stdout, err) = vagsl(&["eval-images", o, "--json"]);
     assert!(ok, "{err}");

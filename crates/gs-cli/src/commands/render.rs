@@ -31,6 +31,36 @@ pub struct RenderArgs {
     /// Output folder (default RUN/renders/SPLIT).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Also ray-cast this mesh (PLY/OBJ, e.g. RUN/mesh.ply) from every view, shaded by the
+    /// angle to the camera ("headlight"), as `<stem>_mesh.png`: a screenshot of the mesh from
+    /// the photo's viewpoint, with no graphics driver needed.
+    #[arg(long)]
+    pub mesh: Option<PathBuf>,
+}
+
+/// Headlight shading of a ray-cast mesh: |n·ray| on a light grey, background black.
+fn mesh_shaded(bvh: &gs_synth::Bvh, camera: &gs_core::Camera) -> Result<Image> {
+    let cast = bvh.cast_view(camera)?;
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let mut out = Image::new(w, h, 3)?;
+    for y in 0..h {
+        for x in 0..w {
+            if cast.depth.get(x, y, 0) <= 0.0 {
+                continue;
+            }
+            let n = gs_core::glam::DVec3::new(
+                cast.normal.get(x, y, 0) as f64,
+                cast.normal.get(x, y, 1) as f64,
+                cast.normal.get(x, y, 2) as f64,
+            );
+            let (_, d) = gs_synth::pixel_ray(camera, x as f64 + 0.5, y as f64 + 0.5);
+            let shade = (0.15 + 0.8 * n.dot(-d.normalize()).abs()) as f32;
+            for c in 0..3 {
+                out.set(x, y, c, shade * [0.92, 0.9, 0.85][c]);
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// World-space normal map encoded (n + 1)/2 (design.md §2), 0 where nothing was rendered.
@@ -64,6 +94,17 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let req = RenderRequest { color: true, alpha: true, normal: true, distance: true, plane_depth: true, ..Default::default() };
     let raster = run.raster();
     let mut rasterizer = super::rasterizer(args.backend)?;
+    let bvh = match &args.mesh {
+        Some(p) => {
+            let mesh = if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+                gs_io::read_obj(p)?
+            } else {
+                gs_io::read_mesh_ply(p)?
+            };
+            Some(gs_synth::Bvh::new(&mesh).with_context(|| format!("{}: cannot build a BVH of the mesh", p.display()))?)
+        }
+        None => None,
+    };
     for &i in &views {
         let view = &run.scene.views[i];
         let out = rasterizer.render(&run.gaussians, &view.camera, &req, &raster)?;
@@ -72,7 +113,15 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         gs_io::write_depth_exr(&dir.join(format!("{stem}_depth.exr")), out.plane_depth.as_ref().expect("requested"))?;
         let normal = world_normal_png(&view.camera, out.normal.as_ref().expect("requested"))?;
         gs_io::write_png(&dir.join(format!("{stem}_normal.png")), &normal)?;
+        if let Some(bvh) = &bvh {
+            gs_io::write_png(&dir.join(format!("{stem}_mesh.png")), &mesh_shaded(bvh, &view.camera)?)?;
+        }
     }
-    println!("rendered {} views (colour PNG, plane depth EXR, world normal PNG) → {}", views.len(), dir.display());
+    println!(
+        "rendered {} views (colour PNG, plane depth EXR, world normal PNG{}) → {}",
+        views.len(),
+        if bvh.is_some() { ", shaded mesh PNG" } else { "" },
+        dir.display()
+    );
     Ok(())
 }
