@@ -96,11 +96,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let mut rasterizer = super::rasterizer(args.backend)?;
     let bvh = match &args.mesh {
         Some(p) => {
-            let mesh = if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
-                gs_io::read_obj(p)?
-            } else {
-                gs_io::read_mesh_ply(p)?
-            };
+            let mesh = super::eval_mesh::read_mesh(p)?;
             Some(gs_synth::Bvh::new(&mesh).with_context(|| format!("{}: cannot build a BVH of the mesh", p.display()))?)
         }
         None => None,
