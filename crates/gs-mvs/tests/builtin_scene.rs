@@ -87,18 +87,20 @@ fn upsilon_omega_is_one_where_visible_and_zero_where_occluded() {
     let cands = source_view_candidates(&cams, &NeighbourRule::default());
     // The pair (reference, nearest source) with the most occluded reference pixels.
     let (w, h) = (cams[0].width as usize, cams[0].height as usize);
-    let mut best: Option<(usize, usize, Vec<(usize, bool)>)> = None;
+    /// (reference, source, labelled pixels, occluded count) of the best pair so far.
+    type Pair = (usize, usize, Vec<(usize, bool)>, usize);
+    let mut best: Option<Pair> = None;
     for (r, c) in cands.iter().enumerate().step_by(3) {
         let Some(&s) = c.first() else { continue };
         let labels: Vec<(usize, bool)> = (0..w * h)
             .filter_map(|p| exact_visibility(&b, &bvh, r, s, p % w, p / w).map(|v| (p, v)))
             .collect();
         let occluded = labels.iter().filter(|l| !l.1).count();
-        if best.as_ref().is_none_or(|bb| occluded > bb.2.iter().filter(|l| !l.1).count()) {
-            best = Some((r, s, labels));
+        if best.as_ref().is_none_or(|bb| occluded > bb.3) {
+            best = Some((r, s, labels, occluded));
         }
     }
-    let (r, s, labels) = best.unwrap();
+    let (r, s, labels, _) = best.unwrap();
     let vis = compute_visibility(
         cams[r],
         (&b.gt_depth[r]).into(),
