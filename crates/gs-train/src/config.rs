@@ -289,6 +289,13 @@ impl Default for TrainConfig {
     }
 }
 
+
+/// Fewest iterations between two densification steps of a scaled schedule: a step judges the
+/// gradients accumulated since the last one, and fewer than this many iterations give noisy
+/// means that clone and split most of the model every step (a 20-iteration run once grew
+/// 12k Gaussians to 576k).
+pub const MIN_DENSIFY_INTERVAL: u64 = 25;
+
 impl TrainConfig {
     /// The values of a preset.
     pub fn preset(preset: Preset) -> Self {
@@ -337,8 +344,9 @@ impl TrainConfig {
     /// scale by `iterations / self.iterations`. The densification cadence does not: new
     /// Gaussians need about a hundred iterations to settle before the next step judges them,
     /// so densification starts at `from` and runs every `interval` iterations whatever the
-    /// length (both capped to fit the run), and opacity resets / trims are at least 1000 / 200
-    /// iterations apart.
+    /// length (both capped to fit the run, the interval never below
+    /// [`MIN_DENSIFY_INTERVAL`]), and opacity resets / trims are at least 1000 / 200 iterations
+    /// apart.
     pub fn scaled(&self, iterations: u64) -> Self {
         let f = iterations as f64 / self.iterations.max(1) as f64;
         let s = |v: u64| (v as f64 * f).round() as u64;
@@ -353,7 +361,7 @@ impl TrainConfig {
             densify: DensifyConfig {
                 from: self.densify.from.min(until / 4),
                 until,
-                interval: self.densify.interval.min((until / 10).max(1)),
+                interval: self.densify.interval.min((until / 10).max(MIN_DENSIFY_INTERVAL)),
                 prune_big_after: s(self.densify.prune_big_after),
                 opacity_reset_interval: si(self.densify.opacity_reset_interval, 1000),
                 trim_interval: si(self.densify.trim_interval, 200),
@@ -536,6 +544,12 @@ mod tests {
         assert_eq!((c.densify.opacity_reset_interval, c.densify.trim_interval, c.sh_degree_interval), (1000, 200, 100));
         let c = TrainConfig::default().scaled(6000);
         assert_eq!((c.densify.from, c.densify.until, c.densify.interval), (500, 4500, 100));
+        // Short runs: the cadence stops shrinking at MIN_DENSIFY_INTERVAL, so a 20-iteration run
+        // (densification until 15) never densifies and 300 iterations densify every 25.
+        let c = TrainConfig::default().scaled(300);
+        assert_eq!((c.densify.from, c.densify.until, c.densify.interval), (56, 225, MIN_DENSIFY_INTERVAL));
+        let c = TrainConfig::default().scaled(20);
+        assert!(c.densify.until < c.densify.from + c.densify.interval, "{:?}", c.densify);
         c.validate().unwrap();
         let m = TrainConfig::preset(Preset::Mip360);
         let p = m.phase(25_000);

@@ -5,6 +5,7 @@ use anyhow::{Context, Result, bail};
 use gs_train::{GateReading, InitMode, NccReading, Preset, StepReport, TrainConfig, Trainer, checkpoint};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -108,7 +109,8 @@ pub struct TrainArgs {
     /// Continue from a checkpoint (its configuration is used; the scene options must match).
     #[arg(long)]
     pub resume: Option<PathBuf>,
-    /// No progress bar (log a line every 500 iterations instead).
+    /// No progress bar (log a line every 500 iterations instead; also the default when stderr
+    /// is not a terminal, e.g. redirected to a log file).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -285,7 +287,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         // A second Ctrl-C while the checkpoint is written is ignored; the write is atomic anyway.
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
     }
-    let bar = if args.quiet {
+    // Without a terminal indicatif draws nothing, so a redirected run logs lines instead.
+    let log_lines = args.quiet || !std::io::stderr().is_terminal();
+    let bar = if log_lines {
         ProgressBar::hidden()
     } else {
         let b = ProgressBar::new(config.iterations);
@@ -311,7 +315,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
             bar.set_position(r.iteration);
             bar.set_message(describe(r));
         }
-        if args.quiet && (r.iteration % 500 == 0 || r.iteration == config.iterations) {
+        if log_lines && (r.iteration % 500 == 0 || r.iteration == config.iterations) {
             eprintln!("[{:>6}/{}] {} ({:.1}s)", r.iteration, config.iterations, describe(r), t0.elapsed().as_secs_f64());
         }
         if r.densify.is_some_and(|d| d.capped) && !warned_cap {
