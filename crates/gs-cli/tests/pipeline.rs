@@ -65,6 +65,16 @@ fn builtin_scene_end_to_end() {
     let psnr = m["psnr"].as_f64().unwrap();
     assert!(psnr > 10.0 && psnr < 60.0, "PSNR {psnr}");
     assert!(m["lpips"].as_f64().unwrap() > 0.0);
+    // The object alone, inside the built-in scene's masks: a different, still sane score.
+    let (ok, stdout, err) = vagsl(&["eval-images", o, "--json", "--masked", "--no-lpips"]);
+    assert!(ok, "{err}");
+    let mm: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(mm["masked"], true);
+    let frac = mm["views"][0]["mask_fraction"].as_f64().unwrap();
+    assert!(frac > 0.0 && frac < 1.0, "mask fraction {frac}");
+    let masked_psnr = mm["psnr"].as_f64().unwrap();
+    assert!(masked_psnr > 10.0 && masked_psnr < 60.0 && masked_psnr != psnr, "masked PSNR {masked_psnr} vs {psnr}");
+    assert!(out.join("eval_images_masked.json").is_file());
 
     let (ok, stdout, err) = vagsl(&["eval-mesh", "--pred", out.join("mesh.ply").to_str().unwrap(), "--gt", out.join("mesh.ply").to_str().unwrap(), "--samples", "50000", "--json"]);
     assert!(ok, "{err}");
@@ -119,6 +129,9 @@ fn trains_on_a_real_distorted_scene() {
     let (ok, stdout, err) = vagsl(&["eval-images", o.to_str().unwrap(), "--no-lpips"]);
     assert!(ok, "{err}");
     assert!(stdout.contains("PSNR"), "{stdout}");
+    // fox has no masks: masked evaluation names the first view that lacks one.
+    let (ok, _, err) = vagsl(&["eval-images", o.to_str().unwrap(), "--no-lpips", "--masked"]);
+    assert!(!ok && err.contains("has no mask"), "{err}");
 }
 
 #[test]

@@ -49,7 +49,7 @@ pub mod ssim;
 pub use error::{LossError, Result};
 pub use image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, image_loss};
 pub use lpips::Lpips;
-pub use metrics::{psnr, ssim_metric, ssim_metric_with};
+pub use metrics::{masked_on_black, psnr, psnr_masked, ssim_metric, ssim_metric_with};
 pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, normal_losses};
 pub use real::{Dims, Real};
 pub use ssim::SsimRegion;

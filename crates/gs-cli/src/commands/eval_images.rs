@@ -15,6 +15,12 @@ pub struct EvalImagesArgs {
     /// Skip LPIPS (it costs about 1 s per 800×600 image on 2 cores).
     #[arg(long)]
     pub no_lpips: bool,
+    /// Score only the object inside each view's mask (SCENE/masks/<stem>.png, required for
+    /// every scored view): PSNR over the mask's pixels, SSIM and LPIPS with render and photo
+    /// on black outside it — the masked protocol of DTU novel-view benchmarks. Written to
+    /// eval_images_masked.json.
+    #[arg(long)]
+    pub masked: bool,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -29,8 +35,9 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
     let views = if args.train { &run.train } else { &run.test };
     let mut rasterizer = super::rasterizer(args.backend)?;
-    let metrics = gs_train::evaluate_images(&run.gaussians, &run.scene, views, &mut rasterizer, &run.raster(), lpips.as_ref())?;
-    write_json(&run.dir.join(if args.train { "eval_images_train.json" } else { "eval_images.json" }), &metrics)?;
+    let metrics = gs_train::evaluate_images(&run.gaussians, &run.scene, views, &mut rasterizer, &run.raster(), lpips.as_ref(), args.masked)?;
+    let file = format!("eval_images{}{}.json", if args.train { "_train" } else { "" }, if args.masked { "_masked" } else { "" });
+    write_json(&run.dir.join(file), &metrics)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&metrics)?);
     } else {
@@ -44,8 +51,9 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
             );
         }
         println!(
-            "mean over {} views: PSNR {:.2} dB, SSIM {:.4}{}",
+            "mean over {} views{}: PSNR {:.2} dB, SSIM {:.4}{}",
             metrics.views.len(),
+            if args.masked { " (inside the masks)" } else { "" },
             metrics.psnr,
             metrics.ssim,
             metrics.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
