@@ -5,6 +5,7 @@
 //! extends, filters or resets them row by row together with the Gaussians.
 
 use crate::error::{CoreError, Result};
+use rayon::prelude::*;
 
 /// Adam hyper-parameters shared by all groups (method-spec §3: β = (0.9, 0.999), ε = 1e-15).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,14 +87,24 @@ impl Adam {
     /// One Adam step on group `name`: `params -= lr·m̂/(√v̂ + ε)` with bias-corrected moments
     /// (PyTorch's formula).
     pub fn step(&mut self, name: &str, params: &mut [f32], grads: &[f32]) -> Result<()> {
+        let width = self.group_mut(name)?.row_width;
+        self.step_strided(name, params, grads, width, 0)
+    }
+
+    /// [`Adam::step`] on group `name` whose rows sit inside wider records: row `r` of the group
+    /// is `params[r·stride + offset ..][..row_width]` (and the same in `grads`). The SH DC and
+    /// SH rest groups are both views of the Gaussians' 48-float SH records, updated in place
+    /// instead of being gathered into copies and scattered back every iteration.
+    pub fn step_strided(&mut self, name: &str, params: &mut [f32], grads: &[f32], stride: usize, offset: usize) -> Result<()> {
         let cfg = self.config;
         let g = self.group_mut(name)?;
-        if params.len() != g.m.len() || grads.len() != g.m.len() {
+        let width = g.row_width;
+        let rows = g.m.len() / width.max(1);
+        if width == 0 || offset + width > stride || params.len() != rows * stride || grads.len() != rows * stride {
             return Err(CoreError::Optimizer(format!(
-                "group '{name}': {} parameters and {} gradients for {} moments",
+                "group '{name}': {} parameters and {} gradients for {rows} rows of {width} at offset {offset} in records of {stride}",
                 params.len(),
                 grads.len(),
-                g.m.len()
             )));
         }
         g.step += 1;
@@ -101,12 +112,24 @@ impl Adam {
         let bc2 = 1.0 - (cfg.beta2 as f64).powi(g.step.min(i32::MAX as u64) as i32);
         let step_size = (g.lr as f64 / bc1) as f32;
         let bc2_sqrt = bc2.sqrt() as f32;
-        for ((p, &gr), (m, v)) in params.iter_mut().zip(grads).zip(g.m.iter_mut().zip(g.v.iter_mut())) {
-            *m = cfg.beta1 * *m + (1.0 - cfg.beta1) * gr;
-            *v = cfg.beta2 * *v + (1.0 - cfg.beta2) * gr * gr;
-            let denom = v.sqrt() / bc2_sqrt + cfg.eps;
-            *p -= step_size * *m / denom;
-        }
+        // Element-wise, so the parallel split cannot change a single bit of the result.
+        const ROWS_PER_TASK: usize = 4096;
+        params
+            .par_chunks_mut(ROWS_PER_TASK * stride)
+            .zip(grads.par_chunks(ROWS_PER_TASK * stride))
+            .zip(g.m.par_chunks_mut(ROWS_PER_TASK * width).zip(g.v.par_chunks_mut(ROWS_PER_TASK * width)))
+            .for_each(|((p, gr), (m, v))| {
+                let records = p.chunks_exact_mut(stride).zip(gr.chunks_exact(stride));
+                for ((p, gr), (m, v)) in records.zip(m.chunks_exact_mut(width).zip(v.chunks_exact_mut(width))) {
+                    let (p, gr) = (&mut p[offset..offset + width], &gr[offset..offset + width]);
+                    for ((p, &gr), (m, v)) in p.iter_mut().zip(gr).zip(m.iter_mut().zip(v.iter_mut())) {
+                        *m = cfg.beta1 * *m + (1.0 - cfg.beta1) * gr;
+                        *v = cfg.beta2 * *v + (1.0 - cfg.beta2) * gr * gr;
+                        let denom = v.sqrt() / bc2_sqrt + cfg.eps;
+                        *p -= step_size * *m / denom;
+                    }
+                }
+            });
         Ok(())
     }
 
@@ -232,6 +255,34 @@ mod tests {
         assert!(adam.step("means", &mut p, &[0.0; 9]).is_err());
         assert!(adam.retain_rows(&[true]).is_err());
         assert!(adam.add_group("means", 1.0, 1, 1).is_err());
+    }
+
+    #[test]
+    fn strided_step_equals_gathered_step_bit_for_bit() {
+        // 10,000 records of 5 floats: group "a" is floats 0..2, group "b" floats 2..5, as SH DC
+        // and SH rest share one record. Enough rows to span several parallel tasks.
+        let rows = 10_000;
+        let mut params: Vec<f32> = (0..rows * 5).map(|i| ((i * 7919) % 1000) as f32 * 1e-3 - 0.5).collect();
+        let grads: Vec<f32> = (0..rows * 5).map(|i| ((i * 104_729) % 997) as f32 * 1e-4 - 0.05).collect();
+        let (mut strided, mut gathered) = (Adam::new(AdamConfig::default()), Adam::new(AdamConfig::default()));
+        for adam in [&mut strided, &mut gathered] {
+            adam.add_group("a", 1e-2, rows, 2).unwrap();
+            adam.add_group("b", 3e-3, rows, 3).unwrap();
+        }
+        let split = |v: &[f32], lo: usize, hi: usize| -> Vec<f32> { v.chunks(5).flat_map(|r| r[lo..hi].to_vec()).collect() };
+        let (mut pa, mut pb) = (split(&params, 0, 2), split(&params, 2, 5));
+        for _ in 0..3 {
+            strided.step_strided("a", &mut params, &grads, 5, 0).unwrap();
+            strided.step_strided("b", &mut params, &grads, 5, 2).unwrap();
+            gathered.step("a", &mut pa, &split(&grads, 0, 2)).unwrap();
+            gathered.step("b", &mut pb, &split(&grads, 2, 5)).unwrap();
+        }
+        assert_eq!(split(&params, 0, 2), pa);
+        assert_eq!(split(&params, 2, 5), pb);
+        assert_eq!(strided, gathered);
+        // A row that does not fit its record, or records of the wrong count: errors.
+        assert!(strided.step_strided("b", &mut params, &grads, 5, 3).is_err());
+        assert!(strided.step_strided("a", &mut params[..10], &grads[..10], 5, 0).is_err());
     }
 
     #[test]

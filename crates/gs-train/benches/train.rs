@@ -32,6 +32,38 @@ fn bench(c: &mut Criterion) {
         group.bench_function(name, |b| b.iter(|| trainer.step().expect("step")));
     }
     group.finish();
+
+    // The same at the Gaussian count a full run reaches (~300k): every SfM point replaced by 43
+    // copies jittered by up to 0.5 % of the scene radius, so per-Gaussian work (Adam, projection,
+    // sorting, densification statistics) weighs as it does late in training.
+    let mut big = scene.clone();
+    let mut rng = gs_core::Rng::new(7);
+    let radius = scene.extent();
+    big.points = scene
+        .points
+        .iter()
+        .flat_map(|p| std::iter::repeat_n(p, 43))
+        .map(|p| {
+            let mut q = p.clone();
+            q.position += glam::DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5) * (0.01 * radius);
+            q
+        })
+        .collect();
+    let mut group = c.benchmark_group("train_iteration_synth_bunny_480x360_301k");
+    group.sample_size(10);
+    for (name, start) in [("warmup_colour_only", 0u64), ("photometric_phase", 7_000)] {
+        let mut cfg = TrainConfig::default();
+        cfg.densify.until = 0;
+        let trainer = Trainer::new(&big, train.clone(), cfg.clone()).expect("trainer");
+        let mut state = trainer.state().clone();
+        state.iteration = start;
+        let mut trainer = Trainer::with_state(&big, train.clone(), cfg, state).expect("trainer");
+        for _ in 0..if start == 0 { 3 } else { train.len() } {
+            trainer.step().expect("step");
+        }
+        group.bench_function(name, |b| b.iter(|| trainer.step().expect("step")));
+    }
+    group.finish();
 }
 
 criterion_group!(benches, bench);

@@ -248,9 +248,10 @@ impl<'s> Trainer<'s> {
         crate::output::extract_mesh(&self.state.gaussians, self.scene, views, &mut self.rasterizer, &self.raster, self.extent, opts)
     }
 
-    /// [`crate::evaluate_images`] of the current model on `views` (indices into the scene).
+    /// [`crate::evaluate_images`] of the current model on `views` (indices into the scene), on
+    /// the whole images.
     pub fn evaluate_images(&mut self, views: &[usize], lpips: Option<&gs_losses::Lpips>) -> Result<crate::ImageMetrics> {
-        crate::output::evaluate_images(&self.state.gaussians, self.scene, views, &mut self.rasterizer, &self.raster, lpips)
+        crate::output::evaluate_images(&self.state.gaussians, self.scene, views, &mut self.rasterizer, &self.raster, lpips, false)
     }
 
     /// The rasterizer settings used for training (and for rendering the result).
@@ -613,26 +614,14 @@ impl<'s> Trainer<'s> {
     fn adam_step(&mut self, grads: &gs_raster::GaussianGradients) -> Result<()> {
         let g = &mut self.state.gaussians;
         let adam = &mut self.state.adam;
-        let n = g.len();
         check_finite(self.state.iteration + 1, "means", grads.means.as_flattened())?;
         adam.step("means", g.means.as_flattened_mut(), grads.means.as_flattened())?;
-        // SH: DC and the rest are separate groups with their own learning rates.
-        let mut dc_p = Vec::with_capacity(n * 3);
-        let mut dc_g = Vec::with_capacity(n * 3);
-        let mut rest_p = Vec::with_capacity(n * 45);
-        let mut rest_g = Vec::with_capacity(n * 45);
-        for (p, gr) in g.sh.iter().zip(&grads.sh) {
-            dc_p.extend_from_slice(&p[0]);
-            dc_g.extend_from_slice(&gr[0]);
-            rest_p.extend_from_slice(p[1..].as_flattened());
-            rest_g.extend_from_slice(gr[1..].as_flattened());
-        }
-        adam.step("sh_dc", &mut dc_p, &dc_g)?;
-        adam.step("sh_rest", &mut rest_p, &rest_g)?;
-        for (i, p) in g.sh.iter_mut().enumerate() {
-            p[0].copy_from_slice(&dc_p[i * 3..i * 3 + 3]);
-            p[1..].as_flattened_mut().copy_from_slice(&rest_p[i * 45..i * 45 + 45]);
-        }
+        // SH: DC and the rest are separate groups with their own learning rates, both updated in
+        // place inside the 48-float SH records.
+        let stride = 3 * gs_core::sh::SH_COEFFS;
+        let (sh, sh_grads) = (g.sh.as_flattened_mut().as_flattened_mut(), grads.sh.as_flattened().as_flattened());
+        adam.step_strided("sh_dc", sh, sh_grads, stride, 0)?;
+        adam.step_strided("sh_rest", sh, sh_grads, stride, 3)?;
         adam.step("opacity", &mut g.opacity_logits, &grads.opacity_logits)?;
         adam.step("log_scales", g.log_scales.as_flattened_mut(), grads.log_scales.as_flattened())?;
         adam.step("rotations", g.rotations.as_flattened_mut(), grads.rotations.as_flattened())?;
