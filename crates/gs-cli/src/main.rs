@@ -61,7 +61,23 @@ enum Command {
     Tradeoff(commands::tradeoff::TradeoffArgs),
 }
 
+/// On a headless machine (no Wayland or X display) Mesa's Vulkan device-select layer, loaded
+/// implicitly whenever wgpu probes for an adapter, tries to reach a Wayland compositor and
+/// prints "error: XDG_RUNTIME_DIR is invalid or not set in the environment." twice. It is
+/// harmless but reads like a failure of ours. The layer only re-orders devices, and `--backend`
+/// picks the adapter itself, so it is switched off there (`NODEVICE_SELECT=1`) unless the user
+/// set it or asked the layer for a device (`MESA_VK_DEVICE_SELECT`).
+fn quiet_headless_vulkan_probe() {
+    let unset = |k: &str| std::env::var_os(k).is_none();
+    if unset("WAYLAND_DISPLAY") && unset("DISPLAY") && unset("MESA_VK_DEVICE_SELECT") && unset("NODEVICE_SELECT") {
+        // SAFETY: called first thing in `main`, before any thread (rayon, wgpu) exists, so no
+        // other thread can read the environment concurrently.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
 fn main() -> std::process::ExitCode {
+    quiet_headless_vulkan_probe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info { scene, json } => commands::info::run(scene.as_deref(), json),

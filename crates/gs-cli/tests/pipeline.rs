@@ -55,6 +55,19 @@ fn builtin_scene_end_to_end() {
     let shot = image::open(renders.join("0000_mesh.png")).unwrap().to_rgb8();
     let lit = shot.pixels().filter(|p| p[0] > 20).count();
     assert!(lit > shot.len() / 3 / 4, "only {lit} shaded pixels in the mesh screenshot");
+    // Probing for a GPU on this headless machine prints nothing alarming: Mesa's device-select
+    // layer would print "XDG_RUNTIME_DIR is invalid" twice (vagsl switches it off).
+    let out_auto = Command::new(env!("CARGO_BIN_EXE_vagsl"))
+        .args(["render", o, "--split", "test", "-o", out.join("auto").to_str().unwrap(), "--backend", "auto"])
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("DISPLAY")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("MESA_VK_DEVICE_SELECT")
+        .output()
+        .unwrap();
+    let err_auto = String::from_utf8_lossy(&out_auto.stderr);
+    assert!(out_auto.status.success() && !err_auto.contains("XDG_RUNTIME_DIR"), "{err_auto}");
     let (ok, _, err) = vagsl(&["render", o, "--mesh", "/nonexistent/m.ply"]);
     assert!(!ok && err.contains("/nonexistent/m.ply"), "{err}");
 
