@@ -475,11 +475,6 @@ struct Projection {
 
 fn project_all(g: &Gaussians, cam: &CamParams, cfg: &RasterConfig) -> Projection {
     let n = g.len();
-    let projected: Vec<Option<project::Projected>> = (0..n)
-        .into_par_iter()
-        .with_min_len(1024)
-        .map(|i| project::project(g, i, cam, cfg))
-        .collect();
     let mut p = Projection {
         splats: vec![Splat::default(); n],
         features: vec![[0.0; 8]; n],
@@ -488,16 +483,29 @@ fn project_all(g: &Gaussians, cam: &CamParams, cfg: &RasterConfig) -> Projection
         depths: vec![0.0; n],
         visible: Vec::new(),
     };
-    for (i, pr) in projected.into_iter().enumerate() {
-        if let Some(pr) = pr {
-            p.splats[i] = pr.splat;
-            p.features[i] = pr.features;
-            p.radii[i] = pr.radius;
-            p.rects[i] = pr.rect;
-            p.depths[i] = pr.depth;
-            p.visible.push(i as u32);
-        }
-    }
+    // Each task writes its own rows of the arrays in place (no per-Gaussian Option buffer to
+    // allocate and copy out); culled rows keep radius 0.
+    const ROWS: usize = 1024;
+    p.splats
+        .par_chunks_mut(ROWS)
+        .zip(p.features.par_chunks_mut(ROWS))
+        .zip(p.radii.par_chunks_mut(ROWS))
+        .zip(p.rects.par_chunks_mut(ROWS))
+        .zip(p.depths.par_chunks_mut(ROWS))
+        .enumerate()
+        .for_each(|(k, ((((splats, features), radii), rects), depths))| {
+            for j in 0..splats.len() {
+                if let Some(pr) = project::project(g, k * ROWS + j, cam, cfg) {
+                    splats[j] = pr.splat;
+                    features[j] = pr.features;
+                    radii[j] = pr.radius;
+                    rects[j] = pr.rect;
+                    depths[j] = pr.depth;
+                }
+            }
+        });
+    // A projected Gaussian has radius ≥ 1 (culling requires a positive radius).
+    p.visible = (0..n as u32).filter(|&i| p.radii[i as usize] > 0).collect();
     p
 }
 

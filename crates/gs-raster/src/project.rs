@@ -92,8 +92,9 @@ pub(crate) struct Projected {
     pub depth: f32,
 }
 
-/// Internals of the forward computation, recomputed by the backward.
-struct Internals {
+/// Geometry of one Gaussian's projection (camera-space mean, Jacobian, 2D covariance, conic,
+/// opacity): what culling needs, computed before the appearance.
+struct Geometry {
     t: Vec3,
     rot: Mat3,
     s: Vec3,
@@ -111,6 +112,12 @@ struct Internals {
     comp: f32,
     comp_floored: bool,
     opacity: f32,
+}
+
+/// View-dependent appearance of one projected Gaussian: SH colour along the viewing direction
+/// and the camera-space normal / plane distance. Only computed for Gaussians that survive
+/// culling (the SH evaluation is the costliest part of a projection).
+struct Appearance {
     dir_raw: Vec3,
     color: [f32; 3],
     clamped: [bool; 3],
@@ -120,7 +127,13 @@ struct Internals {
     dist: f32,
 }
 
-fn internals(g: &Gaussians, i: usize, cam: &CamParams, cfg: &RasterConfig) -> Option<Internals> {
+/// Internals of the forward computation, recomputed by the backward.
+struct Internals {
+    geo: Geometry,
+    app: Appearance,
+}
+
+fn geometry(g: &Gaussians, i: usize, cam: &CamParams, cfg: &RasterConfig) -> Option<Geometry> {
     let mean = Vec3::from(g.means[i]);
     let t = cam.r * mean + cam.t;
     if !(t.is_finite() && t.z > cfg.near && t.z <= cfg.far) {
@@ -170,16 +183,7 @@ fn internals(g: &Gaussians, i: usize, cam: &CamParams, cfg: &RasterConfig) -> Op
     }
     let inv_det = 1.0 / det;
     let conic = [c * inv_det, -b * inv_det, a * inv_det];
-    let dir_raw = cam.r.transpose() * t; // = μ − C in world coordinates
-    let len = dir_raw.length();
-    let dir = if len > 0.0 { dir_raw / len } else { Vec3::ZERO };
-    let (color, clamped) = sh_to_color(g.sh_degree, &g.sh[i], dir.to_array());
-    let axis = smallest_axis(ls);
-    let n0 = cam.r * rot.col(axis);
-    let flip = if n0.dot(t) > 0.0 { -1.0 } else { 1.0 };
-    let n_c = n0 * flip;
-    let dist = -n_c.dot(t);
-    Some(Internals {
+    Some(Geometry {
         t,
         rot,
         s,
@@ -197,14 +201,28 @@ fn internals(g: &Gaussians, i: usize, cam: &CamParams, cfg: &RasterConfig) -> Op
         comp,
         comp_floored,
         opacity,
-        dir_raw,
-        color,
-        clamped,
-        axis,
-        flip,
-        n_c,
-        dist,
     })
+}
+
+/// The appearance of Gaussian `i` seen from `cam`, given its projection geometry.
+fn appearance(g: &Gaussians, i: usize, cam: &CamParams, geo: &Geometry) -> Appearance {
+    let t = geo.t;
+    let dir_raw = cam.r.transpose() * t; // = μ − C in world coordinates
+    let len = dir_raw.length();
+    let dir = if len > 0.0 { dir_raw / len } else { Vec3::ZERO };
+    let (color, clamped) = sh_to_color(g.sh_degree, &g.sh[i], dir.to_array());
+    let axis = smallest_axis(g.log_scales[i]);
+    let n0 = cam.r * geo.rot.col(axis);
+    let flip = if n0.dot(t) > 0.0 { -1.0 } else { 1.0 };
+    let n_c = n0 * flip;
+    let dist = -n_c.dot(t);
+    Appearance { dir_raw, color, clamped, axis, flip, n_c, dist }
+}
+
+fn internals(g: &Gaussians, i: usize, cam: &CamParams, cfg: &RasterConfig) -> Option<Internals> {
+    let geo = geometry(g, i, cam, cfg)?;
+    let app = appearance(g, i, cam, &geo);
+    Some(Internals { geo, app })
 }
 
 /// Projects Gaussian `i`; `None` when it is culled (behind/near/far, degenerate, transparent,
@@ -215,36 +233,25 @@ pub(crate) fn project(
     cam: &CamParams,
     cfg: &RasterConfig,
 ) -> Option<Projected> {
-    let it = internals(g, i, cam, cfg)?;
-    let t = it.t;
+    let geo = geometry(g, i, cam, cfg)?;
+    let t = geo.t;
     let x = cam.fx * t.x / t.z + cam.cx;
     let y = cam.fy * t.y / t.z + cam.cy;
-    let sigma_max = (it.opacity / cfg.alpha_threshold).ln();
+    let sigma_max = (geo.opacity / cfg.alpha_threshold).ln();
     let level = (2.0 * sigma_max).max(0.0).sqrt();
-    let [a, _, c] = it.cov;
+    let [a, _, c] = geo.cov;
     let mid = 0.5 * (a + c);
-    let lambda_max = mid + (mid * mid - it.det).max(0.0).sqrt();
+    let lambda_max = mid + (mid * mid - geo.det).max(0.0).sqrt();
     let radius_f = (level * lambda_max.sqrt()).ceil();
     let ext_x = level * a.sqrt();
     let ext_y = level * c.sqrt();
-    let features = [
-        it.color[0],
-        it.color[1],
-        it.color[2],
-        it.n_c.x,
-        it.n_c.y,
-        it.n_c.z,
-        it.dist,
-        t.z,
-    ];
     let finite = x.is_finite()
         && y.is_finite()
         && radius_f > 0.0
         && radius_f.is_finite()
         && ext_x.is_finite()
         && ext_y.is_finite()
-        && features.iter().all(|v| v.is_finite())
-        && it.conic.iter().all(|v| v.is_finite());
+        && geo.conic.iter().all(|v| v.is_finite());
     if !finite {
         return None;
     }
@@ -269,15 +276,21 @@ pub(crate) fn project(
     if tx0 >= tx1 || ty0 >= ty1 {
         return None;
     }
+    // Only now, for a Gaussian that reaches the image, the view-dependent appearance.
+    let app = appearance(g, i, cam, &geo);
+    let features = [app.color[0], app.color[1], app.color[2], app.n_c.x, app.n_c.y, app.n_c.z, app.dist, t.z];
+    if !features.iter().all(|v| v.is_finite()) {
+        return None;
+    }
     let radius = radius_f.min(u32::MAX as f32) as u32;
     Some(Projected {
         splat: Splat {
             x,
             y,
-            ca: it.conic[0],
-            cb: it.conic[1],
-            cc: it.conic[2],
-            opacity: it.opacity,
+            ca: geo.conic[0],
+            cb: geo.conic[1],
+            cc: geo.conic[2],
+            opacity: geo.opacity,
             sigma_max,
             ext_x,
             ext_y,
@@ -342,7 +355,7 @@ pub(crate) fn project_backward(
     sg: &SplatGrad,
 ) -> Option<ParamGrad> {
     let it = internals(g, i, cam, cfg)?;
-    let t = it.t;
+    let t = it.geo.t;
     let inv_z = 1.0 / t.z;
     let mut g_t = Vec3::ZERO;
     // Projected mean x = fx t.x / t.z + cx.
@@ -355,13 +368,13 @@ pub(crate) fn project_backward(
     let g_d = sg.features[6];
     let mut g_nc = Vec3::new(sg.features[3], sg.features[4], sg.features[5]);
     g_nc -= g_d * t;
-    g_t -= g_d * it.n_c;
+    g_t -= g_d * it.app.n_c;
     // Opacity: o = sigmoid(logit)·comp.
     let g_op = sg.opacity;
-    let g_oraw = g_op * it.comp;
-    let g_logit = g_oraw * it.o_raw * (1.0 - it.o_raw);
+    let g_oraw = g_op * it.geo.comp;
+    let g_logit = g_oraw * it.geo.o_raw * (1.0 - it.geo.o_raw);
     // Conic → blurred covariance: dL/dCov = −Q G Q with G the symmetric gradient of Q.
-    let [qa, qb, qc] = it.conic;
+    let [qa, qb, qc] = it.geo.conic;
     let (ga, gb, gc) = (sg.conic[0], 0.5 * sg.conic[1], sg.conic[2]);
     // (Q G) then (Q G) Q for 2×2 symmetric matrices.
     let m00 = qa * ga + qb * gb;
@@ -372,44 +385,44 @@ pub(crate) fn project_backward(
     let mut gcov_b = -(m00 * qb + m01 * qc); // per off-diagonal entry
     let mut gcov_c = -(m10 * qb + m11 * qc);
     // Antialiased compensation comp = sqrt(det_o / det_b).
-    if cfg.antialiased && !it.comp_floored {
-        let g_comp = g_op * it.o_raw;
-        let [a, b, c] = it.cov;
-        let det_b = it.det;
+    if cfg.antialiased && !it.geo.comp_floored {
+        let g_comp = g_op * it.geo.o_raw;
+        let [a, b, c] = it.geo.cov;
+        let det_b = it.geo.det;
         let det_o = (a - LOW_PASS) * (c - LOW_PASS) - b * b;
-        let k = 0.5 / it.comp / (det_b * det_b);
+        let k = 0.5 / it.geo.comp / (det_b * det_b);
         gcov_a += g_comp * k * ((c - LOW_PASS) * det_b - det_o * c);
         gcov_c += g_comp * k * ((a - LOW_PASS) * det_b - det_o * a);
         // d/dB of the ratio, with B appearing in both off-diagonal entries: split evenly.
         gcov_b += 0.5 * g_comp * k * (-2.0 * b * det_b + 2.0 * b * det_o);
     }
     // cov = V Vᵀ: dL/dV = 2 G V with G = [[ga, gb], [gb, gc]].
-    let gv0 = 2.0 * (gcov_a * it.v0 + gcov_b * it.v1);
-    let gv1 = 2.0 * (gcov_b * it.v0 + gcov_c * it.v1);
+    let gv0 = 2.0 * (gcov_a * it.geo.v0 + gcov_b * it.geo.v1);
+    let gv1 = 2.0 * (gcov_b * it.geo.v0 + gcov_c * it.geo.v1);
     // V_r[k] = J_r · P_col_k.
-    let p = it.p;
+    let p = it.geo.p;
     let g_j0 = p * gv0;
     let g_j1 = p * gv1;
     let g_p = Mat3::from_cols(
-        it.j0 * gv0.x + it.j1 * gv1.x,
-        it.j0 * gv0.y + it.j1 * gv1.y,
-        it.j0 * gv0.z + it.j1 * gv1.z,
+        it.geo.j0 * gv0.x + it.geo.j1 * gv1.x,
+        it.geo.j0 * gv0.y + it.geo.j1 * gv1.y,
+        it.geo.j0 * gv0.z + it.geo.j1 * gv1.z,
     );
     let g_m = cam.r.transpose() * g_p;
     let mut g_rot = Mat3::from_cols(
-        g_m.x_axis * it.s.x,
-        g_m.y_axis * it.s.y,
-        g_m.z_axis * it.s.z,
+        g_m.x_axis * it.geo.s.x,
+        g_m.y_axis * it.geo.s.y,
+        g_m.z_axis * it.geo.s.z,
     );
     let g_log_scale = [
-        g_m.x_axis.dot(it.rot.x_axis) * it.s.x,
-        g_m.y_axis.dot(it.rot.y_axis) * it.s.y,
-        g_m.z_axis.dot(it.rot.z_axis) * it.s.z,
+        g_m.x_axis.dot(it.geo.rot.x_axis) * it.geo.s.x,
+        g_m.y_axis.dot(it.geo.rot.y_axis) * it.geo.s.y,
+        g_m.z_axis.dot(it.geo.rot.z_axis) * it.geo.s.z,
     ];
     // J = [[fx/z, 0, −fx·cxz/z], [0, fy/z, −fy·cyz/z]] with cxz = clamp(x/z).
     let z2 = inv_z * inv_z;
     g_t.z += -g_j0.x * cam.fx * z2 - g_j1.y * cam.fy * z2;
-    if it.clamped_x {
+    if it.geo.clamped_x {
         // J02 = −fx·lim/z: no dependence on t.x.
         let cxz = (t.x * inv_z).clamp(-cam.lim_x, cam.lim_x);
         g_t.z += g_j0.z * cam.fx * cxz * z2;
@@ -418,7 +431,7 @@ pub(crate) fn project_backward(
         g_t.x += -g_j0.z * cam.fx * z2;
         g_t.z += g_j0.z * 2.0 * cam.fx * t.x * z2 * inv_z;
     }
-    if it.clamped_y {
+    if it.geo.clamped_y {
         let cyz = (t.y * inv_z).clamp(-cam.lim_y, cam.lim_y);
         g_t.z += g_j1.z * cam.fy * cyz * z2;
     } else {
@@ -426,27 +439,27 @@ pub(crate) fn project_backward(
         g_t.z += g_j1.z * 2.0 * cam.fy * t.y * z2 * inv_z;
     }
     // Normal n_c = flip · R_c · rot[:, axis].
-    let g_nw = cam.r.transpose() * g_nc * it.flip;
-    let col = g_rot.col(it.axis) + g_nw;
-    *g_rot.col_mut(it.axis) = col;
+    let g_nw = cam.r.transpose() * g_nc * it.app.flip;
+    let col = g_rot.col(it.app.axis) + g_nw;
+    *g_rot.col_mut(it.app.axis) = col;
     let g_q = rotation_matrix_backward(g.rotations[i], g_rot);
     // Colour: SH at dir = normalize(R_cᵀ t), zero gradient in clamped channels.
     let mut g_col = [sg.features[0], sg.features[1], sg.features[2]];
     for ch in 0..3 {
-        if it.clamped[ch] {
+        if it.app.clamped[ch] {
             g_col[ch] = 0.0;
         }
     }
-    let len = it.dir_raw.length();
+    let len = it.app.dir_raw.length();
     let dir = if len > 0.0 {
-        it.dir_raw / len
+        it.app.dir_raw / len
     } else {
         Vec3::ZERO
     };
     let (g_sh, g_dir) = eval_sh_backward(g.sh_degree, &g.sh[i], dir.to_array(), g_col);
-    let g_dir_raw = Vec3::from(normalize_backward(it.dir_raw.to_array(), g_dir));
+    let g_dir_raw = Vec3::from(normalize_backward(it.app.dir_raw.to_array(), g_dir));
     g_t += cam.r * g_dir_raw;
-    let _ = it.color;
+    let _ = it.app.color;
     let g_mean = cam.r.transpose() * g_t;
     Some(ParamGrad {
         mean: g_mean.to_array(),
