@@ -116,6 +116,10 @@ fn bad_inputs_are_clear_errors() {
     // Grey images wider than the photos would only be upsampled: refused.
     let (ok, _, err) = vagsl(&["train", shared("fox").to_str().unwrap(), "-o", o, "-r", "1", "--ncc-scale", "2"]);
     assert!(!ok && err.contains("--ncc-scale 2") && err.contains("wider than the originals"), "{err}");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--sh-policy", "adaptive", "--sh-min-gain", "1.5"]);
+    assert!(!ok && err.contains("sh_min_gain"), "{err}");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--sh-degree", "4"]);
+    assert!(!ok && err.contains("sh_degree_max"), "{err}");
     let (ok, _, err) = vagsl(&["train", "-o", o, "--iterations", "0"]);
     assert!(!ok && err.contains("iterations"), "{err}");
     let (ok, _, err) = vagsl(&["mesh", dir.path().to_str().unwrap()]);

@@ -169,6 +169,25 @@ impl Adam {
         }
     }
 
+    /// Zeroes the moments of columns `cols` (scalar offsets within a row) of every row of group
+    /// `name`: used when a band of SH coefficients is dropped, so that no momentum moves them.
+    pub fn zero_columns(&mut self, name: &str, cols: std::ops::Range<usize>) -> Result<()> {
+        let g = self.group_mut(name)?;
+        if cols.start > cols.end || cols.end > g.row_width {
+            return Err(CoreError::Optimizer(format!(
+                "group '{name}': columns {cols:?} outside rows of {}",
+                g.row_width
+            )));
+        }
+        let w = g.row_width;
+        for buf in [&mut g.m, &mut g.v] {
+            for row in buf.chunks_exact_mut(w) {
+                row[cols.clone()].fill(0.0);
+            }
+        }
+        Ok(())
+    }
+
     /// Zeroes the moments of group `name` (used after an opacity reset, as 3DGS does).
     pub fn reset_group(&mut self, name: &str) -> Result<()> {
         let g = self.group_mut(name)?;
@@ -255,6 +274,9 @@ mod tests {
         assert!(adam.step("means", &mut p, &[0.0; 9]).is_err());
         assert!(adam.retain_rows(&[true]).is_err());
         assert!(adam.add_group("means", 1.0, 1, 1).is_err());
+        adam.zero_columns("means", 1..3).unwrap();
+        assert_eq!(&adam.groups[0].m[..3], &[0.1, 0.0, 0.0]);
+        assert!(adam.zero_columns("means", 2..4).is_err());
     }
 
     #[test]

@@ -265,6 +265,13 @@ pub struct TrainConfig {
     pub sh_degree_max: u32,
     /// The SH degree rises by one every this many iterations.
     pub sh_degree_interval: u64,
+    /// When the SH degree rises: on the paper's schedule, or only while the last band paid.
+    #[serde(default)]
+    pub sh_policy: ShPolicy,
+    /// [`ShPolicy::Adaptive`]: the smallest relative drop of the training views' L1 that band d
+    /// must give (L1 at degree d−1 vs d) for band d+1 to be tried.
+    #[serde(default = "default_sh_min_gain")]
+    pub sh_min_gain: f32,
     /// Densification and pruning.
     pub densify: DensifyConfig,
     /// Hard cap on the number of Gaussians; densification stops there with a warning.
@@ -281,6 +288,26 @@ pub struct TrainConfig {
 
 fn one_u32() -> u32 {
     1
+}
+
+fn default_sh_min_gain() -> f32 {
+    0.01
+}
+
+/// How the SH degree rises ("model only what a scene requires").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ShPolicy {
+    /// The paper's schedule: one band more every `sh_degree_interval` iterations up to
+    /// `sh_degree_max`.
+    #[default]
+    Schedule,
+    /// On the same schedule, but at each rise the newest band d is first judged: the training
+    /// views are rendered at degree d and d−1, and unless band d lowers their L1 by at least
+    /// `sh_min_gain` (relative), band d is dropped (its coefficients and moments zeroed) and the
+    /// degree stays at d−1 for the rest of the run. Band 1 is always tried; the last band
+    /// reached is kept.
+    Adaptive,
 }
 
 impl Default for TrainConfig {
@@ -320,6 +347,8 @@ impl TrainConfig {
             lr: LearningRates::default(),
             sh_degree_max: 3,
             sh_degree_interval: 1000,
+            sh_policy: ShPolicy::Schedule,
+            sh_min_gain: default_sh_min_gain(),
             densify: DensifyConfig::default(),
             max_gaussians: 3_000_000,
             init: InitMode::Points,
@@ -394,6 +423,9 @@ impl TrainConfig {
         }
         if self.max_pixels_per_source == 0 {
             return bad("max_pixels_per_source must be positive".into());
+        }
+        if !(self.sh_min_gain.is_finite() && self.sh_min_gain < 1.0) {
+            return bad(format!("sh_min_gain = {} must be finite and below 1", self.sh_min_gain));
         }
         if self.sh_degree_max > 3 {
             return bad(format!("sh_degree_max = {} must be ≤ 3", self.sh_degree_max));
@@ -564,6 +596,7 @@ mod tests {
             (TrainConfig { source_views: 0, ..Default::default() }, "source_views"),
             (TrainConfig { weights: LossWeights { lambda_p: f32::NAN, ..Default::default() }, ..Default::default() }, "lambda_p"),
             (TrainConfig { max_gaussians: 0, ..Default::default() }, "max_gaussians"),
+            (TrainConfig { sh_min_gain: f32::NAN, ..Default::default() }, "sh_min_gain"),
         ] {
             let e = c.validate().unwrap_err().to_string();
             assert!(e.contains(name), "{e}");

@@ -28,9 +28,9 @@ pub mod init;
 pub mod output;
 pub mod trainer;
 
-pub use config::{DensifyConfig, FeatureLayer, GateReading, InitMode, LearningRates, LossSwitches, LossWeights, NccReading, Phase, Preset, TrainConfig};
+pub use config::{DensifyConfig, FeatureLayer, GateReading, InitMode, LearningRates, LossSwitches, LossWeights, NccReading, Phase, Preset, ShPolicy, TrainConfig};
 pub use densify::{DensifyReport, DensifyStats};
 pub use error::{Result, TrainError};
 pub use exposure::{Exposure, ExposureParams};
 pub use output::{ImageMetrics, MeshOptions, MeshReport, ViewMetrics, evaluate_images, extract_mesh};
-pub use trainer::{LossValues, StepReport, TrainState, Trainer};
+pub use trainer::{LossValues, ShBandDecision, StepReport, TrainState, Trainer};

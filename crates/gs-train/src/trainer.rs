@@ -66,7 +66,29 @@ pub struct StepReport {
     pub trimmed: Option<usize>,
     /// Whether the opacity was reset.
     pub opacity_reset: bool,
+    /// The judgement of an SH band ([`crate::ShPolicy::Adaptive`]), when one was made.
+    pub sh_band: Option<ShBandDecision>,
 }
+
+/// The adaptive SH policy's judgement of band `band` at a scheduled rise.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ShBandDecision {
+    /// The band judged (= the degree before the rise).
+    pub band: u32,
+    /// Mean L1 of the judged training views at degree `band − 1`.
+    pub l1_without: f64,
+    /// The same at degree `band`.
+    pub l1_with: f64,
+    /// Relative drop (l1_without − l1_with) / l1_without.
+    pub gain: f64,
+    /// Whether the band paid (and the degree rose to band + 1); otherwise it was dropped.
+    pub kept: bool,
+    /// The degree used from this iteration on.
+    pub degree: u32,
+}
+
+/// Training views rendered to judge an SH band (evenly spread over the training set).
+const SH_JUDGE_VIEWS: usize = 8;
 
 /// The training state that a checkpoint stores (everything else is derived from the scene
 /// and the configuration).
@@ -380,7 +402,7 @@ impl<'s> Trainer<'s> {
             0.0
         };
         self.state.adam.group_mut("means")?.lr = lr_means as f32;
-        self.state.gaussians.sh_degree = cfg.sh_degree(it);
+        let sh_band = self.update_sh_degree(it)?;
 
         let slot = self.view_slot(it);
         let view_index = self.train_views[slot];
@@ -560,6 +582,7 @@ impl<'s> Trainer<'s> {
             densify: None,
             trimmed: None,
             opacity_reset: false,
+            sh_band,
         };
         if it <= d.until {
             if it > d.from && it % d.interval == 0 {
@@ -609,6 +632,62 @@ impl<'s> Trainer<'s> {
             }
         }
         Ok(counts)
+    }
+
+    /// Sets the SH degree of iteration `it` from the schedule and, under
+    /// [`crate::ShPolicy::Adaptive`], judges the newest band at a scheduled rise. The rule only
+    /// reads the degree of the previous iteration (stored in checkpoints), so a resumed run
+    /// takes the same decisions.
+    fn update_sh_degree(&mut self, it: u64) -> Result<Option<ShBandDecision>> {
+        let cfg = &self.config;
+        let scheduled = cfg.sh_degree(it);
+        let current = self.state.gaussians.sh_degree;
+        let adaptive = cfg.sh_policy == crate::config::ShPolicy::Adaptive && cfg.sh_degree_interval > 0 && it > 1;
+        if !adaptive || scheduled <= current {
+            self.state.gaussians.sh_degree = scheduled;
+            return Ok(None);
+        }
+        if scheduled > current + 1 || current == 0 {
+            // Behind the schedule: an earlier band did not pay, the degree stays. Degree 0 → 1:
+            // band 1 is always tried.
+            if current == 0 && scheduled == 1 {
+                self.state.gaussians.sh_degree = 1;
+            }
+            return Ok(None);
+        }
+        // A scheduled rise from `band` to `band + 1`: does band `band` pay on the training views?
+        let band = current;
+        let views: Vec<usize> = (0..SH_JUDGE_VIEWS.min(self.train_views.len()))
+            .map(|k| self.train_views[k * self.train_views.len() / SH_JUDGE_VIEWS.min(self.train_views.len())])
+            .collect();
+        let req = RenderRequest { color: true, alpha: false, ..RenderRequest::default() };
+        let mut l1 = [0.0f64; 2];
+        for (slot, degree) in [band - 1, band].into_iter().enumerate() {
+            self.state.gaussians.sh_degree = degree;
+            for &v in &views {
+                let view = &self.scene.views[v];
+                let img = self.rasterizer.render(&self.state.gaussians, &view.camera, &req, &self.raster)?.color.expect("requested");
+                let sum: f64 = img.data().iter().zip(view.image.data()).map(|(a, b)| (a - b).abs() as f64).sum();
+                l1[slot] += sum / img.data().len() as f64 / views.len() as f64;
+            }
+        }
+        let [l1_without, l1_with] = l1;
+        let gain = if l1_without > 0.0 { (l1_without - l1_with) / l1_without } else { 0.0 };
+        let kept = gain >= cfg.sh_min_gain as f64;
+        let degree = if kept {
+            band + 1
+        } else {
+            // Drop band `band`: zero its coefficients and moments so nothing drifts there.
+            let coeffs = (band * band) as usize..((band + 1) * (band + 1)) as usize;
+            for sh in &mut self.state.gaussians.sh {
+                sh[coeffs.clone()].iter_mut().for_each(|c| *c = [0.0; 3]);
+            }
+            // sh_rest rows hold coefficients 1..16, three floats each.
+            self.state.adam.zero_columns("sh_rest", (coeffs.start - 1) * 3..(coeffs.end - 1) * 3)?;
+            band - 1
+        };
+        self.state.gaussians.sh_degree = degree;
+        Ok(Some(ShBandDecision { band, l1_without, l1_with, gain, kept, degree }))
     }
 
     fn adam_step(&mut self, grads: &gs_raster::GaussianGradients) -> Result<()> {

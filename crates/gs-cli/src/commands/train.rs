@@ -2,7 +2,7 @@
 
 use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, view_indices, write_json};
 use anyhow::{Context, Result, bail};
-use gs_train::{GateReading, InitMode, NccReading, Preset, StepReport, TrainConfig, Trainer, checkpoint};
+use gs_train::{GateReading, InitMode, NccReading, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -103,6 +103,17 @@ pub struct TrainArgs {
     /// Hard cap on the number of Gaussians.
     #[arg(long)]
     pub max_gaussians: Option<usize>,
+    /// Highest SH degree (0–3; default 3).
+    #[arg(long)]
+    pub sh_degree: Option<u32>,
+    /// When the SH degree rises: `schedule` (default, the paper: one band per 1,000 scaled
+    /// iterations) or `adaptive` (at each rise the newest band must lower the training views'
+    /// L1 by --sh-min-gain, else it is dropped and the degree stays).
+    #[arg(long, value_parser = ["schedule", "adaptive"])]
+    pub sh_policy: Option<String>,
+    /// Relative L1 drop a band must give under `--sh-policy adaptive` (default 0.01).
+    #[arg(long)]
+    pub sh_min_gain: Option<f32>,
     /// Write OUT/checkpoint.bin every this many iterations.
     #[arg(long)]
     pub checkpoint_every: Option<u64>,
@@ -172,6 +183,15 @@ pub fn build_config(args: &TrainArgs) -> Result<TrainConfig> {
     if let Some(m) = args.max_gaussians {
         c.max_gaussians = m;
     }
+    if let Some(d) = args.sh_degree {
+        c.sh_degree_max = d;
+    }
+    if let Some(p) = parse_enum(&args.sh_policy, |s| if s == "adaptive" { ShPolicy::Adaptive } else { ShPolicy::Schedule }) {
+        c.sh_policy = p;
+    }
+    if let Some(g) = args.sh_min_gain {
+        c.sh_min_gain = g;
+    }
     c.validate()?;
     Ok(c)
 }
@@ -195,6 +215,10 @@ pub struct TrainReport {
     pub peak_memory_bytes: Option<u64>,
     /// Bytes of the per-view caches (guides, grey images, features).
     pub cache_bytes: usize,
+    /// SH degree the model ended with.
+    pub sh_degree: u32,
+    /// The adaptive SH policy's band judgements of this run (empty on the schedule).
+    pub sh_bands: Vec<gs_train::ShBandDecision>,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
 }
@@ -305,6 +329,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let mut last: Option<StepReport> = None;
     let mut checkpoint_error: Option<anyhow::Error> = None;
     let mut warned_cap = false;
+    let mut sh_bands = Vec::new();
     let t0 = Instant::now();
     let mut t_prev = Instant::now();
     trainer.run(|tr, r| {
@@ -318,9 +343,24 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         if log_lines && (r.iteration % 500 == 0 || r.iteration == config.iterations) {
             eprintln!("[{:>6}/{}] {} ({:.1}s)", r.iteration, config.iterations, describe(r), t0.elapsed().as_secs_f64());
         }
+        // A hidden bar (log-line mode) prints nothing, so notices go to stderr directly there.
+        let notice = |m: String| if log_lines { eprintln!("{m}") } else { bar.println(m) };
+        if let Some(b) = r.sh_band {
+            sh_bands.push(b);
+            notice(format!(
+                "[{:>6}] SH band {}: L1 {:.5} → {:.5} ({:+.2} %), {}; degree {}",
+                r.iteration,
+                b.band,
+                b.l1_without,
+                b.l1_with,
+                -100.0 * b.gain,
+                if b.kept { "pays" } else { "does not pay, dropped" },
+                b.degree
+            ));
+        }
         if r.densify.is_some_and(|d| d.capped) && !warned_cap {
             warned_cap = true;
-            bar.println(format!("warning: reached --max-gaussians {}; densification stops", config.max_gaussians));
+            notice(format!("warning: reached --max-gaussians {}; densification stops", config.max_gaussians));
         }
         if let Some(every) = args.checkpoint_every
             && every > 0
@@ -366,6 +406,8 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         phase_seconds,
         peak_memory_bytes: peak_memory_bytes(),
         cache_bytes: trainer.cache_bytes(),
+        sh_degree: trainer.gaussians().sh_degree,
+        sh_bands,
         last,
     };
     write_json(&out.join("report.json"), &report)?;
