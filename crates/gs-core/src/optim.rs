@@ -275,7 +275,8 @@ mod tests {
         assert!(adam.retain_rows(&[true]).is_err());
         assert!(adam.add_group("means", 1.0, 1, 1).is_err());
         adam.zero_columns("means", 1..3).unwrap();
-        assert_eq!(&adam.groups[0].m[..3], &[0.1, 0.0, 0.0]);
+        let m = &adam.groups[0].m;
+        assert!((m[0] - 0.1).abs() < 1e-6 && m[1..3] == [0.0, 0.0] && (m[3] - 0.3).abs() < 1e-6, "{m:?}");
         assert!(adam.zero_columns("means", 2..4).is_err());
     }
 
