@@ -40,12 +40,18 @@ pub fn psnr(a: &Image, b: &Image) -> Result<f64> {
             .map(|(&p, &q)| ((p - q) as f64).powi(2))
             .sum()
     });
+    psnr_of_squared_error(se, n)
+}
+
+/// PSNR in dB of a summed squared error over `count` values, capped at [`PSNR_MAX_DB`]; shared
+/// by [`psnr`] and [`psnr_masked`].
+fn psnr_of_squared_error(se: f64, count: usize) -> Result<f64> {
     if !se.is_finite() {
         return Err(LossError::InvalidParameter(
             "PSNR of images with non-finite values".into(),
         ));
     }
-    let mse = (se / n as f64).max(1e-10);
+    let mse = (se / count as f64).max(1e-10);
     Ok((-10.0 * mse.log10()).min(PSNR_MAX_DB))
 }
 
@@ -80,11 +86,7 @@ pub fn psnr_masked(a: &Image, b: &Image, mask: &Image) -> Result<f64> {
         .iter()
         .map(|&p| (0..c).map(|k| ((x[p * c + k] - y[p * c + k]) as f64).powi(2)).sum::<f64>())
         .sum();
-    if !se.is_finite() {
-        return Err(LossError::InvalidParameter("PSNR of images with non-finite values".into()));
-    }
-    let mse = (se / (inside.len() * c) as f64).max(1e-10);
-    Ok((-10.0 * mse.log10()).min(PSNR_MAX_DB))
+    psnr_of_squared_error(se, inside.len() * c)
 }
 
 /// `image` composited on black outside `mask` (inside where ≥ 0.5): SSIM and LPIPS of two such
