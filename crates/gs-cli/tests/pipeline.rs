@@ -97,9 +97,18 @@ fn builtin_scene_end_to_end() {
     // With --checkpoint-every the final state is checkpointed too: resuming it is accepted
     // (same scene options) and has nothing left to do.
     let ck = out.join("checkpoint.bin");
+    let report = |p: &std::path::Path| -> serde_json::Value { serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap() };
+    let first = report(&out.join("report.json"));
+    assert_eq!(first["resumed_from"], serde_json::Value::Null);
     let (ok, _, err) = vagsl(&["train", "-o", o, "--eval", "--quiet", "--resume", ck.to_str().unwrap()]);
     assert!(ok, "{err}");
     assert!(err.contains("resuming"), "{err}");
+    // The resumed run's report counts the first segment's time too (carried in the checkpoint).
+    let second = report(&out.join("report.json"));
+    assert_eq!(second["resumed_from"], first["iterations"]);
+    assert_eq!(second["earlier_time_known"], true);
+    let (t1, t2) = (first["train_seconds"].as_f64().unwrap(), second["train_seconds"].as_f64().unwrap());
+    assert!(t1 > 0.0 && t2 >= t1 && t2 - t1 <= second["segment_seconds"].as_f64().unwrap() + 1e-9, "{t1} then {t2}");
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! Versioned, checksummed training checkpoints (design.md §3): the configuration (JSON), the
-//! Gaussians, the Adam moments and the densification statistics, little-endian, followed by a
-//! CRC-32 of everything before it. Written atomically (temporary file + rename).
+//! Gaussians, the Adam moments, the densification statistics, the exposure corrections and the
+//! wall time spent so far, little-endian, followed by a CRC-32 of everything before it. Written
+//! atomically (temporary file + rename).
 
 use crate::exposure::Exposure;
 use crate::config::TrainConfig;
@@ -16,8 +17,54 @@ use std::path::Path;
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"VAGSLCKP";
-/// Format version.
-pub const VERSION: u32 = 2;
+/// Format version (3 added the elapsed wall time).
+pub const VERSION: u32 = 3;
+
+/// Wall seconds a run has spent in the training loop so far, per phase (warm-up, photometric
+/// L_p, features L_f, refinement). Carried in the checkpoint so that a run resumed over several
+/// sessions reports its whole training time, not only the last segment's. It is bookkeeping,
+/// not model state: it does not affect the continuation.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Elapsed {
+    /// Seconds per phase: warm-up, photometric (L_p), features (L_f), refinement.
+    pub phase_seconds: [f64; 4],
+}
+
+impl Elapsed {
+    /// The phase an iteration belongs to (index into `phase_seconds`).
+    pub fn phase_of(config: &TrainConfig, iteration: u64) -> usize {
+        if iteration <= config.warmup_end {
+            0
+        } else if iteration <= config.photometric_end {
+            1
+        } else if iteration <= config.features_end {
+            2
+        } else {
+            3
+        }
+    }
+
+    /// Adds the seconds that iteration `iteration` took.
+    pub fn add(&mut self, config: &TrainConfig, iteration: u64, seconds: f64) {
+        self.phase_seconds[Self::phase_of(config, iteration)] += seconds;
+    }
+
+    /// Total seconds over all phases.
+    pub fn total(&self) -> f64 {
+        self.phase_seconds.iter().sum()
+    }
+}
+
+/// What a checkpoint holds.
+#[derive(Debug, Clone)]
+pub struct Checkpoint {
+    /// The run's configuration (a resumed run uses it).
+    pub config: TrainConfig,
+    /// Parameters, optimiser and statistics.
+    pub state: TrainState,
+    /// Wall time spent before the checkpoint; `None` for checkpoints older than version 3.
+    pub elapsed: Option<Elapsed>,
+}
 
 struct Writer(Vec<u8>);
 
@@ -27,6 +74,12 @@ impl Writer {
     }
     fn u64(&mut self, v: u64) {
         self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f64s(&mut self, v: &[f64]) {
+        self.u64(v.len() as u64);
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
     }
     fn f32s(&mut self, v: &[f32]) {
         self.u64(v.len() as u64);
@@ -78,6 +131,10 @@ impl<'a> Reader<'a> {
         let n = self.len(4, what)?;
         Ok(self.take(n * 4)?.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4"))).collect())
     }
+    fn f64s(&mut self, what: &str) -> std::result::Result<Vec<f64>, String> {
+        let n = self.len(8, what)?;
+        Ok(self.take(n * 8)?.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8"))).collect())
+    }
     fn u32s(&mut self, what: &str) -> std::result::Result<Vec<u32>, String> {
         let n = self.len(4, what)?;
         Ok(self.take(n * 4)?.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().expect("4"))).collect())
@@ -89,7 +146,7 @@ impl<'a> Reader<'a> {
 }
 
 /// Serialises a checkpoint to bytes.
-pub fn encode(config: &TrainConfig, state: &TrainState) -> Vec<u8> {
+pub fn encode(config: &TrainConfig, state: &TrainState, elapsed: &Elapsed) -> Vec<u8> {
     let mut w = Writer(Vec::new());
     w.0.extend_from_slice(MAGIC);
     w.u32(VERSION);
@@ -132,13 +189,15 @@ pub fn encode(config: &TrainConfig, state: &TrainState) -> Vec<u8> {
             w.f32s(&g.v);
         }
     }
+    // Version 3: the wall time spent so far.
+    w.f64s(&elapsed.phase_seconds);
     let crc = crc32(&w.0);
     w.u32(crc);
     w.0
 }
 
 /// Parses a checkpoint; `path` names the file in errors.
-pub fn decode(bytes: &[u8], path: &Path) -> Result<(TrainConfig, TrainState)> {
+pub fn decode(bytes: &[u8], path: &Path) -> Result<Checkpoint> {
     let err = |problem: String| TrainError::Checkpoint { path: path.to_path_buf(), problem };
     if bytes.len() < MAGIC.len() + 8 || &bytes[..8] != MAGIC {
         return Err(err("not a vagsl checkpoint (wrong magic)".into()));
@@ -149,10 +208,10 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<(TrainConfig, TrainState)> {
         return Err(err("checksum mismatch (the file is corrupt or truncated)".into()));
     }
     let mut r = Reader { buf: body, pos: 8 };
-    let parse = |r: &mut Reader| -> std::result::Result<(TrainConfig, TrainState), String> {
+    let parse = |r: &mut Reader| -> std::result::Result<Checkpoint, String> {
         let version = r.u32()?;
-        if version != VERSION && version != 1 {
-            return Err(format!("format version {version}, this build reads versions 1 and {VERSION}"));
+        if !(1..=VERSION).contains(&version) {
+            return Err(format!("format version {version}, this build reads versions 1 to {VERSION}"));
         }
         let config: TrainConfig =
             serde_json::from_slice(r.bytes("config")?).map_err(|e| format!("configuration: {e}"))?;
@@ -227,26 +286,38 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<(TrainConfig, TrainState)> {
         } else {
             None
         };
+        let elapsed = if version >= 3 {
+            let s = r.f64s("elapsed time")?;
+            let phase_seconds: [f64; 4] =
+                s.try_into().map_err(|_| "elapsed time must have 4 phases".to_string())?;
+            if phase_seconds.iter().any(|t| !t.is_finite() || *t < 0.0) {
+                return Err(format!("elapsed time {phase_seconds:?} is not a finite, non-negative number of seconds"));
+            }
+            Some(Elapsed { phase_seconds })
+        } else {
+            None
+        };
         if r.pos != r.buf.len() {
-            return Err(format!("{} unexpected bytes after the statistics", r.buf.len() - r.pos));
+            return Err(format!("{} unexpected bytes after the last record", r.buf.len() - r.pos));
         }
-        Ok((config, TrainState { iteration, gaussians, adam, stats, capped, exposure }))
+        let state = TrainState { iteration, gaussians, adam, stats, capped, exposure };
+        Ok(Checkpoint { config, state, elapsed })
     };
-    let (config, state) = parse(&mut r).map_err(err)?;
-    state.gaussians.validate().map_err(|e| err(e.to_string()))?;
-    config.validate().map_err(|e| err(e.to_string()))?;
-    Ok((config, state))
+    let ck = parse(&mut r).map_err(err)?;
+    ck.state.gaussians.validate().map_err(|e| err(e.to_string()))?;
+    ck.config.validate().map_err(|e| err(e.to_string()))?;
+    Ok(ck)
 }
 
 /// Writes a checkpoint atomically.
-pub fn save(path: &Path, config: &TrainConfig, state: &TrainState) -> Result<()> {
-    let bytes = encode(config, state);
+pub fn save(path: &Path, config: &TrainConfig, state: &TrainState, elapsed: &Elapsed) -> Result<()> {
+    let bytes = encode(config, state, elapsed);
     gs_io::write_atomic(path, |w: &mut dyn Write| w.write_all(&bytes))?;
     Ok(())
 }
 
 /// Reads and verifies a checkpoint.
-pub fn load(path: &Path) -> Result<(TrainConfig, TrainState)> {
+pub fn load(path: &Path) -> Result<Checkpoint> {
     let bytes = std::fs::read(path).map_err(|source| TrainError::Io { path: path.to_path_buf(), source })?;
     decode(&bytes, path)
 }

@@ -2,6 +2,7 @@
 //! iterations (same seed and thread count), across densification, opacity reset, trim and
 //! every loss phase; and corrupt checkpoints are clear errors.
 
+use gs_train::checkpoint::Elapsed;
 use gs_train::{TrainConfig, Trainer, checkpoint};
 
 fn small_scene() -> gs_core::Scene {
@@ -38,11 +39,14 @@ fn resume_continues_bit_identically() {
     assert_eq!(first.iteration(), 60);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("ckpt.bin");
-    checkpoint::save(&path, first.config(), first.state()).unwrap();
+    let spent = Elapsed { phase_seconds: [12.5, 3.25, 0.0, 0.0] };
+    checkpoint::save(&path, first.config(), first.state(), &spent).unwrap();
     drop(first);
-    let (cfg2, state) = checkpoint::load(&path).unwrap();
-    assert_eq!(cfg2, cfg);
-    let mut resumed = Trainer::with_state(&scene, train, cfg2, state).unwrap();
+    let ck = checkpoint::load(&path).unwrap();
+    assert_eq!(ck.config, cfg);
+    // The time spent so far travels with the checkpoint, so a resumed run reports the total.
+    assert_eq!(ck.elapsed, Some(spent));
+    let mut resumed = Trainer::with_state(&scene, train, ck.config, ck.state).unwrap();
     resumed.run(|_, _| true).unwrap();
 
     assert_eq!(resumed.iteration(), straight.iteration());
@@ -57,7 +61,7 @@ fn corrupt_checkpoints_are_named_errors() {
     let (train, _) = scene.split(false);
     let mut t = Trainer::new(&scene, train, config()).unwrap();
     t.run(|_, r| r.iteration < 3).unwrap();
-    let bytes = checkpoint::encode(t.config(), t.state());
+    let bytes = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
     let p = std::path::Path::new("run/checkpoint.bin");
     let err = |b: &[u8]| checkpoint::decode(b, p).unwrap_err().to_string();
     assert!(err(&bytes[..bytes.len() / 2]).contains("checksum"));
@@ -70,4 +74,25 @@ fn corrupt_checkpoints_are_named_errors() {
     let missing = checkpoint::load(std::path::Path::new("/nonexistent/ckpt.bin")).unwrap_err().to_string();
     assert!(missing.contains("/nonexistent/ckpt.bin"), "{missing}");
     assert!(checkpoint::decode(&bytes, p).is_ok());
+    // A NaN elapsed time (with a valid checksum) is refused, not summed into the report.
+    let bad = checkpoint::encode(t.config(), t.state(), &Elapsed { phase_seconds: [f64::NAN, 0.0, 0.0, 0.0] });
+    assert!(err(&bad).contains("elapsed time"), "{}", err(&bad));
+}
+
+#[test]
+fn version_2_checkpoints_still_load_without_elapsed_time() {
+    let scene = small_scene();
+    let (train, _) = scene.split(false);
+    let mut t = Trainer::new(&scene, train, config()).unwrap();
+    t.run(|_, r| r.iteration < 3).unwrap();
+    let v3 = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
+    // A version-2 file is the version-3 body without the trailing elapsed record (8-byte count
+    // + 4 × 8 bytes), with its own version number and checksum.
+    let mut v2 = v3[..v3.len() - 4 - 40].to_vec();
+    v2[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let crc = gs_features::weights::crc32(&v2);
+    v2.extend_from_slice(&crc.to_le_bytes());
+    let ck = checkpoint::decode(&v2, std::path::Path::new("old.bin")).unwrap();
+    assert_eq!(ck.elapsed, None);
+    assert_eq!(&ck.state, t.state());
 }

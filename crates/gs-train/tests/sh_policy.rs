@@ -74,10 +74,10 @@ fn resumed_runs_take_the_same_sh_decisions() {
     first.run(|_, r| r.iteration < 25).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("ckpt.bin");
-    checkpoint::save(&path, first.config(), first.state()).unwrap();
-    let (cfg2, state) = checkpoint::load(&path).unwrap();
-    assert_eq!(cfg2.sh_policy, ShPolicy::Adaptive);
-    let mut resumed = Trainer::with_state(&scene, train, cfg2, state).unwrap();
+    checkpoint::save(&path, first.config(), first.state(), &Default::default()).unwrap();
+    let ck = checkpoint::load(&path).unwrap();
+    assert_eq!(ck.config.sh_policy, ShPolicy::Adaptive);
+    let mut resumed = Trainer::with_state(&scene, train, ck.config, ck.state).unwrap();
     resumed.run(|_, _| true).unwrap();
     assert_eq!(resumed.state(), straight.state());
 }

@@ -3,6 +3,7 @@
 use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, view_indices, write_json};
 use anyhow::{Context, Result, bail};
 use gs_train::{GateReading, InitMode, NccReading, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
+use gs_train::checkpoint::Elapsed;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -207,10 +208,18 @@ pub struct TrainReport {
     pub gaussians: usize,
     /// Whether the Gaussian cap stopped densification.
     pub capped: bool,
-    /// Wall seconds of the training loop.
+    /// Wall seconds of the training loop over the whole run, earlier segments of a resumed run
+    /// included (when the checkpoint carries them, format version 3 on).
     pub train_seconds: f64,
-    /// Seconds per phase: warm-up, photometric (L_p), features (L_f), refinement.
+    /// Seconds per phase over the whole run: warm-up, photometric (L_p), features (L_f), refinement.
     pub phase_seconds: [f64; 4],
+    /// Wall seconds of this process's training loop (equals `train_seconds` without a resume).
+    pub segment_seconds: f64,
+    /// The iteration this process resumed from, if it did.
+    pub resumed_from: Option<u64>,
+    /// False when resumed from a checkpoint older than format version 3, which does not carry
+    /// the earlier segments' time: `train_seconds` then counts from the resume only.
+    pub earlier_time_known: bool,
     /// Peak resident memory, bytes.
     pub peak_memory_bytes: Option<u64>,
     /// Bytes of the per-view caches (guides, grey images, features).
@@ -221,18 +230,6 @@ pub struct TrainReport {
     pub sh_bands: Vec<gs_train::ShBandDecision>,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
-}
-
-fn phase_index(config: &TrainConfig, it: u64) -> usize {
-    if it <= config.warmup_end {
-        0
-    } else if it <= config.photometric_end {
-        1
-    } else if it <= config.features_end {
-        2
-    } else {
-        3
-    }
 }
 
 fn describe(r: &StepReport) -> String {
@@ -252,14 +249,18 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let out = &args.output;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))?;
     let source = SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: args.width, eval: args.eval };
-    let (config, resumed) = match &args.resume {
+    let (config, resumed, earlier) = match &args.resume {
         Some(p) => {
-            let (c, s) = checkpoint::load(p)?;
-            eprintln!("resuming {} at iteration {} (its configuration is used)", p.display(), s.iteration);
-            (c, Some(s))
+            let ck = checkpoint::load(p)?;
+            eprintln!("resuming {} at iteration {} (its configuration is used)", p.display(), ck.state.iteration);
+            if ck.elapsed.is_none() {
+                eprintln!("note: this checkpoint predates format 3 and does not carry the earlier training time; report.json counts from the resume");
+            }
+            (ck.config, Some(ck.state), ck.elapsed)
         }
-        None => (build_config(args)?, None),
+        None => (build_config(args)?, None, Some(Elapsed::default())),
     };
+    let resumed_from = resumed.as_ref().map(|s| s.iteration);
     let t_load = Instant::now();
     let scene = load_scene(&source)?;
     let (train_idx, test_idx) = scene.split(args.eval);
@@ -325,7 +326,8 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         b
     };
     let ckpt_path = out.join("checkpoint.bin");
-    let mut phase_seconds = [0.0f64; 4];
+    // The whole run's time: the checkpoint's earlier segments plus this one.
+    let mut elapsed = earlier.unwrap_or_default();
     let mut last: Option<StepReport> = None;
     let mut checkpoint_error: Option<anyhow::Error> = None;
     let mut warned_cap = false;
@@ -334,7 +336,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let mut t_prev = Instant::now();
     trainer.run(|tr, r| {
         let now = Instant::now();
-        phase_seconds[phase_index(&config, r.iteration)] += (now - t_prev).as_secs_f64();
+        elapsed.add(&config, r.iteration, (now - t_prev).as_secs_f64());
         t_prev = now;
         if r.iteration % 10 == 0 || r.iteration == config.iterations {
             bar.set_position(r.iteration);
@@ -366,7 +368,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
             && every > 0
             && r.iteration % every == 0
             && r.iteration < config.iterations
-            && let Err(e) = checkpoint::save(&ckpt_path, &config, tr.state())
+            && let Err(e) = checkpoint::save(&ckpt_path, &config, tr.state(), &elapsed)
         {
             checkpoint_error = Some(e.into());
             return false;
@@ -378,10 +380,11 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     if let Some(e) = checkpoint_error {
         return Err(e.context(format!("writing {}", ckpt_path.display())));
     }
-    let train_seconds = t0.elapsed().as_secs_f64();
+    let segment_seconds = t0.elapsed().as_secs_f64();
+    let train_seconds = elapsed.total();
     let interrupted = !trainer.finished();
     if interrupted || args.checkpoint_every.is_some() {
-        checkpoint::save(&ckpt_path, &config, trainer.state())?;
+        checkpoint::save(&ckpt_path, &config, trainer.state(), &elapsed)?;
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
     gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
@@ -403,7 +406,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         gaussians: trainer.gaussians().len(),
         capped: trainer.state().capped,
         train_seconds,
-        phase_seconds,
+        phase_seconds: elapsed.phase_seconds,
+        segment_seconds,
+        resumed_from,
+        earlier_time_known: earlier.is_some(),
         peak_memory_bytes: peak_memory_bytes(),
         cache_bytes: trainer.cache_bytes(),
         sh_degree: trainer.gaussians().sh_degree,
@@ -411,11 +417,16 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         last,
     };
     write_json(&out.join("report.json"), &report)?;
+    let done_here = report.iterations - resumed_from.unwrap_or(0);
     println!(
-        "trained {} iterations in {:.1}s ({:.1} it/s): {} Gaussians, peak memory {} → {}",
+        "trained {} iterations in {:.1}s ({:.1} it/s{}): {} Gaussians, peak memory {} → {}",
         report.iterations,
         train_seconds,
-        report.iterations as f64 / train_seconds.max(1e-9),
+        done_here as f64 / segment_seconds.max(1e-9),
+        match resumed_from {
+            Some(from) => format!(" over the {done_here} since the resume at {from}, which took {segment_seconds:.1}s"),
+            None => String::new(),
+        },
         report.gaussians,
         report.peak_memory_bytes.map_or("n/a".into(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64)),
         out.join("point_cloud.ply").display()
