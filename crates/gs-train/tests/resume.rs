@@ -23,6 +23,14 @@ fn config() -> TrainConfig {
     c
 }
 
+/// A trainer 3 iterations into the run: enough state for the checkpoint format tests.
+fn three_iterations(scene: &gs_core::Scene) -> Trainer<'_> {
+    let (train, _) = scene.split(false);
+    let mut t = Trainer::new(scene, train, config()).unwrap();
+    t.run(|_, r| r.iteration < 3).unwrap();
+    t
+}
+
 #[test]
 fn resume_continues_bit_identically() {
     let scene = small_scene();
@@ -58,9 +66,7 @@ fn resume_continues_bit_identically() {
 #[test]
 fn corrupt_checkpoints_are_named_errors() {
     let scene = small_scene();
-    let (train, _) = scene.split(false);
-    let mut t = Trainer::new(&scene, train, config()).unwrap();
-    t.run(|_, r| r.iteration < 3).unwrap();
+    let t = three_iterations(&scene);
     let bytes = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
     let p = std::path::Path::new("run/checkpoint.bin");
     let err = |b: &[u8]| checkpoint::decode(b, p).unwrap_err().to_string();
@@ -82,9 +88,7 @@ fn corrupt_checkpoints_are_named_errors() {
 #[test]
 fn version_2_checkpoints_still_load_without_elapsed_time() {
     let scene = small_scene();
-    let (train, _) = scene.split(false);
-    let mut t = Trainer::new(&scene, train, config()).unwrap();
-    t.run(|_, r| r.iteration < 3).unwrap();
+    let t = three_iterations(&scene);
     let v3 = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
     // A version-2 file is the version-3 body without the trailing elapsed record (8-byte count
     // + 4 × 8 bytes), with its own version number and checksum.
