@@ -3,7 +3,7 @@
 //! reach (the TSDF of the exact GT depth maps at the same voxel size). Release only.
 
 use gs_core::{Scene, TriangleMesh};
-use gs_train::{LossSwitches, MeshOptions, TrainConfig, Trainer};
+use gs_train::{LossSwitches, MeshOptions, MeshReport, TrainConfig, Trainer};
 use gs_tsdf::{EvalOptions, PointMetrics, TsdfConfig, TsdfVolume, evaluate_meshes};
 
 /// Iterations of both runs (`VAGSL_PIPELINE_ITERATIONS` overrides, for longer experiments).
@@ -16,14 +16,12 @@ fn score(mesh: &TriangleMesh, gt: &TriangleMesh) -> PointMetrics {
     evaluate_meshes(mesh, gt, &opts).unwrap().metrics
 }
 
-fn train_and_mesh(scene: &Scene, train: &[usize], config: TrainConfig) -> (TriangleMesh, usize, f64) {
+fn train_and_mesh(scene: &Scene, train: &[usize], config: TrainConfig) -> (TriangleMesh, MeshReport, usize, f64) {
     let t0 = std::time::Instant::now();
     let mut trainer = Trainer::new(scene, train.to_vec(), config).unwrap();
     trainer.run(|_, _| true).unwrap();
-    let (mesh, _) =
-        trainer.extract_mesh(train, &MeshOptions::default())
-            .unwrap();
-    (mesh, trainer.gaussians().len(), t0.elapsed().as_secs_f64())
+    let (mesh, report) = trainer.extract_mesh(train, &MeshOptions::default()).unwrap();
+    (mesh, report, trainer.gaussians().len(), t0.elapsed().as_secs_f64())
 }
 
 #[test]
@@ -45,10 +43,10 @@ fn full_pipeline_beats_image_only_and_approaches_the_gt_depth_floor() {
     let floor = score(&vol.extract_mesh().unwrap(), gt);
 
     let full_cfg = TrainConfig::default().scaled(iterations());
-    let (full_mesh, full_n, full_s) = train_and_mesh(scene, &train, full_cfg.clone());
+    let (full_mesh, full_report, full_n, full_s) = train_and_mesh(scene, &train, full_cfg.clone());
     let full = score(&full_mesh, gt);
     let li_cfg = TrainConfig { losses: LossSwitches::image_only(), ..full_cfg };
-    let (li_mesh, li_n, li_s) = train_and_mesh(scene, &train, li_cfg);
+    let (li_mesh, _, li_n, li_s) = train_and_mesh(scene, &train, li_cfg);
     let li = score(&li_mesh, gt);
     eprintln!("voxel {voxel:.5}");
     eprintln!("GT-depth floor: {}", serde_json::to_string(&floor).unwrap());
@@ -64,4 +62,21 @@ fn full_pipeline_beats_image_only_and_approaches_the_gt_depth_floor() {
     assert!(full.f1 > li.f1 + 0.25, "F1 full {} vs only-L_I {}", full.f1, li.f1);
     assert!(full.chamfer < 4.0 * floor.chamfer, "full {} vs GT-depth floor {}", full.chamfer, floor.chamfer);
     assert!(floor.chamfer < 0.01 && floor.f1 > 0.9, "floor {floor:?}");
+
+    // The pixel footprint the mesh report gives (which `vagsl mesh` compares with the voxel)
+    // matches the one of the exact depth maps: median over views of median GT depth / fx.
+    let mut per_view: Vec<f64> = train
+        .iter()
+        .filter_map(|&i| {
+            let fx = scene.views[i].camera.intrinsics.fx;
+            let mut d: Vec<f64> = built.gt_depth[i].data().iter().filter(|&&z| z > 0.0).map(|&z| z as f64 / fx).collect();
+            d.sort_by(f64::total_cmp);
+            d.get(d.len() / 2).copied()
+        })
+        .collect();
+    per_view.sort_by(f64::total_cmp);
+    let gt_footprint = per_view[per_view.len() / 2];
+    let footprint = full_report.pixel_footprint.expect("depths were fused");
+    eprintln!("pixel footprint {footprint:.5} (GT depth: {gt_footprint:.5}), voxel {voxel:.5}");
+    assert!((footprint / gt_footprint - 1.0).abs() < 0.1, "footprint {footprint} vs GT {gt_footprint}");
 }

@@ -43,6 +43,11 @@ fn builtin_scene_end_to_end() {
     assert!(stdout.contains("triangles"), "{stdout}");
     let mesh = gs_io::read_mesh_ply(&out.join("mesh.ply")).unwrap();
     assert!(!mesh.triangles.is_empty());
+    // The mesh report gives the pixel footprint; the note appears exactly when the voxel is finer.
+    let mr: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("mesh.json")).unwrap()).unwrap();
+    let (voxel, footprint) = (mr["voxel_size"].as_f64().unwrap(), mr["pixel_footprint"].as_f64().unwrap());
+    assert!(footprint > 0.0 && footprint < 1.0, "{mr}");
+    assert_eq!(err.contains("finer than a training pixel"), voxel < gs_train::FINE_VOXEL_FRACTION * footprint, "{err}");
 
     let mesh_path = out.join("mesh.ply");
     let (ok, _, err) = vagsl(&["render", o, "--split", "test", "--mesh", mesh_path.to_str().unwrap()]);

@@ -32,5 +32,5 @@ pub use config::{DensifyConfig, FeatureLayer, GateReading, InitMode, LearningRat
 pub use densify::{DensifyReport, DensifyStats};
 pub use error::{Result, TrainError};
 pub use exposure::{Exposure, ExposureParams};
-pub use output::{ImageMetrics, MeshOptions, MeshReport, ViewMetrics, evaluate_images, extract_mesh};
+pub use output::{FINE_VOXEL_FRACTION, ImageMetrics, MeshOptions, MeshReport, ViewMetrics, evaluate_images, extract_mesh};
 pub use trainer::{LossValues, ShBandDecision, StepReport, TrainState, Trainer};

@@ -68,6 +68,23 @@ pub struct MeshReport {
     pub render_seconds: f64,
     /// Seconds spent fusing and extracting.
     pub fuse_seconds: f64,
+    /// The world size of one pixel at the fused surfaces: median over the views of the median
+    /// plane depth / fx over the fused pixels (`None` when nothing was fused). A voxel much
+    /// finer than this only resolves per-pixel depth noise: the surface comes out speckled.
+    pub pixel_footprint: Option<f64>,
+}
+
+/// A voxel finer than this fraction of the pixel footprint draws a warning from callers.
+pub const FINE_VOXEL_FRACTION: f64 = 0.75;
+
+/// Median of `values` (which it reorders); `None` when empty.
+fn median(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(*m)
 }
 
 /// Renders plane depth and colour of `views`, fuses them into a TSDF, runs marching cubes and
@@ -98,6 +115,7 @@ pub fn extract_mesh(
     };
     let mut volume = TsdfVolume::new(config)?;
     let (mut render_s, mut fuse_s) = (0.0, 0.0);
+    let mut footprints = Vec::with_capacity(views.len());
     let req = RenderRequest { color: true, alpha: true, plane_depth: true, ..RenderRequest::default() };
     for &i in views {
         let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
@@ -113,6 +131,15 @@ pub fn extract_mesh(
         let color = out.color.expect("requested");
         let t1 = std::time::Instant::now();
         let mask = if opts.use_masks { view.mask.as_ref() } else { None };
+        let fx = view.camera.intrinsics.fx;
+        let mut sizes: Vec<f64> = depth
+            .data()
+            .iter()
+            .enumerate()
+            .filter(|&(p, &d)| d > 0.0 && (d as f64) < depth_trunc && mask.is_none_or(|m| m.data()[p] >= 0.5))
+            .map(|(_, &d)| d as f64 / fx)
+            .collect();
+        footprints.extend(median(&mut sizes));
         volume.integrate_view(i, &view.camera, &depth, Some(&color), mask)?;
         render_s += (t1 - t0).as_secs_f64();
         fuse_s += t1.elapsed().as_secs_f64();
@@ -133,6 +160,7 @@ pub fn extract_mesh(
         triangles: mesh.triangles.len(),
         render_seconds: render_s,
         fuse_seconds: fuse_s,
+        pixel_footprint: median(&mut footprints),
     };
     Ok((mesh, report))
 }

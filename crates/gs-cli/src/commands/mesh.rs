@@ -3,7 +3,7 @@
 use crate::run_dir::{OpenRun, SceneSource, load_scene, write_json};
 use anyhow::{Context, Result, bail};
 use gs_tsdf::{ComponentFilter, TsdfConfig, TsdfVolume, clean_mesh};
-use gs_train::{MeshOptions, extract_mesh};
+use gs_train::{FINE_VOXEL_FRACTION, MeshOptions, extract_mesh};
 use std::path::{Path, PathBuf};
 
 /// Options of `vagsl mesh`.
@@ -123,6 +123,14 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         report.fuse_seconds,
         path.display()
     );
+    if let Some(footprint) = report.pixel_footprint
+        && report.voxel_size < FINE_VOXEL_FRACTION * footprint
+    {
+        eprintln!(
+            "note: the voxel ({:.5}) is finer than a training pixel at the surface ({footprint:.5}); the mesh will carry per-pixel depth noise. --voxel-size {footprint:.4} fuses at the images' resolution",
+            report.voxel_size
+        );
+    }
     Ok(())
 }
 
