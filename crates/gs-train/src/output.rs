@@ -68,24 +68,14 @@ pub struct MeshReport {
     pub render_seconds: f64,
     /// Seconds spent fusing and extracting.
     pub fuse_seconds: f64,
-    /// The world size of one pixel at the fused surfaces: median over the views of the median
-    /// plane depth / fx over the fused pixels (`None` when nothing was fused). A voxel much
+    /// The world size of one pixel at the fused surfaces: median over the views of each view's
+    /// median fused depth / fx (`None` when nothing was fused). A voxel much
     /// finer than this only resolves per-pixel depth noise: the surface comes out speckled.
     pub pixel_footprint: Option<f64>,
 }
 
 /// A voxel finer than this fraction of the pixel footprint draws a warning from callers.
 pub const FINE_VOXEL_FRACTION: f64 = 0.75;
-
-/// Median of `values` (which it reorders); `None` when empty.
-fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(*m)
-}
 
 /// Renders plane depth and colour of `views`, fuses them into a TSDF, runs marching cubes and
 /// the clean-up (components ≥ 50 triangles or the largest, degenerate and unreferenced
@@ -131,16 +121,8 @@ pub fn extract_mesh(
         let color = out.color.expect("requested");
         let t1 = std::time::Instant::now();
         let mask = if opts.use_masks { view.mask.as_ref() } else { None };
-        let fx = view.camera.intrinsics.fx;
-        let mut sizes: Vec<f64> = depth
-            .data()
-            .iter()
-            .enumerate()
-            .filter(|&(p, &d)| d > 0.0 && (d as f64) < depth_trunc && mask.is_none_or(|m| m.data()[p] >= 0.5))
-            .map(|(_, &d)| d as f64 / fx)
-            .collect();
-        footprints.extend(median(&mut sizes));
-        volume.integrate_view(i, &view.camera, &depth, Some(&color), mask)?;
+        let fused = volume.integrate_view(i, &view.camera, &depth, Some(&color), mask)?;
+        footprints.extend(fused.median_depth.map(|z| z as f64 / view.camera.intrinsics.fx));
         render_s += (t1 - t0).as_secs_f64();
         fuse_s += t1.elapsed().as_secs_f64();
     }
@@ -160,7 +142,10 @@ pub fn extract_mesh(
         triangles: mesh.triangles.len(),
         render_seconds: render_s,
         fuse_seconds: fuse_s,
-        pixel_footprint: median(&mut footprints),
+        pixel_footprint: (!footprints.is_empty()).then(|| {
+            let mid = footprints.len() / 2;
+            *footprints.select_nth_unstable_by(mid, f64::total_cmp).1
+        }),
     };
     Ok((mesh, report))
 }

@@ -134,10 +134,13 @@ impl Block {
 }
 
 /// Statistics of one [`TsdfVolume::integrate`] call.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct IntegrateStats {
     /// Depth samples that passed every filter.
     pub valid_pixels: usize,
+    /// Median camera z of those samples (`None` when none passed): with the focal length it
+    /// gives the world size of a pixel at the fused surface, which a voxel should not undercut.
+    pub median_depth: Option<f32>,
     /// Blocks touched by this view.
     pub touched_blocks: usize,
     /// Blocks newly allocated by this view.
@@ -235,8 +238,12 @@ impl TsdfVolume {
             return bad(format!("mask is {}x{}x{}, expected {w}x{h}x1", m.width(), m.height(), m.channels()));
         }
         let filtered = self.filter_depth(camera, depth, mask);
-        let valid_pixels = filtered.iter().filter(|&&d| d > 0.0).count();
-        let mut stats = IntegrateStats { valid_pixels, total_blocks: self.blocks.len(), ..Default::default() };
+        let mut kept: Vec<f32> = filtered.iter().copied().filter(|&d| d > 0.0).collect();
+        let valid_pixels = kept.len();
+        let median_depth =
+            (valid_pixels > 0).then(|| *kept.select_nth_unstable_by(valid_pixels / 2, f32::total_cmp).1);
+        let mut stats =
+            IntegrateStats { valid_pixels, median_depth, total_blocks: self.blocks.len(), ..Default::default() };
         if valid_pixels == 0 {
             return Ok(stats);
         }

@@ -170,6 +170,8 @@ fn filters_mask_and_normal_angle() {
     let mut vol = TsdfVolume::new(TsdfConfig::with_voxel_size(0.02)).unwrap();
     let s = vol.integrate(&cam, &d, None, Some(&mask)).unwrap();
     assert_eq!(s.valid_pixels, 32 * 48);
+    // The box face is the plane z = 2 facing the camera: every kept depth is 2.
+    assert!((s.median_depth.unwrap() - 2.0).abs() < 1e-4, "{:?}", s.median_depth);
     let m = vol.extract_mesh().unwrap();
     assert!(m.positions.iter().all(|p| p[0] < 0.1), "masked half must stay empty");
     // A plane tilted 85° from the view direction is dropped by the 80° filter, 45° is kept.
@@ -205,7 +207,7 @@ fn extremes_empty_invalid_single_view() {
     let vals = [0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0];
     let bad = Image::from_vec(64, 48, 1, (0..64 * 48).map(|i| vals[i % 5]).collect()).unwrap();
     let s = vol.integrate(cam, &bad, None, None).unwrap();
-    assert_eq!((s.valid_pixels, s.total_blocks), (0, 0));
+    assert_eq!((s.valid_pixels, s.total_blocks, s.median_depth), (0, 0, None));
     assert!(vol.extract_mesh().unwrap().triangles.is_empty());
     // Depth beyond depth_trunc is ignored.
     let scene = [Primitive::Sphere { center: DVec3::ZERO, radius: 1.0 }];
