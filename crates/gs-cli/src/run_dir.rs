@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result, bail};
 use gs_core::{Gaussians, Scene};
-use gs_train::TrainConfig;
+use gs_train::{TrainConfig, TrainedModel};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -116,20 +116,18 @@ pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
         .collect()
 }
 
-/// A finished (or checkpointed) run opened for rendering, meshing or evaluation.
+/// A finished (or checkpointed) run opened for rendering, meshing or evaluation: it owns what
+/// [`OpenRun::model`] lends as a [`TrainedModel`].
 pub struct OpenRun {
     /// The run folder.
     pub dir: PathBuf,
-    /// Its configuration.
-    pub config: RunConfig,
     /// The scene, loaded as during training.
     pub scene: Scene,
-    /// The trained model (`point_cloud.ply`).
-    pub gaussians: Gaussians,
-    /// Training view indices.
-    pub train: Vec<usize>,
-    /// Held-out view indices.
-    pub test: Vec<usize>,
+    gaussians: Gaussians,
+    train: Vec<usize>,
+    test: Vec<usize>,
+    raster: gs_raster::RasterConfig,
+    extent: f64,
 }
 
 impl OpenRun {
@@ -147,18 +145,22 @@ impl OpenRun {
         let scene = load_scene(&config.scene)?;
         let train = view_indices(&scene, &config.train_views)?;
         let test = view_indices(&scene, &config.test_views)?;
-        Ok(Self { dir: dir.to_path_buf(), config, scene, gaussians, train, test })
+        let cams: Vec<&gs_core::Camera> = train.iter().map(|&i| &scene.views[i].camera).collect();
+        let extent = gs_core::scene_extent(&cams);
+        let raster = config.train.raster_config();
+        Ok(Self { dir: dir.to_path_buf(), scene, gaussians, train, test, raster, extent })
     }
 
-    /// The rasterizer settings of the run.
-    pub fn raster(&self) -> gs_raster::RasterConfig {
-        self.config.train.raster_config()
-    }
-
-    /// Scene extent r of the training cameras.
-    pub fn extent(&self) -> f64 {
-        let cams: Vec<&gs_core::Camera> = self.train.iter().map(|&i| &self.scene.views[i].camera).collect();
-        gs_core::scene_extent(&cams)
+    /// The trained model of the run.
+    pub fn model(&self) -> TrainedModel<'_> {
+        TrainedModel {
+            scene: &self.scene,
+            train: &self.train,
+            test: &self.test,
+            raster: &self.raster,
+            extent: self.extent,
+            gaussians: &self.gaussians,
+        }
     }
 }
 

@@ -70,9 +70,6 @@ pub struct DensifyReport {
     pub capped: bool,
 }
 
-/// Names and row widths of the optimiser groups, in the order the trainer registers them.
-pub const GROUPS: [(&str, usize); 6] =
-    [("means", 3), ("sh_dc", 3), ("sh_rest", 45), ("opacity", 1), ("log_scales", 3), ("rotations", 4)];
 
 /// Largest of the three scales of Gaussian `i`.
 fn max_scale(g: &Gaussians, i: usize) -> f32 {
@@ -189,7 +186,7 @@ pub fn reset_opacity(g: &mut Gaussians, adam: &mut Adam) -> Result<()> {
             *o = cap;
         }
     }
-    adam.reset_group("opacity")?;
+    adam.reset_group(crate::params::Param::Opacity.name())?;
     Ok(())
 }
 
@@ -226,8 +223,8 @@ mod tests {
             g.push([i as f32, 0.0, 0.0], [(0.01f32).ln(); 3], [1.0, 0.0, 0.0, 0.0], 0.0, sh);
         }
         let mut adam = Adam::new(AdamConfig::default());
-        for (name, w) in GROUPS {
-            adam.add_group(name, 1e-3, n, w).unwrap();
+        for p in crate::params::Param::ALL {
+            adam.add_group(p.name(), 1e-3, n, p.row_width()).unwrap();
         }
         (g, adam)
     }

@@ -1,10 +1,20 @@
 //! # gs-train
 //!
-//! The VA-GS training pipeline (method-spec §3–§8) composed from the vagsl crates: initial
-//! Gaussians from SfM points, the phase schedule (colour warm-up → edge + L_nc + L_ns + L_p →
-//! L_f), Adam with the log-linear position schedule, densification with absolute gradients,
-//! opacity reset, multi-view trim, checksummed checkpoints that resume bit-identically, mesh
-//! extraction from rendered plane depths and held-out image metrics.
+//! The VA-GS training pipeline (method-spec §3–§8) composed from the vagsl crates. The data
+//! path of one iteration:
+//!
+//! 1. [`plan`]: a pure [`StepPlan`] from the [`TrainConfig`] and the iteration — view, source
+//!    views, channels to render, active loss terms and their weights ([`TermWeights`]), the
+//!    means' learning rate and the density control to run afterwards.
+//! 2. [`Trainer::execute`] (the CPU reference executor): render on the chosen rasterizer,
+//!    evaluate every term through the [`LossTerm`] contract into the output-gradient buffers,
+//!    back-propagate, Adam over the typed parameter layout ([`Param`]).
+//! 3. [`Trainer::refine`]: clone / split / prune, opacity reset, multi-view trim.
+//!
+//! Per-view data (edge guides, grey images, VGG16 features) lives in [`caches`]. A model —
+//! training or trained — is a [`TrainedModel`], which meshing ([`extract_mesh`], or
+//! [`fuse_mesh`] of any depth source), rendering and evaluation ([`evaluate_images`]) take.
+//! Checkpoints resume bit-identically.
 //!
 //! ```no_run
 //! use gs_train::{Trainer, TrainConfig, Preset, MeshOptions};
@@ -12,25 +22,41 @@
 //! let scene = gs_io::load_scene(std::path::Path::new("scene"), &Default::default())?;
 //! let (train, _test) = scene.split(true);
 //! let config = TrainConfig::preset(Preset::Fast);
-//! let mut trainer = Trainer::new(&scene, train.clone(), config)?;
+//! let mut trainer = Trainer::new(&scene, train, config)?;
 //! trainer.run(|_, report| { println!("{} {:.4}", report.iteration, report.losses.total); true })?;
-//! let (mesh, _) = trainer.extract_mesh(&train, &MeshOptions::default())?;
+//! let (mesh, _) = trainer.extract_mesh(&MeshOptions::default())?;
 //! gs_io::write_mesh_ply(std::path::Path::new("mesh.ply"), &mesh)?;
 //! # Ok(()) }
 //! ```
 
+pub mod caches;
 pub mod checkpoint;
 pub mod config;
 pub mod densify;
 pub mod error;
+pub mod evaluate;
+mod executor;
 pub mod exposure;
 pub mod init;
-pub mod output;
+pub mod mesh;
+pub mod model;
+pub mod params;
+pub mod plan;
+pub mod refine;
+pub mod sh_policy;
+pub mod terms;
 pub mod trainer;
 
 pub use config::{DensifyConfig, FeatureLayer, GateReading, InitMode, LearningRates, LossSwitches, LossWeights, NccReading, Phase, Preset, ShPolicy, TrainConfig};
 pub use densify::{DensifyReport, DensifyStats};
 pub use error::{Result, TrainError};
+pub use evaluate::{ImageMetrics, ViewMetrics, evaluate_images};
 pub use exposure::{Exposure, ExposureParams};
-pub use output::{FINE_VOXEL_FRACTION, ImageMetrics, MeshOptions, MeshReport, ViewMetrics, evaluate_images, extract_mesh};
-pub use trainer::{LossValues, ShBandDecision, StepReport, TrainState, Trainer};
+pub use mesh::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, MeshReport, default_voxel, extract_mesh, fuse_mesh};
+pub use model::TrainedModel;
+pub use params::Param;
+pub use plan::{RefinePlan, StepPlan, plan_step};
+pub use refine::RefineReport;
+pub use sh_policy::ShBandDecision;
+pub use terms::{GradientBuffers, LossTerm, LossValues, TermInputs, TermWeights};
+pub use trainer::{StepReport, TrainState, Trainer};

@@ -33,9 +33,10 @@ pub struct EvalImagesArgs {
 pub fn run(args: &EvalImagesArgs) -> Result<()> {
     let run = OpenRun::open(&args.run)?;
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
-    let views = if args.train { &run.train } else { &run.test };
+    let model = run.model();
+    let views = if args.train { model.train } else { model.test };
     let mut rasterizer = super::rasterizer(args.backend)?;
-    let metrics = gs_train::evaluate_images(&run.gaussians, &run.scene, views, &mut rasterizer, &run.raster(), lpips.as_ref(), args.masked)?;
+    let metrics = gs_train::evaluate_images(&model, &mut rasterizer, views, lpips.as_ref(), args.masked)?;
     let file = format!("eval_images{}{}.json", if args.train { "_train" } else { "" }, if args.masked { "_masked" } else { "" });
     write_json(&run.dir.join(file), &metrics)?;
     if args.json {

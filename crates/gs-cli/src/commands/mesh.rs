@@ -1,9 +1,8 @@
 //! `vagsl mesh`: TSDF fusion of a trained run's rendered plane depths (method-spec §8).
 
 use crate::run_dir::{OpenRun, SceneSource, load_scene, write_json};
-use anyhow::{Context, Result, bail};
-use gs_tsdf::{ComponentFilter, TsdfConfig, TsdfVolume, clean_mesh};
-use gs_train::{FINE_VOXEL_FRACTION, MeshOptions, extract_mesh};
+use anyhow::{Result, bail};
+use gs_train::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, extract_mesh, fuse_mesh};
 use std::path::{Path, PathBuf};
 
 /// Options of `vagsl mesh`.
@@ -22,13 +21,13 @@ pub struct MeshArgs {
     /// Output mesh (default RUN/mesh.ply).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Voxel size (default: scene extent / 512).
+    /// Voxel size (default: the extent of all the scene's cameras / 512).
     #[arg(long)]
     pub voxel_size: Option<f64>,
     /// SDF truncation (default 4 × voxel).
     #[arg(long)]
     pub sdf_trunc: Option<f64>,
-    /// Ignore depths beyond this (default 3 × scene extent).
+    /// Ignore depths beyond this (default 3 × the extent of all the scene's cameras).
     #[arg(long)]
     pub depth_trunc: Option<f64>,
     /// Drop depths whose depth normal is more than this many degrees from the ray (e.g. 80).
@@ -58,47 +57,9 @@ fn read_depth(dir: &Path, name: &str) -> Result<gs_core::Image> {
     bail!("{}: no depth map for view '{name}' (looked for {stem}.exr, {stem}_depth.exr, depth_{stem}.npy, {stem}.npy)", dir.display())
 }
 
-/// Fuses given depth maps of a scene's views (e.g. ground truth, or another method's output).
-fn fuse_depth_dir(args: &MeshArgs, depth_dir: &Path) -> Result<()> {
-    let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
-    let extent = scene.extent();
-    let voxel = args.voxel_size.unwrap_or(extent / 512.0);
-    let mut volume = TsdfVolume::new(TsdfConfig {
-        voxel_size: voxel,
-        sdf_trunc: args.sdf_trunc,
-        depth_trunc: args.depth_trunc.unwrap_or(3.0 * extent),
-        max_normal_angle_deg: args.max_normal_angle,
-        with_color: true,
-        ..Default::default()
-    })?;
-    for (i, view) in scene.views.iter().enumerate() {
-        let depth = read_depth(depth_dir, &view.name)?;
-        let mask = if args.masks { view.mask.as_ref() } else { None };
-        volume.integrate_view(i, &view.camera, &depth, Some(&view.image), mask).with_context(|| format!("view '{}'", view.name))?;
-    }
-    let raw = volume.extract_mesh()?;
-    let filter = if args.largest { ComponentFilter::Largest } else { ComponentFilter::MinTriangles(50) };
-    let mesh = clean_mesh(&raw, filter)?;
-    let path = args.output.clone().unwrap_or_else(|| depth_dir.join("mesh.ply"));
-    gs_io::write_mesh_ply(&path, &mesh)?;
-    println!(
-        "mesh: {} vertices, {} triangles from {} depth maps (voxel {voxel:.5}, {} blocks) → {}",
-        mesh.positions.len(),
-        mesh.triangles.len(),
-        scene.views.len(),
-        volume.block_count(),
-        path.display()
-    );
-    Ok(())
-}
-
-/// Runs `vagsl mesh`.
-pub fn run(args: &MeshArgs) -> Result<()> {
-    if let Some(dir) = &args.depth_dir {
-        return fuse_depth_dir(args, dir);
-    }
-    let run = OpenRun::open(&args.run)?;
-    let opts = MeshOptions {
+/// The mesh options of `args`.
+fn options(args: &MeshArgs) -> MeshOptions {
+    MeshOptions {
         voxel_size: args.voxel_size,
         sdf_trunc: args.sdf_trunc,
         depth_trunc: args.depth_trunc,
@@ -106,19 +67,39 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         largest_component_only: args.largest,
         use_masks: args.masks,
         ..Default::default()
+    }
+}
+
+/// Runs `vagsl mesh`: a run's rendered plane depths, or with `--depth-dir` given depth maps of
+/// every view of a scene (e.g. ground truth, or another method's output), through the one
+/// fusion path of [`fuse_mesh`].
+pub fn run(args: &MeshArgs) -> Result<()> {
+    let opts = options(args);
+    let (mesh, report, path) = match &args.depth_dir {
+        Some(dir) => {
+            let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
+            let views: Vec<usize> = (0..scene.views.len()).collect();
+            let mut read = |v: &gs_core::View| read_depth(dir, &v.name).map_err(|e| gs_train::TrainError::InvalidScene(format!("{e:#}")));
+            let (mesh, report) = fuse_mesh(&scene, &views, DepthSource::Given(&mut read), &opts)?;
+            (mesh, report, args.output.clone().unwrap_or_else(|| dir.join("mesh.ply")))
+        }
+        None => {
+            let run = OpenRun::open(&args.run)?;
+            let mut rasterizer = super::rasterizer(args.backend)?;
+            let (mesh, report) = extract_mesh(&run.model(), &mut rasterizer, &opts)?;
+            (mesh, report, args.output.clone().unwrap_or_else(|| run.dir.join("mesh.ply")))
+        }
     };
-    let mut rasterizer = super::rasterizer(args.backend)?;
-    let (mesh, report) = extract_mesh(&run.gaussians, &run.scene, &run.train, &mut rasterizer, &run.raster(), run.extent(), &opts)?;
-    let path = args.output.clone().unwrap_or_else(|| run.dir.join("mesh.ply"));
     gs_io::write_mesh_ply(&path, &mesh)?;
     write_json(&report_path(&path), &report)?;
     println!(
-        "mesh: {} vertices, {} triangles (voxel {:.5}, {} views, {} blocks; render {:.1}s, fuse {:.1}s) → {}",
+        "mesh: {} vertices, {} triangles (voxel {:.5}, {} views, {} blocks; {} {:.1}s, fuse {:.1}s) → {}",
         report.vertices,
         report.triangles,
         report.voxel_size,
         report.views,
         report.blocks,
+        if args.depth_dir.is_some() { "read" } else { "render" },
         report.render_seconds,
         report.fuse_seconds,
         path.display()

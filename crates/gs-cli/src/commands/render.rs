@@ -80,9 +80,10 @@ fn world_normal_png(camera: &gs_core::Camera, normal: &Image) -> Result<Image> {
 /// Runs `vagsl render`.
 pub fn run(args: &RenderArgs) -> Result<()> {
     let run = OpenRun::open(&args.run)?;
+    let model = run.model();
     let views: Vec<usize> = match args.split {
-        Split::Train => run.train.clone(),
-        Split::Test => run.test.clone(),
+        Split::Train => model.train.to_vec(),
+        Split::Test => model.test.to_vec(),
         Split::All => (0..run.scene.views.len()).collect(),
     };
     if views.is_empty() {
@@ -92,7 +93,6 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let dir = args.output.clone().unwrap_or_else(|| run.dir.join("renders").join(name));
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
     let req = RenderRequest { color: true, alpha: true, normal: true, distance: true, plane_depth: true, ..Default::default() };
-    let raster = run.raster();
     let mut rasterizer = super::rasterizer(args.backend)?;
     let bvh = match &args.mesh {
         Some(p) => {
@@ -103,7 +103,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     };
     for &i in &views {
         let view = &run.scene.views[i];
-        let out = rasterizer.render(&run.gaussians, &view.camera, &req, &raster)?;
+        let out = model.render(&mut rasterizer, i, &req)?;
         let stem = std::path::Path::new(&view.name).file_stem().map_or(view.name.clone(), |s| s.to_string_lossy().into_owned());
         gs_io::write_png(&dir.join(format!("{stem}.png")), out.color.as_ref().expect("requested"))?;
         gs_io::write_depth_exr(&dir.join(format!("{stem}_depth.exr")), out.plane_depth.as_ref().expect("requested"))?;

@@ -188,7 +188,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         let train_seconds = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (mesh, _) =
-            trainer.extract_mesh(&train, &MeshOptions::default())?;
+            trainer.extract_mesh(&MeshOptions::default())?;
         let mesh_seconds = t1.elapsed().as_secs_f64();
         let run_config = RunConfig { scene: source.clone(), train_views: names(&train), test_views: names(&test), train: config.clone() };
         write_json(&dir.join("config.json"), &run_config)?;

@@ -1,0 +1,107 @@
+//! Per-view data derived once from the training photographs and reused every time a view is
+//! the reference or a source: the edge guide (∇I, δ; method-spec §5.1–5.3), the grey image of
+//! L_p (§5.4) and the VGG16 feature map F of L_f (§5.5). Built lazily, indexed by training slot.
+
+use crate::error::{Result, TrainError};
+use gs_core::{Image, Scene};
+use gs_features::{FeatureLevel, FeatureMap, Vgg16};
+use gs_losses::EdgeGuide;
+
+/// The caches of one run's training views (slot k = `train_views[k]`).
+pub struct ViewCaches {
+    guides: Vec<Option<EdgeGuide>>,
+    greys: Vec<Option<Image>>,
+    vgg: Option<Vgg16>,
+    features: Vec<Option<FeatureMap>>,
+}
+
+impl ViewCaches {
+    /// Empty caches for `views` training views.
+    pub fn new(views: usize) -> Self {
+        Self {
+            guides: (0..views).map(|_| None).collect(),
+            greys: (0..views).map(|_| None).collect(),
+            vgg: None,
+            features: (0..views).map(|_| None).collect(),
+        }
+    }
+
+    /// Bytes held (guides, grey images, feature maps).
+    pub fn bytes(&self) -> usize {
+        let img = |i: &Image| i.data().len() * 4;
+        self.guides.iter().flatten().map(|g| img(&g.gradient) + img(&g.delta)).sum::<usize>()
+            + self.greys.iter().flatten().map(img).sum::<usize>()
+            + self.features.iter().flatten().map(|f| f.memory_bytes()).sum::<usize>()
+    }
+
+    /// The edge guide of slot `slot`, built from `photo` on first use. Without `delta`
+    /// (`--no-delta`) δ ≡ 1 inside and 0 on the border, where N̂ is undefined.
+    pub fn guide(&mut self, slot: usize, photo: &Image, delta: bool) -> Result<&EdgeGuide> {
+        if self.guides[slot].is_none() {
+            let mut guide = EdgeGuide::from_gt(photo)?;
+            if !delta {
+                let (w, h) = (guide.delta.width(), guide.delta.height());
+                for y in 0..h {
+                    for x in 0..w {
+                        let inside = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                        guide.delta.set(x, y, 0, if inside { 1.0 } else { 0.0 });
+                    }
+                }
+            }
+            self.guides[slot] = Some(guide);
+        }
+        Ok(self.guides[slot].as_ref().expect("set above"))
+    }
+
+    /// The edge guide of slot `slot` if built.
+    pub fn guide_of(&self, slot: usize) -> Option<&EdgeGuide> {
+        self.guides[slot].as_ref()
+    }
+
+    /// Supplies the grey images of L_p (one per slot, already checked for size).
+    pub fn set_greys(&mut self, greys: Vec<Image>) {
+        self.greys = greys.into_iter().map(Some).collect();
+    }
+
+    /// Builds the grey image of slot `slot` from `photo` when missing; with `ncc_scale` above 1
+    /// they must have been supplied ([`ViewCaches::set_greys`]).
+    pub fn ensure_grey(&mut self, slot: usize, photo: &Image, ncc_scale: u32) -> Result<()> {
+        if self.greys[slot].is_none() {
+            if ncc_scale != 1 {
+                return Err(TrainError::InvalidConfig(format!(
+                    "ncc_scale = {ncc_scale} needs the high-resolution grey images (Trainer::set_grey_images)"
+                )));
+            }
+            self.greys[slot] = Some(photo.to_grey()?);
+        }
+        Ok(())
+    }
+
+    /// The grey image of slot `slot` if built.
+    pub fn grey(&self, slot: usize) -> Option<&Image> {
+        self.greys[slot].as_ref()
+    }
+
+    /// Extracts the feature map of slot `slot` from `photo` when missing (loading the bundled
+    /// VGG16 on first use).
+    pub fn ensure_features(&mut self, slot: usize, photo: &Image, level: FeatureLevel) -> Result<()> {
+        if self.features[slot].is_none() {
+            if self.vgg.is_none() {
+                self.vgg = Some(Vgg16::bundled()?);
+            }
+            let net = self.vgg.as_ref().expect("set above");
+            self.features[slot] = Some(net.extract(photo, level)?);
+        }
+        Ok(())
+    }
+
+    /// The feature map of slot `slot` if built.
+    pub fn features(&self, slot: usize) -> Option<&FeatureMap> {
+        self.features[slot].as_ref()
+    }
+}
+
+/// The photograph of training slot `slot`.
+pub(crate) fn photo<'s>(scene: &'s Scene, train_views: &[usize], slot: usize) -> &'s Image {
+    &scene.views[train_views[slot]].image
+}

@@ -1,0 +1,128 @@
+//! The reference executor of a [`StepPlan`]: render the view on the trainer's rasterizer
+//! (CPU or wgpu), evaluate the plan's loss terms on the CPU through the [`LossTerm`] contract,
+//! back-propagate through exposure and rasterizer, take the Adam step. This is the numerical
+//! reference for any executor that runs the terms elsewhere (a GPU executor implements the same
+//! plan and must match it).
+
+use crate::caches::photo;
+use crate::error::{Result, TrainError};
+use crate::params::{Param, adam_step, set_lr};
+use crate::plan::StepPlan;
+use crate::terms::{GradientBuffers, LossValues, SourceInputs, TermInputs};
+use crate::trainer::Trainer;
+use gs_core::Image;
+use gs_raster::RenderRequest;
+
+impl Trainer<'_> {
+    /// Fills the per-view caches that `plan` needs (edge guide, grey images, feature maps).
+    fn prepare_caches(&mut self, plan: &StepPlan) -> Result<()> {
+        let (scene, views, cfg) = (self.scene, &self.train_views, &self.config);
+        if plan.needs_guide() {
+            self.caches.guide(plan.slot, photo(scene, views, plan.slot), cfg.losses.delta)?;
+        }
+        let with_reference = |s: &[usize]| std::iter::once(plan.slot).chain(s.to_vec()).collect::<Vec<usize>>();
+        if plan.photometric.is_some() {
+            for k in with_reference(&plan.sources) {
+                self.caches.ensure_grey(k, photo(scene, views, k), cfg.ncc_scale)?;
+            }
+        }
+        if plan.phase.features && !plan.sources.is_empty() {
+            let level = match cfg.feature_layer {
+                crate::config::FeatureLayer::Conv2_2 => gs_features::FeatureLevel::Conv2_2,
+                crate::config::FeatureLayer::Conv3_3 => gs_features::FeatureLevel::Conv3_3,
+            };
+            for k in with_reference(&plan.sources) {
+                self.caches.ensure_features(k, photo(scene, views, k), level)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Renders the plane depth of training slot `slot` without gradients (a source view).
+    fn source_plane_depth(&mut self, slot: usize) -> Result<Image> {
+        let req = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
+        let camera = &self.scene.views[self.train_views[slot]].camera;
+        let out = self.rasterizer.render(&self.state.gaussians, camera, &req, &self.raster)?;
+        Ok(out.plane_depth.expect("requested"))
+    }
+
+    /// Carries out `plan` (render, loss terms, backward, Adam; no density control) and returns
+    /// the loss values. Accumulates the densification statistics when the plan says so.
+    pub fn execute(&mut self, plan: &StepPlan) -> Result<LossValues> {
+        let it = plan.iteration;
+        set_lr(&mut self.state.adam, Param::Means, plan.lr_means)?;
+        self.prepare_caches(plan)?;
+        let camera = &self.scene.views[plan.view].camera;
+        let out = self.rasterizer.render(&self.state.gaussians, camera, &plan.render, &self.raster)?;
+        let rendered = out.color.as_ref().expect("the plan always renders colour");
+        // Exposure compensation: the loss sees exp(a)·c + b of this view.
+        let corrected = match &self.state.exposure {
+            Some(e) => Some(crate::exposure::apply(rendered, &e.params[plan.slot])?),
+            None => None,
+        };
+        let depths = plan.sources.iter().map(|&s| self.source_plane_depth(s)).collect::<Result<Vec<Image>>>()?;
+        let sources: Vec<SourceInputs> = plan
+            .sources
+            .iter()
+            .zip(&depths)
+            .map(|(&s, d)| SourceInputs {
+                camera: &self.scene.views[self.train_views[s]].camera,
+                plane_depth: d,
+                grey: self.caches.grey(s),
+                features: self.caches.features(s),
+            })
+            .collect();
+        let inputs = TermInputs {
+            camera,
+            photo: &self.scene.views[plan.view].image,
+            render: &out,
+            color: corrected.as_ref().unwrap_or(rendered),
+            guide: self.caches.guide_of(plan.slot),
+            grey: self.caches.grey(plan.slot),
+            features: self.caches.features(plan.slot),
+            sources: &sources,
+        };
+        let mut values = LossValues::default();
+        let mut grads = GradientBuffers::default();
+        for term in plan.terms(&self.config) {
+            term.evaluate(&inputs, &plan.weights, &mut grads, &mut values)?;
+        }
+        values.total = plan.weights.total(&values);
+        if !values.total.is_finite() {
+            return Err(TrainError::Diverged { iteration: it, problem: format!("the loss is not finite ({})", describe(&values)) });
+        }
+        drop(sources);
+        let grad_color = grads.color.take().expect("L_I always runs");
+        let grad_color = match &mut self.state.exposure {
+            Some(e) => {
+                let (gc, ge) = crate::exposure::backward(rendered, &e.params[plan.slot], &grad_color)?;
+                e.step(plan.slot, &ge, it, self.config.iterations)?;
+                gc
+            }
+            None => grad_color,
+        };
+        let g = self.rasterizer.backward(&self.state.gaussians, camera, &self.raster, &out, &grads.as_output(Some(&grad_color)))?;
+        if plan.refine.accumulate {
+            self.state.stats.accumulate(&out.radii, &g);
+        }
+        adam_step(&mut self.state.adam, &mut self.state.gaussians, &g, it)?;
+        Ok(values)
+    }
+}
+
+/// The loss values in words, for an error message.
+fn describe(v: &LossValues) -> String {
+    let mut s = format!("L1 {}, SSIM {}", v.l1, v.ssim);
+    for (name, x) in [
+        ("edge", v.edge),
+        ("L_nc", v.normal_consistency),
+        ("L_ns", v.normal_smoothing),
+        ("L_p", v.photometric),
+        ("L_f", v.features),
+    ] {
+        if let Some(x) = x {
+            s.push_str(&format!(", {name} {x}"));
+        }
+    }
+    s
+}

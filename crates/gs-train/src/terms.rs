@@ -1,0 +1,272 @@
+//! The loss-term contract (method-spec §5): every term of L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p
+//! + λ4·L_f reads the rendered view, records its unweighted value(s) in [`LossValues`] and adds
+//! its weighted gradient into the renderer's output-gradient buffers ([`GradientBuffers`]).
+//! The weights come from one place ([`TermWeights`], built by the step plan from the
+//! configuration and the phase), and so does the total ([`TermWeights::total`]).
+//!
+//! A term receives its weight rather than returning an unweighted gradient because some fold
+//! it into their kernels (L_nc and L_ns share one back-propagation through the depth normal
+//! N̂); the executor never scales a term's gradient itself.
+
+use crate::error::Result;
+use gs_core::{Camera, Image};
+use gs_features::FeatureMap;
+use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, image_loss, normal_losses};
+use gs_mvs::{
+    FeatureReference, FeatureSource, PhotometricConfig, PhotometricReference, PhotometricSource, feature_loss, photometric_loss,
+};
+use gs_raster::{OutputGradients, RenderOutput};
+use serde::Serialize;
+
+/// Loss values of one iteration (unweighted terms; `None` when the term was off).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct LossValues {
+    /// L1(Ĩ, I).
+    pub l1: f64,
+    /// SSIM(Ĩ, I).
+    pub ssim: f64,
+    /// L1(∇Ĩ, ∇I).
+    pub edge: Option<f64>,
+    /// L_nc.
+    pub normal_consistency: Option<f64>,
+    /// L_ns.
+    pub normal_smoothing: Option<f64>,
+    /// L_p (summed over sources).
+    pub photometric: Option<f64>,
+    /// L_f (averaged over sources).
+    pub features: Option<f64>,
+    /// The weighted total L.
+    pub total: f64,
+}
+
+/// The weights of one iteration's terms; a term that is off has weight 0 and is not evaluated.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct TermWeights {
+    /// β1 (D-SSIM inside L_I).
+    pub beta1: f32,
+    /// β2 (edge term inside L_I; 0 = off).
+    pub beta2: f32,
+    /// λ1 of L_nc.
+    pub lambda_nc: f32,
+    /// λ2 of L_ns.
+    pub lambda_ns: f32,
+    /// λ3 of L_p.
+    pub lambda_p: f32,
+    /// λ4 of L_f.
+    pub lambda_f: f32,
+}
+
+impl TermWeights {
+    /// L = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L_edge + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f of
+    /// recorded values (absent terms count 0).
+    pub fn total(&self, v: &LossValues) -> f64 {
+        let w = |x: f32| x as f64;
+        let b1 = w(self.beta1);
+        (1.0 - b1) * v.l1
+            + b1 * (1.0 - v.ssim)
+            + w(self.beta2) * v.edge.unwrap_or(0.0)
+            + w(self.lambda_nc) * v.normal_consistency.unwrap_or(0.0)
+            + w(self.lambda_ns) * v.normal_smoothing.unwrap_or(0.0)
+            + w(self.lambda_p) * v.photometric.unwrap_or(0.0)
+            + w(self.lambda_f) * v.features.unwrap_or(0.0)
+    }
+}
+
+/// Accumulated ∂L/∂(rendered channel), handed to the rasterizer's backward pass.
+#[derive(Debug, Default)]
+pub struct GradientBuffers {
+    /// ∂L/∂colour (of the colour the loss saw: after exposure correction, if any).
+    pub color: Option<Image>,
+    /// ∂L/∂Ñ, the rendered normal.
+    pub normal: Option<Image>,
+    /// ∂L/∂D, the rendered plane distance.
+    pub distance: Option<Image>,
+    /// ∂L/∂z, the plane depth.
+    pub plane_depth: Option<Image>,
+}
+
+impl GradientBuffers {
+    /// `buffer += weight·g` (the first contribution is taken as is when `weight` is 1).
+    pub fn add(buffer: &mut Option<Image>, g: Image, weight: f32) {
+        match buffer {
+            Some(a) => {
+                for (x, y) in a.data_mut().iter_mut().zip(g.data()) {
+                    *x += weight * y;
+                }
+            }
+            None => {
+                let mut a = g;
+                if weight != 1.0 {
+                    a.data_mut().iter_mut().for_each(|x| *x *= weight);
+                }
+                *buffer = Some(a);
+            }
+        }
+    }
+
+    /// The rasterizer's view of these buffers, with `color` standing in for the colour
+    /// gradient (after the exposure backward, if any).
+    pub fn as_output<'a>(&'a self, color: Option<&'a Image>) -> OutputGradients<'a> {
+        OutputGradients {
+            color,
+            normal: self.normal.as_ref(),
+            distance: self.distance.as_ref(),
+            plane_depth: self.plane_depth.as_ref(),
+            ..Default::default()
+        }
+    }
+}
+
+/// A source view of L_p / L_f: its camera, rendered plane depth and cached photo data.
+pub struct SourceInputs<'a> {
+    /// Its camera.
+    pub camera: &'a Camera,
+    /// Its rendered plane depth (no gradient flows into sources).
+    pub plane_depth: &'a Image,
+    /// Its grey image (L_p).
+    pub grey: Option<&'a Image>,
+    /// Its feature map (L_f).
+    pub features: Option<&'a FeatureMap>,
+}
+
+/// What the terms read: the reference view as rendered, its photo data and the sources.
+pub struct TermInputs<'a> {
+    /// The reference camera.
+    pub camera: &'a Camera,
+    /// The photograph I.
+    pub photo: &'a Image,
+    /// The rendered channels.
+    pub render: &'a RenderOutput,
+    /// The colour the loss compares (the render, exposure-corrected when that is on).
+    pub color: &'a Image,
+    /// ∇I and δ of the photograph (needed by the edge term, L_nc and L_ns).
+    pub guide: Option<&'a EdgeGuide>,
+    /// The reference grey image (L_p).
+    pub grey: Option<&'a Image>,
+    /// The reference feature map (L_f).
+    pub features: Option<&'a FeatureMap>,
+    /// The source views.
+    pub sources: &'a [SourceInputs<'a>],
+}
+
+/// One term (or a group of terms that share their computation) of the loss.
+pub trait LossTerm {
+    /// Evaluates the term on `x`: records its unweighted value(s) in `values` and adds its
+    /// gradient, weighted by `w`, into `grads`.
+    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()>;
+}
+
+fn channel<'a>(c: &'a Option<Image>, name: &str) -> Result<&'a Image> {
+    c.as_ref().ok_or_else(|| crate::TrainError::InvalidConfig(format!("the step plan did not request the {name} channel")))
+}
+
+fn needed<'a, T>(v: Option<&'a T>, what: &str) -> Result<&'a T> {
+    v.ok_or_else(|| crate::TrainError::InvalidConfig(format!("{what} missing from the term inputs")))
+}
+
+/// L_I: (1 − β1)·L1 + β1·D-SSIM (+ β2·edge when β2 > 0 … and the phase has it).
+pub struct ImageTerm {
+    /// Whether the edge term is on.
+    pub edge: bool,
+}
+
+impl LossTerm for ImageTerm {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
+        let li = image_loss(x.color, x.photo, x.guide, &cfg)?;
+        (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
+        GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
+        Ok(())
+    }
+}
+
+/// L_nc and L_ns, evaluated together (they share N̂ and its backward pass); λ1 and λ2 are
+/// folded into that pass.
+pub struct NormalTerms {
+    /// Whether L_nc is on.
+    pub consistency: bool,
+    /// Whether L_ns is on.
+    pub smoothing: bool,
+    /// τ and the gate of L_ns.
+    pub config: NormalLossConfig,
+}
+
+impl LossTerm for NormalTerms {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        let cfg = NormalLossConfig {
+            lambda_nc: if self.consistency { w.lambda_nc } else { 0.0 },
+            lambda_ns: if self.smoothing { w.lambda_ns } else { 0.0 },
+            ..self.config
+        };
+        let r = x.render;
+        let nl = normal_losses(
+            channel(&r.plane_depth, "plane depth")?,
+            channel(&r.normal, "normal")?,
+            r.alpha.as_ref(),
+            needed(x.guide, "the edge guide")?,
+            &x.camera.intrinsics,
+            &cfg,
+        )?;
+        values.normal_consistency = self.consistency.then_some(nl.l_nc);
+        values.normal_smoothing = self.smoothing.then_some(nl.l_ns);
+        GradientBuffers::add(&mut grads.normal, nl.grad_normal, 1.0);
+        GradientBuffers::add(&mut grads.plane_depth, nl.grad_plane_depth, 1.0);
+        Ok(())
+    }
+}
+
+/// L_p, the multi-view photometric alignment (NCC of homography-warped patches).
+pub struct PhotometricTerm {
+    /// Patch size, NCC reading, pixel cap and sampling seed.
+    pub config: PhotometricConfig,
+}
+
+impl LossTerm for PhotometricTerm {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        let r = x.render;
+        let reference = PhotometricReference {
+            camera: x.camera,
+            normal: channel(&r.normal, "normal")?.into(),
+            distance: channel(&r.distance, "distance")?.into(),
+            plane_depth: channel(&r.plane_depth, "plane depth")?.into(),
+            grey: needed(x.grey, "the reference grey image")?.into(),
+        };
+        let sources = x
+            .sources
+            .iter()
+            .map(|s| {
+                let grey = needed(s.grey, "a source grey image")?;
+                Ok(PhotometricSource { camera: s.camera, plane_depth: s.plane_depth.into(), grey: grey.into() })
+            })
+            .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
+        let lp = photometric_loss(&reference, &sources, &self.config)?;
+        values.photometric = Some(lp.loss);
+        let (gn, gd) = lp.grad_images();
+        GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);
+        GradientBuffers::add(&mut grads.distance, gd, w.lambda_p);
+        Ok(())
+    }
+}
+
+/// L_f, the multi-view alignment of deep (VGG16) features.
+pub struct FeatureTerm;
+
+impl LossTerm for FeatureTerm {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        let reference = FeatureReference {
+            camera: x.camera,
+            plane_depth: channel(&x.render.plane_depth, "plane depth")?.into(),
+            features: needed(x.features, "the reference feature map")?,
+        };
+        let sources = x
+            .sources
+            .iter()
+            .map(|s| Ok(FeatureSource { camera: s.camera, plane_depth: s.plane_depth.into(), features: needed(s.features, "a source feature map")? }))
+            .collect::<Result<Vec<FeatureSource<f32>>>>()?;
+        let lf = feature_loss(&reference, &sources)?;
+        values.features = Some(lf.loss);
+        let g = Image::from_vec(lf.width, lf.height, 1, lf.grad_plane_depth)?;
+        GradientBuffers::add(&mut grads.plane_depth, g, w.lambda_f);
+        Ok(())
+    }
+}
