@@ -92,15 +92,16 @@ pub fn run(args: &MeshArgs) -> Result<()> {
     };
     gs_io::write_mesh_ply(&path, &mesh)?;
     write_json(&report_path(&path), &report)?;
+    let source = match args.depth_dir {
+        Some(_) => format!("{} depth maps read in {:.1}s", report.views, report.render_seconds),
+        None => format!("{} views rendered in {:.1}s", report.views, report.render_seconds),
+    };
     println!(
-        "mesh: {} vertices, {} triangles (voxel {:.5}, {} views, {} blocks; {} {:.1}s, fuse {:.1}s) → {}",
+        "mesh: {} vertices, {} triangles (voxel {:.5}, {} blocks; {source}, fused in {:.1}s) → {}",
         report.vertices,
         report.triangles,
         report.voxel_size,
-        report.views,
         report.blocks,
-        if args.depth_dir.is_some() { "read" } else { "render" },
-        report.render_seconds,
         report.fuse_seconds,
         path.display()
     );
