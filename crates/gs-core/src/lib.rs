@@ -22,6 +22,7 @@ pub mod gradcheck;
 pub mod half;
 pub mod image;
 pub mod mesh;
+pub mod names;
 pub mod optim;
 pub mod real;
 pub mod rng;

@@ -9,7 +9,8 @@ use crate::weights::VggWeights;
 use gs_core::Image;
 
 /// Which VGG16 activation serves as F (method-spec §5.5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum FeatureLevel {
     /// conv2_2 + ReLU: 128 channels at 1/2 resolution (the default).
     #[default]
@@ -17,6 +18,8 @@ pub enum FeatureLevel {
     /// conv3_3 + ReLU: 256 channels at 1/4 resolution.
     Conv3_3,
 }
+
+gs_core::named_choices!(FeatureLevel, "feature layer", { FeatureLevel::Conv2_2 => "conv2_2", FeatureLevel::Conv3_3 => "conv3_3" });
 
 impl FeatureLevel {
     /// Channels of the level's activation.

@@ -31,6 +31,11 @@ impl EdgeGuide {
     }
 }
 
+/// β1 of the paper: weight of D-SSIM in L_I (L1 gets 1 − β1).
+pub const BETA1: f32 = 0.2;
+/// β2 of the paper: weight of the edge term L1(∇Ĩ, ∇I) in L_I.
+pub const BETA2: f32 = 0.03;
+
 /// Weights of L_I.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImageLossConfig {
@@ -45,8 +50,8 @@ pub struct ImageLossConfig {
 impl Default for ImageLossConfig {
     fn default() -> Self {
         Self {
-            beta1: 0.2,
-            beta2: 0.03,
+            beta1: BETA1,
+            beta2: BETA2,
             edge: true,
         }
     }

@@ -13,7 +13,8 @@ use rayon::prelude::*;
 /// The paper writes the Iverson bracket without a comparison. [`NsGate::Above`] (the default,
 /// method-spec §5.3) acts where the rendered normals jump by more than τ; [`NsGate::Below`]
 /// (`--ns-gate below`) acts where they are already smooth (difference below τ).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum NsGate {
     /// `[‖Ñ_k − Ñ_p‖₁ > τ]` (default).
     #[default]
@@ -21,6 +22,8 @@ pub enum NsGate {
     /// `[‖Ñ_k − Ñ_p‖₁ < τ]`.
     Below,
 }
+
+gs_core::named_choices!(NsGate, "L_ns gate", { NsGate::Above => "above", NsGate::Below => "below" });
 
 /// Which neighbour pairs L_ns sums over.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -191,6 +194,13 @@ pub fn normal_smoothing<T: Real>(
     (total / hw, count)
 }
 
+/// λ1 of the paper: weight of L_nc.
+pub const LAMBDA_NC: f32 = 0.015;
+/// λ2 of the paper: weight of L_ns.
+pub const LAMBDA_NS: f32 = 0.3;
+/// τ of L_ns: the normal-difference threshold of its gate.
+pub const TAU: f32 = 0.01;
+
 /// Weights and options of the normal terms. The weights λ1, λ2 are applied here: the returned
 /// gradients are those of `lambda_nc·L_nc + lambda_ns·L_ns`, the returned values are unweighted.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -210,9 +220,9 @@ pub struct NormalLossConfig {
 impl Default for NormalLossConfig {
     fn default() -> Self {
         Self {
-            lambda_nc: 0.015,
-            lambda_ns: 0.3,
-            tau: 0.01,
+            lambda_nc: LAMBDA_NC,
+            lambda_ns: LAMBDA_NS,
+            tau: TAU,
             gate: NsGate::Above,
             pairs: NsPairs::Interior,
         }

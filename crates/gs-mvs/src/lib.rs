@@ -58,7 +58,7 @@ pub use features::{
 };
 pub use geometry::{MapView, plane_homography, sample_bilinear, sample_bilinear_grad};
 pub use photometric::{
-    NccMode, PhotometricConfig, PhotometricOutput, PhotometricReference, PhotometricSource,
+    DEFAULT_MAX_PIXELS_PER_SOURCE, NccMode, PhotometricConfig, PhotometricOutput, PhotometricReference, PhotometricSource,
     SourceStats, photometric_loss, photometric_loss_with_weights,
 };
 pub use real::Real;

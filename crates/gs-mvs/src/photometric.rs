@@ -42,7 +42,8 @@ pub const DEFAULT_MAX_PIXELS_PER_SOURCE: usize = 102_400;
 pub const MAX_PATCH_SIZE: usize = 9;
 
 /// Which NCC cost per patch.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum NccMode {
     /// PGSR's `lncc` (default): cc = cov² / (var_r·var_s + 1e-8), cost = clamp(1 − cc, 0, 2),
     /// patches with cost ≥ 0.9 are masked out. Squared correlation: insensitive to the sign, so
@@ -54,6 +55,8 @@ pub enum NccMode {
     /// anti-correlated patches cost up to 2 and flat patches cost 1 with zero gradient.
     Plain,
 }
+
+gs_core::named_choices!(NccMode, "NCC reading", { NccMode::Pgsr => "pgsr", NccMode::Plain => "plain" });
 
 /// Options of [`photometric_loss`].
 #[derive(Debug, Clone, PartialEq)]

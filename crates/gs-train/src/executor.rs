@@ -27,10 +27,7 @@ impl Trainer<'_> {
             }
         }
         if plan.phase.features && !plan.sources.is_empty() {
-            let level = match cfg.feature_layer {
-                crate::config::FeatureLayer::Conv2_2 => gs_features::FeatureLevel::Conv2_2,
-                crate::config::FeatureLayer::Conv3_3 => gs_features::FeatureLevel::Conv3_3,
-            };
+            let level = cfg.feature_layer;
             for k in with_reference(&plan.sources) {
                 self.caches.ensure_features(k, photo(scene, views, k), level)?;
             }

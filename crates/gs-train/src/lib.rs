@@ -47,7 +47,7 @@ pub mod sh_policy;
 pub mod terms;
 pub mod trainer;
 
-pub use config::{DensifyConfig, FeatureLayer, GateReading, InitMode, LearningRates, LossSwitches, LossWeights, NccReading, Phase, Preset, ShPolicy, TrainConfig};
+pub use config::{DensifyConfig, InitMode, LearningRates, LossSwitches, LossWeights, Phase, Preset, ShPolicy, TrainConfig};
 pub use densify::{DensifyReport, DensifyStats};
 pub use error::{Result, TrainError};
 pub use evaluate::{ImageMetrics, ViewMetrics, evaluate_images};

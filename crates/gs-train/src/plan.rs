@@ -70,7 +70,7 @@ impl StepPlan {
             terms.push(Box::new(NormalTerms {
                 consistency: p.normal_consistency,
                 smoothing: p.normal_smoothing,
-                config: NormalLossConfig { tau: config.weights.tau, gate: ns_gate(config), ..NormalLossConfig::default() },
+                config: NormalLossConfig { tau: config.weights.tau, gate: config.ns_gate, ..NormalLossConfig::default() },
             }));
         }
         if let Some(pc) = &self.photometric {
@@ -85,20 +85,6 @@ impl StepPlan {
     /// Whether the view's edge guide is needed.
     pub fn needs_guide(&self) -> bool {
         self.phase.needs_guide()
-    }
-}
-
-fn ncc_mode(c: &TrainConfig) -> gs_mvs::NccMode {
-    match c.ncc {
-        crate::config::NccReading::Pgsr => gs_mvs::NccMode::Pgsr,
-        crate::config::NccReading::Plain => gs_mvs::NccMode::Plain,
-    }
-}
-
-fn ns_gate(c: &TrainConfig) -> gs_losses::NsGate {
-    match c.ns_gate {
-        crate::config::GateReading::Above => gs_losses::NsGate::Above,
-        crate::config::GateReading::Below => gs_losses::NsGate::Below,
     }
 }
 
@@ -126,7 +112,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
     let sources = if phase.photometric || phase.features { selector.select(slot, &mut rng) } else { Vec::new() };
     let photometric = (phase.photometric && !sources.is_empty()).then(|| PhotometricConfig {
         patch_size: config.patch_size,
-        ncc: ncc_mode(config),
+        ncc: config.ncc,
         max_pixels_per_source: Some(config.max_pixels_per_source),
         seed: rng.next_u64(),
     });

@@ -2,28 +2,15 @@
 
 use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, view_indices, write_json};
 use anyhow::{Context, Result, bail};
-use gs_train::{GateReading, InitMode, NccReading, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
+use gs_train::{InitMode, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
 use gs_train::checkpoint::Elapsed;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
-
-/// `--preset`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum PresetArg {
-    /// 3,000 iterations, every phase scaled, 2 source views (a quick look).
-    Fast,
-    /// Object scenes (DTU): the paper's 20,000-iteration surface schedule.
-    Dtu,
-    /// Large scenes (Tanks and Temples): abs-gradient threshold 1.5e-4.
-    Tnt,
-    /// Novel views (Mip-NeRF 360): 30,000 iterations, abs-gradient threshold 2e-4.
-    Mip360,
-}
 
 /// Options of `vagsl train` (see `vagsl train --help`).
 #[derive(Debug, Clone, clap::Args)]
@@ -36,9 +23,20 @@ pub struct TrainArgs {
     /// Output folder (created): config.json, point_cloud.ply, report.json, checkpoint.bin.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Settings preset.
-    #[arg(long, value_enum, default_value = "dtu")]
-    pub preset: PresetArg,
+    /// Settings preset: fast, dtu (the default), tnt or mip360.
+    #[arg(long)]
+    pub preset: Option<Preset>,
+    /// Settings from a file (.toml or .json): a partial configuration (keys as for --set,
+    /// tables such as [weights] may be partial; `preset` picks the base), or a run's own
+    /// OUT/config.json, which reproduces that run (its scene too, unless SCENE, -r, --width or
+    /// --eval are given). Precedence: preset, then --iterations, then this file, then the
+    /// flags below, then --set.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Any setting by key, e.g. `--set weights.lambda_p=0.2 --set densify.grad_threshold=3e-4`
+    /// (keys as in OUT/config.json's "train" table; repeatable; applied last).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
     /// Total iterations; every phase boundary of the preset scales with it.
     #[arg(long)]
     pub iterations: Option<u64>,
@@ -51,9 +49,9 @@ pub struct TrainArgs {
     /// Hold out every 8th image (sorted by name) for evaluation.
     #[arg(long)]
     pub eval: bool,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    /// Seed of every random choice (default 0).
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Ablation: no edge term in L_I.
     #[arg(long)]
     pub no_edge: bool,
@@ -90,17 +88,17 @@ pub struct TrainArgs {
     #[arg(long)]
     pub tau: Option<f32>,
     /// L_ns gate: `above` (default, "> τ") or `below` ("< τ").
-    #[arg(long, value_parser = ["above", "below"])]
-    pub ns_gate: Option<String>,
+    #[arg(long)]
+    pub ns_gate: Option<gs_losses::NsGate>,
     /// NCC cost: `pgsr` (1 − ρ², masked, default) or `plain` (1 − ρ).
-    #[arg(long, value_parser = ["pgsr", "plain"])]
-    pub ncc: Option<String>,
+    #[arg(long)]
+    pub ncc: Option<gs_mvs::NccMode>,
     /// Keep L_p on during the L_f phase.
     #[arg(long)]
     pub overlap_mv: bool,
     /// Initialisation: `points` (SfM, default), `cube` or `sphere` (random).
-    #[arg(long, value_parser = ["points", "cube", "sphere"])]
-    pub init: Option<String>,
+    #[arg(long)]
+    pub init: Option<InitMode>,
     /// Hard cap on the number of Gaussians.
     #[arg(long)]
     pub max_gaussians: Option<usize>,
@@ -110,8 +108,8 @@ pub struct TrainArgs {
     /// When the SH degree rises: `schedule` (default, the paper: one band per 1,000 scaled
     /// iterations) or `adaptive` (at each rise the newest band must lower the training views'
     /// L1 by --sh-min-gain, else it is dropped and the degree stays).
-    #[arg(long, value_parser = ["schedule", "adaptive"])]
-    pub sh_policy: Option<String>,
+    #[arg(long)]
+    pub sh_policy: Option<ShPolicy>,
     /// Relative L1 drop a band must give under `--sh-policy adaptive` (default 0.01).
     #[arg(long)]
     pub sh_min_gain: Option<f32>,
@@ -127,17 +125,36 @@ pub struct TrainArgs {
     pub quiet: bool,
 }
 
-fn parse_enum<T>(v: &Option<String>, f: impl Fn(&str) -> T) -> Option<T> {
-    v.as_deref().map(f)
+/// A configuration file's settings as JSON: a run's `config.json` gives its "train" table and
+/// scene, anything else is a partial configuration.
+fn read_config_file(path: &Path) -> Result<(serde_json::Value, Option<RunConfig>)> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read the configuration file", path.display()))?;
+    let value: serde_json::Value = match path.extension().and_then(|e| e.to_str()) {
+        Some("toml") => toml::from_str(&text).with_context(|| format!("{}: not valid TOML", path.display()))?,
+        _ => serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON (use .toml for TOML)", path.display()))?,
+    };
+    if value.get("train").is_some() && value.get("scene").is_some() {
+        let run: RunConfig = serde_json::from_value(value.clone()).with_context(|| format!("{}: not a vagsl run configuration", path.display()))?;
+        return Ok((value["train"].clone(), Some(run)));
+    }
+    Ok((value, None))
 }
 
-/// The effective configuration of `args`.
-pub fn build_config(args: &TrainArgs) -> Result<TrainConfig> {
-    let preset = match args.preset {
-        PresetArg::Fast => Preset::Fast,
-        PresetArg::Dtu => Preset::Dtu,
-        PresetArg::Tnt => Preset::Tnt,
-        PresetArg::Mip360 => Preset::Mip360,
+/// The effective configuration of `args` (and the run configuration of a `--config` file that
+/// is a run's own `config.json`). Precedence: preset → `--iterations` → file → flags → `--set`.
+pub fn build_config(args: &TrainArgs) -> Result<(TrainConfig, Option<RunConfig>)> {
+    let (file, run) = match &args.config {
+        Some(p) => {
+            let (v, run) = read_config_file(p)?;
+            (Some(v), run)
+        }
+        None => (None, None),
+    };
+    let file_preset = file.as_ref().and_then(|v| v.get("preset")).and_then(|p| p.as_str()).map(str::parse::<Preset>);
+    let preset = match (args.preset, file_preset) {
+        (Some(p), _) => p,
+        (None, Some(p)) => p.map_err(anyhow::Error::msg).context("the configuration file's preset")?,
+        (None, None) => Preset::default(),
     };
     let mut c = TrainConfig::preset(preset);
     if let Some(n) = args.iterations {
@@ -146,55 +163,47 @@ pub fn build_config(args: &TrainArgs) -> Result<TrainConfig> {
         }
         c = c.scaled(n);
     }
-    c.seed = args.seed;
-    let l = &mut c.losses;
-    l.edge &= !args.no_edge;
-    l.normal_consistency &= !args.no_nc;
-    l.normal_smoothing &= !args.no_ns;
-    l.photometric &= !args.no_photometric;
-    l.features &= !args.no_features;
-    l.delta &= !args.no_delta;
-    c.exposure |= args.exposure;
-    if let Some(n) = args.source_views {
-        c.source_views = n;
+    if let Some(v) = &file {
+        c = c.with_overlay(v).with_context(|| format!("{}", args.config.as_ref().expect("file given").display()))?;
     }
-    if let Some(s) = args.ncc_scale {
-        c.ncc_scale = s;
+    for (flag, key) in [
+        (args.no_edge, "losses.edge"),
+        (args.no_nc, "losses.normal_consistency"),
+        (args.no_ns, "losses.normal_smoothing"),
+        (args.no_photometric, "losses.photometric"),
+        (args.no_features, "losses.features"),
+        (args.no_delta, "losses.delta"),
+    ] {
+        if flag {
+            c = c.with_setting(key, false.into())?;
+        }
     }
-    if let Some(p) = args.patch_size {
-        c.patch_size = p;
+    let flags: [(&str, Option<serde_json::Value>); 14] = [
+        ("exposure", args.exposure.then_some(true.into())),
+        ("overlap_mv", args.overlap_mv.then_some(true.into())),
+        ("seed", args.seed.map(Into::into)),
+        ("source_views", args.source_views.map(Into::into)),
+        ("ncc_scale", args.ncc_scale.map(Into::into)),
+        ("patch_size", args.patch_size.map(Into::into)),
+        ("weights.tau", args.tau.map(Into::into)),
+        ("ns_gate", args.ns_gate.map(|g| g.to_string().into())),
+        ("ncc", args.ncc.map(|n| n.to_string().into())),
+        ("init", args.init.map(|i| i.to_string().into())),
+        ("max_gaussians", args.max_gaussians.map(Into::into)),
+        ("sh_degree_max", args.sh_degree.map(Into::into)),
+        ("sh_policy", args.sh_policy.map(|p| p.to_string().into())),
+        ("sh_min_gain", args.sh_min_gain.map(Into::into)),
+    ];
+    for (key, value) in flags {
+        if let Some(v) = value {
+            c = c.with_setting(key, v)?;
+        }
     }
-    if let Some(t) = args.tau {
-        c.weights.tau = t;
-    }
-    if let Some(g) = parse_enum(&args.ns_gate, |s| if s == "below" { GateReading::Below } else { GateReading::Above }) {
-        c.ns_gate = g;
-    }
-    if let Some(n) = parse_enum(&args.ncc, |s| if s == "plain" { NccReading::Plain } else { NccReading::Pgsr }) {
-        c.ncc = n;
-    }
-    c.overlap_mv |= args.overlap_mv;
-    if let Some(i) = parse_enum(&args.init, |s| match s {
-        "cube" => InitMode::Cube,
-        "sphere" => InitMode::Sphere,
-        _ => InitMode::Points,
-    }) {
-        c.init = i;
-    }
-    if let Some(m) = args.max_gaussians {
-        c.max_gaussians = m;
-    }
-    if let Some(d) = args.sh_degree {
-        c.sh_degree_max = d;
-    }
-    if let Some(p) = parse_enum(&args.sh_policy, |s| if s == "adaptive" { ShPolicy::Adaptive } else { ShPolicy::Schedule }) {
-        c.sh_policy = p;
-    }
-    if let Some(g) = args.sh_min_gain {
-        c.sh_min_gain = g;
+    for a in &args.set {
+        c = c.with_assignment(a).context("--set")?;
     }
     c.validate()?;
-    Ok(c)
+    Ok((c, run))
 }
 
 /// `OUT/report.json`.
@@ -247,23 +256,31 @@ fn describe(r: &StepReport) -> String {
 /// Runs `vagsl train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
     let out = &args.output;
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))?;
-    let source = SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: args.width, eval: args.eval };
-    let (config, resumed, earlier) = match &args.resume {
+    let (config, resumed, earlier, from_run) = match &args.resume {
         Some(p) => {
             let ck = checkpoint::load(p)?;
             eprintln!("resuming {} at iteration {} (its configuration is used)", p.display(), ck.state.iteration);
             if ck.elapsed.is_none() {
                 eprintln!("note: this checkpoint predates format 3 and does not carry the earlier training time; report.json counts from the resume");
             }
-            (ck.config, Some(ck.state), ck.elapsed)
+            (ck.config, Some(ck.state), ck.elapsed, None)
         }
-        None => (build_config(args)?, None, Some(Elapsed::default())),
+        None => {
+            let (config, run) = build_config(args)?;
+            (config, None, Some(Elapsed::default()), run)
+        }
     };
+    // A run's own config.json brings its scene unless the command line names one.
+    let cli_scene = args.scene.is_some() || args.resolution.is_some() || args.width.is_some() || args.eval;
+    let source = match &from_run {
+        Some(run) if !cli_scene => run.scene.clone(),
+        _ => SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: args.width, eval: args.eval },
+    };
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))?;
     let resumed_from = resumed.as_ref().map(|s| s.iteration);
     let t_load = Instant::now();
     let scene = load_scene(&source)?;
-    let (train_idx, test_idx) = scene.split(args.eval);
+    let (train_idx, test_idx) = scene.split(source.eval);
     let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
     let run_config =
         RunConfig { scene: source.clone(), train_views: names(&train_idx), test_views: names(&test_idx), train: config.clone() };
@@ -275,6 +292,16 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     {
         bail!("the scene options differ from the checkpointed run's (other training views); pass the same SCENE, -r/--width and --eval");
     }
+    if let Some(run) = &from_run
+        && run.train_views != run_config.train_views
+    {
+        bail!(
+            "{}: the run trained on {} views, this scene gives {} other training views; pass the run's SCENE, -r/--width and --eval (or none of them)",
+            args.config.as_ref().expect("a run configuration comes from --config").display(),
+            run.train_views.len(),
+            run_config.train_views.len()
+        );
+    }
     view_indices(&scene, &run_config.train_views)?;
     write_json(&out.join("config.json"), &run_config)?;
     eprintln!(
@@ -285,16 +312,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         scene.points.len(),
         t_load.elapsed().as_secs_f64()
     );
-    eprintln!(
-        "config: preset {:?}, {} iterations (warm-up to {}, L_p to {}, L_f to {}), seed {}, losses {:?}",
-        config.preset,
-        config.iterations,
-        config.warmup_end,
-        config.photometric_end,
-        config.features_end,
-        config.seed,
-        config.losses
-    );
+    eprintln!("config: {}", config.summary());
     let mut trainer = match resumed {
         Some(state) => Trainer::with_state(&scene, train_idx.clone(), config.clone(), state)?,
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,

@@ -1,8 +1,12 @@
 //! Training configuration: presets, the phase schedule of method-spec §7, learning rates (§3),
 //! densification (§4) and loss switches for ablations. Serialised to `OUT/config.json`.
 
-use crate::error::{Result, TrainError};
 use serde::{Deserialize, Serialize};
+
+mod overrides;
+mod summary;
+mod validate;
+
 
 /// Named settings for typical scenes (method-spec §4, §7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -22,18 +26,12 @@ pub enum Preset {
     Fast,
 }
 
-impl Preset {
-    /// Parses `fast|dtu|tnt|mip360`.
-    pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "dtu" => Ok(Self::Dtu),
-            "tnt" => Ok(Self::Tnt),
-            "mip360" => Ok(Self::Mip360),
-            "fast" => Ok(Self::Fast),
-            other => Err(TrainError::InvalidConfig(format!("unknown preset '{other}' (fast|dtu|tnt|mip360)"))),
-        }
-    }
-}
+gs_core::named_choices!(Preset, "preset", {
+    Preset::Fast => "fast",
+    Preset::Dtu => "dtu",
+    Preset::Tnt => "tnt",
+    Preset::Mip360 => "mip360",
+});
 
 /// Which initial Gaussians (method-spec §3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -48,38 +46,11 @@ pub enum InitMode {
     Sphere,
 }
 
-/// The L_ns gate direction (method-spec §5.3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum GateReading {
-    /// `[‖Ñ_k − Ñ‖₁ > τ]`, the recommended reading.
-    #[default]
-    Above,
-    /// `[‖Ñ_k − Ñ‖₁ < τ]`.
-    Below,
-}
-
-/// The NCC cost of L_p (method-spec §5.4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum NccReading {
-    /// PGSR: 1 − ρ², clamped, cost ≥ 0.9 masked.
-    #[default]
-    Pgsr,
-    /// The paper's formula read literally: 1 − ρ, no mask.
-    Plain,
-}
-
-/// Which VGG16 activation is F (method-spec §5.5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum FeatureLayer {
-    /// conv2_2: 128 channels at 1/2 resolution.
-    #[default]
-    Conv2_2,
-    /// conv3_3: 256 channels at 1/4 resolution.
-    Conv3_3,
-}
+gs_core::named_choices!(InitMode, "initialisation", {
+    InitMode::Points => "points",
+    InitMode::Cube => "cube",
+    InitMode::Sphere => "sphere",
+});
 
 /// On/off switches of the loss terms, for ablations (`--no-edge` …).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -111,7 +82,12 @@ impl LossSwitches {
     }
 }
 
-/// Loss weights (method-spec §5).
+/// λ3 of the paper: weight of L_p.
+pub const LAMBDA_P: f32 = 0.15;
+/// λ4 of the paper: weight of L_f.
+pub const LAMBDA_F: f32 = 1.0;
+
+/// Loss weights (method-spec §5); the defaults are the paper's, owned by the loss crates.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LossWeights {
     /// β1, D-SSIM weight in L_I.
@@ -132,7 +108,16 @@ pub struct LossWeights {
 
 impl Default for LossWeights {
     fn default() -> Self {
-        Self { beta1: 0.2, beta2: 0.03, lambda_nc: 0.015, lambda_ns: 0.3, lambda_p: 0.15, lambda_f: 1.0, tau: 0.01 }
+        use gs_losses::{image_loss, normal_loss};
+        Self {
+            beta1: image_loss::BETA1,
+            beta2: image_loss::BETA2,
+            lambda_nc: normal_loss::LAMBDA_NC,
+            lambda_ns: normal_loss::LAMBDA_NS,
+            lambda_p: LAMBDA_P,
+            lambda_f: LAMBDA_F,
+            tau: normal_loss::TAU,
+        }
     }
 }
 
@@ -239,9 +224,9 @@ pub struct TrainConfig {
     /// Loss weights.
     pub weights: LossWeights,
     /// L_ns gate reading.
-    pub ns_gate: GateReading,
+    pub ns_gate: gs_losses::NsGate,
     /// NCC reading of L_p.
-    pub ncc: NccReading,
+    pub ncc: gs_mvs::NccMode,
     /// Source views N per iteration.
     pub source_views: usize,
     /// NCC patch side (odd, 3–9).
@@ -258,7 +243,7 @@ pub struct TrainConfig {
     /// L_p pixel cap per source.
     pub max_pixels_per_source: usize,
     /// VGG16 level of F.
-    pub feature_layer: FeatureLayer,
+    pub feature_layer: gs_features::FeatureLevel,
     /// Learning rates.
     pub lr: LearningRates,
     /// Highest SH degree.
@@ -310,6 +295,8 @@ pub enum ShPolicy {
     Adaptive,
 }
 
+gs_core::named_choices!(ShPolicy, "SH policy", { ShPolicy::Schedule => "schedule", ShPolicy::Adaptive => "adaptive" });
+
 impl Default for TrainConfig {
     fn default() -> Self {
         Self::preset(Preset::Dtu)
@@ -336,14 +323,14 @@ impl TrainConfig {
             seed: 0,
             losses: LossSwitches::default(),
             weights: LossWeights::default(),
-            ns_gate: GateReading::Above,
-            ncc: NccReading::Pgsr,
+            ns_gate: gs_losses::NsGate::Above,
+            ncc: gs_mvs::NccMode::Pgsr,
             source_views: 3,
             patch_size: 7,
             ncc_scale: 1,
             exposure: false,
-            max_pixels_per_source: 102_400,
-            feature_layer: FeatureLayer::Conv2_2,
+            max_pixels_per_source: gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE,
+            feature_layer: gs_features::FeatureLevel::Conv2_2,
             lr: LearningRates::default(),
             sh_degree_max: 3,
             sh_degree_interval: 1000,
@@ -398,101 +385,6 @@ impl TrainConfig {
             },
             ..self.clone()
         }
-    }
-
-    /// Checks every value against its documented range; the message names the option.
-    pub fn validate(&self) -> Result<()> {
-        let bad = |m: String| Err(TrainError::InvalidConfig(m));
-        if self.iterations == 0 || self.iterations > 10_000_000 {
-            return bad(format!("iterations = {} must be in 1..=10,000,000", self.iterations));
-        }
-        if !(self.warmup_end <= self.photometric_end && self.photometric_end <= self.features_end) {
-            return bad(format!(
-                "phase boundaries must be ordered: warmup_end {} ≤ photometric_end {} ≤ features_end {}",
-                self.warmup_end, self.photometric_end, self.features_end
-            ));
-        }
-        if self.source_views == 0 || self.source_views > 16 {
-            return bad(format!("source_views = {} must be in 1..=16", self.source_views));
-        }
-        if !(1..=4).contains(&self.ncc_scale) {
-            return bad(format!("ncc_scale = {} must be in 1..=4", self.ncc_scale));
-        }
-        if self.patch_size % 2 == 0 || !(3..=9).contains(&self.patch_size) {
-            return bad(format!("patch_size = {} must be odd in 3..=9", self.patch_size));
-        }
-        if self.max_pixels_per_source == 0 {
-            return bad("max_pixels_per_source must be positive".into());
-        }
-        if !(self.sh_min_gain.is_finite() && self.sh_min_gain < 1.0) {
-            return bad(format!("sh_min_gain = {} must be finite and below 1", self.sh_min_gain));
-        }
-        if self.sh_degree_max > 3 {
-            return bad(format!("sh_degree_max = {} must be ≤ 3", self.sh_degree_max));
-        }
-        if self.max_gaussians == 0 || self.max_gaussians > gs_core::gaussians::MAX_GAUSSIANS {
-            return bad(format!("max_gaussians = {} must be in 1..={}", self.max_gaussians, gs_core::gaussians::MAX_GAUSSIANS));
-        }
-        let w = &self.weights;
-        for (name, v) in [
-            ("beta1", w.beta1),
-            ("beta2", w.beta2),
-            ("lambda_nc", w.lambda_nc),
-            ("lambda_ns", w.lambda_ns),
-            ("lambda_p", w.lambda_p),
-            ("lambda_f", w.lambda_f),
-            ("tau", w.tau),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} = {v} must be finite and ≥ 0"));
-            }
-        }
-        if w.beta1 > 1.0 {
-            return bad(format!("beta1 = {} must be ≤ 1", w.beta1));
-        }
-        let lr = &self.lr;
-        for (name, v) in [
-            ("lr.position_init", lr.position_init as f32),
-            ("lr.position_final", lr.position_final as f32),
-            ("lr.sh_dc", lr.sh_dc),
-            ("lr.sh_rest", lr.sh_rest),
-            ("lr.opacity", lr.opacity),
-            ("lr.scaling", lr.scaling),
-            ("lr.rotation", lr.rotation),
-        ] {
-            if !(v.is_finite() && v >= 0.0 && v < 10.0) {
-                return bad(format!("{name} = {v} must be in [0, 10)"));
-            }
-        }
-        if lr.position_init > 0.0 && !(lr.position_final > 0.0) {
-            return bad("lr.position_final must be positive (log-linear decay)".into());
-        }
-        let d = &self.densify;
-        if d.interval == 0 {
-            return bad("densify.interval must be positive".into());
-        }
-        for (name, v) in [
-            ("densify.grad_threshold", d.grad_threshold),
-            ("densify.abs_grad_threshold", d.abs_grad_threshold),
-            ("densify.percent_dense", d.percent_dense),
-            ("densify.min_opacity", d.min_opacity),
-            ("densify.max_screen_radius", d.max_screen_radius),
-            ("densify.max_world_scale", d.max_world_scale),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} = {v} must be finite and ≥ 0"));
-            }
-        }
-        if !(self.near > 0.0 && self.near.is_finite()) {
-            return bad(format!("near = {} must be positive", self.near));
-        }
-        if !self.background.iter().all(|c| c.is_finite()) {
-            return bad("background must be finite".into());
-        }
-        if matches!(self.init, InitMode::Cube | InitMode::Sphere) && self.random_points == 0 {
-            return bad("random_points must be positive for cube/sphere init".into());
-        }
-        Ok(())
     }
 
     /// The losses active at 1-based iteration `it` (method-spec §7).
@@ -601,7 +493,8 @@ mod tests {
             let e = c.validate().unwrap_err().to_string();
             assert!(e.contains(name), "{e}");
         }
-        assert!(Preset::parse("bogus").is_err());
+        assert!("bogus".parse::<Preset>().is_err());
+        assert_eq!("mip360".parse::<Preset>(), Ok(Preset::Mip360));
         let round: TrainConfig = serde_json::from_str(&serde_json::to_string(&TrainConfig::preset(Preset::Fast)).unwrap()).unwrap();
         assert_eq!(round, TrainConfig::preset(Preset::Fast));
     }

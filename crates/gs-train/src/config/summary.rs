@@ -1,0 +1,91 @@
+//! The configuration in words, for the start-up line of `vagsl train`: the schedule, the
+//! terms, and every setting that differs from the preset it started from.
+
+use super::TrainConfig;
+
+impl TrainConfig {
+    /// A one-paragraph description for people (no Rust syntax).
+    pub fn summary(&self) -> String {
+        let l = &self.losses;
+        let mut geometry: Vec<&str> = Vec::new();
+        for (on, name) in [(l.edge, "edge"), (l.normal_consistency, "L_nc"), (l.normal_smoothing, "L_ns"), (l.photometric, "L_p")] {
+            if on {
+                geometry.push(name);
+            }
+        }
+        let mut s = format!("preset {}, {} iterations: colour warm-up to {}", self.preset, self.iterations, self.warmup_end);
+        if !geometry.is_empty() {
+            s.push_str(&format!(", {} to {}", geometry.join(" + "), self.photometric_end));
+        }
+        if l.features {
+            s.push_str(&format!(", L_f{} to {}", if self.overlap_mv && l.photometric { " + L_p" } else { "" }, self.features_end));
+        }
+        s.push_str(&format!(
+            "; seed {}; {} source views, {p}×{p} NCC patches ({})",
+            self.seed,
+            self.source_views,
+            self.ncc,
+            p = self.patch_size
+        ));
+        let off: Vec<&str> = [
+            (l.edge, "edge"),
+            (l.normal_consistency, "L_nc"),
+            (l.normal_smoothing, "L_ns"),
+            (l.photometric, "L_p"),
+            (l.features, "L_f"),
+            (l.delta, "δ"),
+        ]
+        .into_iter()
+        .filter_map(|(on, name)| (!on).then_some(name))
+        .collect();
+        if !off.is_empty() {
+            s.push_str(&format!("; off: {}", off.join(", ")));
+        }
+        let changed = self.changed_from_preset();
+        if !changed.is_empty() {
+            s.push_str(&format!("; changed from the preset: {}", changed.join(", ")));
+        }
+        s
+    }
+
+    /// `key value (preset value)` for every setting that differs from the preset scaled to
+    /// this length (switches of the loss terms are listed by [`TrainConfig::summary`] instead).
+    pub fn changed_from_preset(&self) -> Vec<String> {
+        let mut base = TrainConfig::preset(self.preset);
+        if base.iterations != self.iterations {
+            base = base.scaled(self.iterations);
+        }
+        let base: std::collections::HashMap<String, serde_json::Value> = base.settings().into_iter().collect();
+        self.settings()
+            .into_iter()
+            .filter(|(k, v)| !k.starts_with("losses.") && k != "seed" && base.get(k) != Some(v))
+            .map(|(k, v)| format!("{k} {} (preset {})", show(&v), base.get(&k).map_or("none".into(), show)))
+            .collect()
+    }
+}
+
+/// A setting's value as written by hand: an f32 stored through f64 prints as the f32 it is.
+fn show(v: &serde_json::Value) -> String {
+    match v.as_f64() {
+        Some(x) if !v.is_i64() && !v.is_u64() && (x as f32) as f64 == x => format!("{}", x as f32),
+        _ => v.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Preset, TrainConfig};
+
+    #[test]
+    fn the_summary_is_words() {
+        let c = TrainConfig::default().scaled(60);
+        let s = c.summary();
+        assert!(s.starts_with("preset dtu, 60 iterations: colour warm-up to 21, edge + L_nc + L_ns + L_p to 45, L_f to 60"), "{s}");
+        assert!(!s.contains('{') && !s.contains("changed"), "{s}");
+        let d = TrainConfig { seed: 4, ..TrainConfig::preset(Preset::Fast) }.with_assignment("weights.lambda_p=0.3").unwrap();
+        let mut d = d;
+        d.losses.features = false;
+        let s = d.summary();
+        assert!(s.contains("off: L_f") && s.contains("weights.lambda_p 0.3 (preset 0.15)") && s.contains("seed 4"), "{s}");
+    }
+}

@@ -1,0 +1,102 @@
+//! Range checks of every setting; a message names the setting by its key (as `--set` takes it).
+
+use super::{InitMode, TrainConfig};
+use crate::error::{Result, TrainError};
+
+impl TrainConfig {
+    /// Checks every value against its documented range; the message names the option.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(TrainError::InvalidConfig(m));
+        if self.iterations == 0 || self.iterations > 10_000_000 {
+            return bad(format!("iterations = {} must be in 1..=10,000,000", self.iterations));
+        }
+        if !(self.warmup_end <= self.photometric_end && self.photometric_end <= self.features_end) {
+            return bad(format!(
+                "phase boundaries must be ordered: warmup_end {} ≤ photometric_end {} ≤ features_end {}",
+                self.warmup_end, self.photometric_end, self.features_end
+            ));
+        }
+        if self.source_views == 0 || self.source_views > 16 {
+            return bad(format!("source_views = {} must be in 1..=16", self.source_views));
+        }
+        if !(1..=4).contains(&self.ncc_scale) {
+            return bad(format!("ncc_scale = {} must be in 1..=4", self.ncc_scale));
+        }
+        if self.patch_size % 2 == 0 || !(3..=9).contains(&self.patch_size) {
+            return bad(format!("patch_size = {} must be odd in 3..=9", self.patch_size));
+        }
+        if self.max_pixels_per_source == 0 {
+            return bad("max_pixels_per_source must be positive".into());
+        }
+        if !(self.sh_min_gain.is_finite() && self.sh_min_gain < 1.0) {
+            return bad(format!("sh_min_gain = {} must be finite and below 1", self.sh_min_gain));
+        }
+        if self.sh_degree_max > 3 {
+            return bad(format!("sh_degree_max = {} must be ≤ 3", self.sh_degree_max));
+        }
+        if self.max_gaussians == 0 || self.max_gaussians > gs_core::gaussians::MAX_GAUSSIANS {
+            return bad(format!("max_gaussians = {} must be in 1..={}", self.max_gaussians, gs_core::gaussians::MAX_GAUSSIANS));
+        }
+        let w = &self.weights;
+        for (name, v) in [
+            ("beta1", w.beta1),
+            ("beta2", w.beta2),
+            ("lambda_nc", w.lambda_nc),
+            ("lambda_ns", w.lambda_ns),
+            ("lambda_p", w.lambda_p),
+            ("lambda_f", w.lambda_f),
+            ("tau", w.tau),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} = {v} must be finite and ≥ 0"));
+            }
+        }
+        if w.beta1 > 1.0 {
+            return bad(format!("beta1 = {} must be ≤ 1", w.beta1));
+        }
+        let lr = &self.lr;
+        for (name, v) in [
+            ("lr.position_init", lr.position_init as f32),
+            ("lr.position_final", lr.position_final as f32),
+            ("lr.sh_dc", lr.sh_dc),
+            ("lr.sh_rest", lr.sh_rest),
+            ("lr.opacity", lr.opacity),
+            ("lr.scaling", lr.scaling),
+            ("lr.rotation", lr.rotation),
+        ] {
+            if !(v.is_finite() && v >= 0.0 && v < 10.0) {
+                return bad(format!("{name} = {v} must be in [0, 10)"));
+            }
+        }
+        if lr.position_init > 0.0 && !(lr.position_final > 0.0) {
+            return bad("lr.position_final must be positive (log-linear decay)".into());
+        }
+        let d = &self.densify;
+        if d.interval == 0 {
+            return bad("densify.interval must be positive".into());
+        }
+        for (name, v) in [
+            ("densify.grad_threshold", d.grad_threshold),
+            ("densify.abs_grad_threshold", d.abs_grad_threshold),
+            ("densify.percent_dense", d.percent_dense),
+            ("densify.min_opacity", d.min_opacity),
+            ("densify.max_screen_radius", d.max_screen_radius),
+            ("densify.max_world_scale", d.max_world_scale),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} = {v} must be finite and ≥ 0"));
+            }
+        }
+        if !(self.near > 0.0 && self.near.is_finite()) {
+            return bad(format!("near = {} must be positive", self.near));
+        }
+        if !self.background.iter().all(|c| c.is_finite()) {
+            return bad("background must be finite".into());
+        }
+        if matches!(self.init, InitMode::Cube | InitMode::Sphere) && self.random_points == 0 {
+            return bad("random_points must be positive for cube/sphere init".into());
+        }
+        Ok(())
+    }
+
+}
