@@ -26,7 +26,7 @@
 //! recreated per call (cheap). Kernels use at most 8 storage buffers and split 1D dispatches
 //! beyond 65535 workgroups into 2D.
 
-use crate::project::CamParams;
+use crate::cpu::project::CamParams;
 use crate::{
     GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, RenderRequest,
     RenderStats, Result,
@@ -818,7 +818,7 @@ impl WgpuRasterizer {
         request: &RenderRequest,
         config: &RasterConfig,
     ) -> Result<RenderOutput> {
-        let cam = crate::check_inputs(gaussians, camera, config)?;
+        let cam = crate::validate::check_inputs(gaussians, camera, config)?;
         self.frame = None;
         self.generation += 1;
         self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -1108,7 +1108,7 @@ impl WgpuRasterizer {
                 request.observed.then(|| vec![0; n]),
             )
         };
-        let mut out = crate::assemble(cam, config, request, &acc, &final_t)?;
+        let mut out = crate::pixel::assemble(cam, config, request, &acc, &final_t)?;
         out.radii = radii;
         out.observed = observed;
         out.stats = RenderStats {
@@ -1157,7 +1157,7 @@ impl WgpuRasterizer {
         forward: &RenderOutput,
         grads: &OutputGradients,
     ) -> Result<GaussianGradients> {
-        let cam = crate::check_inputs(gaussians, camera, config)?;
+        let cam = crate::validate::check_inputs(gaussians, camera, config)?;
         let st = match &forward.state.0 {
             crate::StateInner::Gpu(st) => st,
             crate::StateInner::Cpu(_) => {
@@ -1171,18 +1171,8 @@ impl WgpuRasterizer {
                 "the forward render came from another WgpuRasterizer".into(),
             ));
         }
-        if st.n != gaussians.len() || st.width != cam.width || st.height != cam.height {
-            return Err(RasterError::InvalidGradients(format!(
-                "forward state ({} Gaussians, {}x{}) does not match the inputs ({} Gaussians, {}x{})",
-                st.n,
-                st.width,
-                st.height,
-                gaussians.len(),
-                cam.width,
-                cam.height
-            )));
-        }
-        crate::check_all_grads(grads, &st.request, cam.width, cam.height)?;
+        crate::validate::check_forward_matches((st.n, st.width, st.height), true, gaussians, &cam, "")?;
+        crate::validate::check_all_grads(grads, &st.request, cam.width, cam.height)?;
         let frame = match self.frame {
             Some(f) if f.generation == st.generation => f,
             _ => {
@@ -1251,7 +1241,7 @@ impl WgpuRasterizer {
         pg.reserve(npix * 9);
         for y in 0..h {
             for x in 0..w {
-                let (gc, ga) = crate::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
+                let (gc, ga) = crate::pixel::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
                 pg.extend_from_slice(&gc);
                 pg.push(ga);
             }
