@@ -45,6 +45,10 @@
 //! # Ok(()) }
 //! ```
 
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
+
 mod context;
 mod dispatch;
 mod kernel;

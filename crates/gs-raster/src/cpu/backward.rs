@@ -1,7 +1,7 @@
 //! The CPU backward: per-tile reverse traversal merged in tile order, then the projection
 //! backward per Gaussian.
 
-use super::project::{self, SplatGrad};
+use super::project::{self, CamParams, SplatGrad};
 use super::raster;
 use crate::pixel::pixel_grads;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
@@ -90,8 +90,21 @@ pub fn backward(
         }
     }
     drop(per_tile);
-    // Projection backward, written in place chunk by chunk (disjoint slices, no atomics).
-    let (sx, sy) = (0.5 * w as f32, 0.5 * h as f32);
+    project_grads(gaussians, &cam, config, &sg, &touched, &mut out);
+    Ok(out)
+}
+
+/// Projection backward of every touched Gaussian from its merged splat gradient, written in
+/// place chunk by chunk (disjoint slices, no atomics); `mean2d` in NDC units.
+fn project_grads(
+    gaussians: &Gaussians,
+    cam: &CamParams,
+    config: &RasterConfig,
+    sg: &[SplatGrad],
+    touched: &[bool],
+    out: &mut GaussianGradients,
+) {
+    let (sx, sy) = (0.5 * cam.width as f32, 0.5 * cam.height as f32);
     const CHUNK: usize = 512;
     let GaussianGradients {
         means,
@@ -101,7 +114,7 @@ pub fn backward(
         sh,
         mean2d,
         mean2d_abs,
-    } = &mut out;
+    } = out;
     means
         .par_chunks_mut(CHUNK)
         .zip(log_scales.par_chunks_mut(CHUNK))
@@ -117,7 +130,7 @@ pub fn backward(
                 if !touched[i] {
                     continue;
                 }
-                if let Some(pg) = project::project_backward(gaussians, i, &cam, config, &sg[i]) {
+                if let Some(pg) = project::project_backward(gaussians, i, cam, config, &sg[i]) {
                     gm[j] = pg.mean;
                     gl[j] = pg.log_scale;
                     gr[j] = pg.rotation;
@@ -128,5 +141,4 @@ pub fn backward(
                 }
             }
         });
-    Ok(out)
 }
