@@ -17,7 +17,10 @@ fn bench(c: &mut Criterion) {
     eprintln!("wgpu adapter: {}", ctx.description());
     let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
     let sort = RadixSort::new(&ctx, &mut pool).expect("kernels");
-    let ids: Vec<_> = ["ka", "va", "kb", "vb"].into_iter().map(|l| pool.add_storage(l)).collect();
+    let ids: Vec<_> = ["ka", "va", "kb", "vb"]
+        .into_iter()
+        .map(|l| pool.add_storage(l))
+        .collect();
     let disp = Dispatcher::new(&ctx, 16);
     let mut s = 0x2545_F491_4F6C_DD1Du64;
     let keys: Vec<u32> = (0..N)
@@ -38,12 +41,15 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10).throughput(Throughput::Elements(N as u64));
     g.bench_function("radix_sort_1M_32bit", |b| {
         b.iter(|| {
-            ctx.queue().write_buffer(pool.buffer(ids[0]), 0, bytemuck::cast_slice(&keys));
-            ctx.queue().write_buffer(pool.buffer(ids[1]), 0, bytemuck::cast_slice(&vals));
+            ctx.queue()
+                .write_buffer(pool.buffer(ids[0]), 0, bytemuck::cast_slice(&keys));
+            ctx.queue()
+                .write_buffer(pool.buffer(ids[1]), 0, bytemuck::cast_slice(&vals));
             let mut enc = disp.encoder();
             let a = (pool.whole(ids[0]), pool.whole(ids[1]));
             let bb = (pool.whole(ids[2]), pool.whole(ids[3]));
-            sort.encode(&disp, &mut enc, &pool, a, bb, N as u32, 32).expect("sort");
+            sort.encode(&disp, &mut enc, &pool, [a, bb], N as u32, 32)
+                .expect("sort");
             disp.submit(enc);
             wait()
         })
@@ -52,7 +58,9 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             let mut enc = disp.encoder();
             let data = pool.range(ids[2], 0, N as u64 * 4);
-            sort.prefix_scan().encode(&disp, &mut enc, &pool, data, N as u32).expect("scan");
+            sort.prefix_scan()
+                .encode(&disp, &mut enc, &pool, data, N as u32)
+                .expect("scan");
             disp.submit(enc);
             wait()
         })

@@ -100,7 +100,9 @@ impl GpuContext {
         })?;
         let info = adapter.get_info();
         let native_f32_atomics = !opts.disable_f32_atomics
-            && adapter.features().contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+            && adapter
+                .features()
+                .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
         let required_features = if native_f32_atomics {
             wgpu::Features::SHADER_FLOAT32_ATOMIC
         } else {

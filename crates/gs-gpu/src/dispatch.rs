@@ -36,7 +36,11 @@ pub struct Dispatcher {
 
 impl std::fmt::Debug for Dispatcher {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Dispatcher(frame uniform of {} bytes)", self.frame.size())
+        write!(
+            f,
+            "Dispatcher(frame uniform of {} bytes)",
+            self.frame.size()
+        )
     }
 }
 
@@ -62,7 +66,8 @@ impl Dispatcher {
 
     /// Writes the frame uniform (seen by every dispatch submitted after this call).
     pub fn write_frame<T: bytemuck::Pod>(&self, value: &T) {
-        self.queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(value));
+        self.queue
+            .write_buffer(&self.frame, 0, bytemuck::bytes_of(value));
     }
 
     /// A new encoder.

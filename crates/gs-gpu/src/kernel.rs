@@ -106,7 +106,12 @@ fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
 impl Kernel {
     /// Compiles entry point `entry` of [`kernel_source`]`(sources, bindings)`. Shader or
     /// pipeline errors are [`GpuError::Device`].
-    pub fn new(ctx: &GpuContext, entry: &str, sources: &[&str], bindings: &[Binding]) -> Result<Self> {
+    pub fn new(
+        ctx: &GpuContext,
+        entry: &str,
+        sources: &[&str],
+        bindings: &[Binding],
+    ) -> Result<Self> {
         let device = ctx.device();
         ctx.push_error_scopes();
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -146,7 +151,9 @@ impl Kernel {
             cache: None,
         });
         ctx.pop_error_scopes().map_err(|e| {
-            GpuError::Device(format!("shader or pipeline creation of {entry} failed: {e}"))
+            GpuError::Device(format!(
+                "shader or pipeline creation of {entry} failed: {e}"
+            ))
         })?;
         Ok(Self { pipeline, layout })
     }

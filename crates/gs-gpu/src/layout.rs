@@ -126,9 +126,7 @@ pub fn check_layout<T: WgslStruct>(source: &str) -> Result<(), String> {
     }
     let size = std::mem::size_of::<T>();
     if *span as usize != size || layouter[handle].size as usize != size {
-        return Err(format!(
-            "{name}: WGSL size {span} != Rust size {size}"
-        ));
+        return Err(format!("{name}: WGSL size {span} != Rust size {size}"));
     }
     Ok(())
 }
@@ -159,7 +157,11 @@ mod tests {
         let ok = "struct Probe { a: vec4<f32>, b: u32, d: f32, c: vec2<u32> }";
         check_layout::<Probe>(ok).unwrap();
         let extra = "struct Probe { a: vec4<f32>, b: u32, d: f32, c: vec2<u32>, e: u32 }";
-        assert!(check_layout::<Probe>(extra).unwrap_err().contains("members"));
+        assert!(
+            check_layout::<Probe>(extra)
+                .unwrap_err()
+                .contains("members")
+        );
         let missing = "struct Probe { a: vec4<f32>, b: u32, d: f32 }";
         assert!(check_layout::<Probe>(missing).is_err());
         // Same names and order, WGSL alignment moves a member: vec3 packs `b` at 12, and a

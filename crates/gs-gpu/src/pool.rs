@@ -211,7 +211,12 @@ impl BufferPool {
     }
 }
 
-fn create(device: &wgpu::Device, label: &str, usage: wgpu::BufferUsages, size: u64) -> wgpu::Buffer {
+fn create(
+    device: &wgpu::Device,
+    label: &str,
+    usage: wgpu::BufferUsages,
+    size: u64,
+) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size,
@@ -230,17 +235,42 @@ mod tests {
 
     #[test]
     fn policy_keeps_buffers_in_use_and_without_history() {
-        let p = ShrinkPolicy { window: 4, factor: 4 };
-        assert_eq!(p.target(1 << 20, &needs(&[0, 0, 0])), None, "too little history");
-        assert_eq!(p.target(1 << 20, &needs(&[1 << 20, 0, 0, 0])), None, "needed recently");
-        assert_eq!(p.target(1 << 20, &needs(&[0, 0, 1 << 19, 0])), None, "within the factor");
-        assert_eq!(p.target(256, &needs(&[0, 0, 0, 0])), None, "already minimal");
-        assert_eq!(ShrinkPolicy::never().target(1 << 30, &needs(&[0; 64])), None);
+        let p = ShrinkPolicy {
+            window: 4,
+            factor: 4,
+        };
+        assert_eq!(
+            p.target(1 << 20, &needs(&[0, 0, 0])),
+            None,
+            "too little history"
+        );
+        assert_eq!(
+            p.target(1 << 20, &needs(&[1 << 20, 0, 0, 0])),
+            None,
+            "needed recently"
+        );
+        assert_eq!(
+            p.target(1 << 20, &needs(&[0, 0, 1 << 19, 0])),
+            None,
+            "within the factor"
+        );
+        assert_eq!(
+            p.target(256, &needs(&[0, 0, 0, 0])),
+            None,
+            "already minimal"
+        );
+        assert_eq!(
+            ShrinkPolicy::never().target(1 << 30, &needs(&[0; 64])),
+            None
+        );
     }
 
     #[test]
     fn policy_releases_idle_and_oversized_buffers() {
-        let p = ShrinkPolicy { window: 4, factor: 4 };
+        let p = ShrinkPolicy {
+            window: 4,
+            factor: 4,
+        };
         assert_eq!(p.target(1 << 20, &needs(&[0, 0, 0, 0])), Some(MIN_BYTES));
         assert_eq!(p.target(1 << 20, &needs(&[1000, 0, 5000, 0])), Some(5120));
     }

@@ -1,14 +1,19 @@
 //! Exclusive prefix sum of u32 on the device, in place, multi-level.
 
-use crate::{Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, Kernel, PassUniform, Result, grid};
+use crate::{
+    Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, Kernel, PassUniform, Result,
+    grid,
+};
 
 /// Elements per scan / radix-sort block (one workgroup).
 pub(crate) const BLOCK: u32 = 1024;
 /// The workgroup scan snippet shared with the radix scatter.
 pub(crate) const BLOCK_SCAN: &str = include_str!("wgsl/block_scan.wgsl");
 const SCAN: &str = include_str!("wgsl/scan.wgsl");
-const BINDINGS: [Binding<'static>; 2] =
-    [Binding::write("data", "array<u32>"), Binding::write("sums", "array<u32>")];
+const BINDINGS: [Binding<'static>; 2] = [
+    Binding::write("data", "array<u32>"),
+    Binding::write("sums", "array<u32>"),
+];
 
 /// An in-place exclusive prefix sum of u32 (wrapping), 1024 elements per workgroup: block
 /// totals are reduced, scanned recursively, and added back. Its scratch lives in the pool it

@@ -1,7 +1,10 @@
 //! Stable LSD radix sort of (u32 key, u32 value) pairs on the device.
 
 use crate::scan::{BLOCK, BLOCK_SCAN};
-use crate::{Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, Kernel, PassUniform, PrefixScan, Result, grid};
+use crate::{
+    Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, Kernel, PassUniform,
+    PrefixScan, Result, grid,
+};
 
 /// A stable LSD radix sort, 4 bits a pass: per pass a per-block digit histogram
 /// (`radix_count`), its exclusive [`PrefixScan`] (digit-major, so the scan yields global
@@ -21,7 +24,10 @@ impl RadixSort {
             ctx,
             "radix_count",
             &[include_str!("wgsl/radix_count.wgsl")],
-            &[Binding::read("keys", "array<u32>"), Binding::write("hist", "array<u32>")],
+            &[
+                Binding::read("keys", "array<u32>"),
+                Binding::write("hist", "array<u32>"),
+            ],
         )?;
         let u = "array<u32>";
         let scatter = Kernel::new(
@@ -58,15 +64,14 @@ impl RadixSort {
     }
 
     /// Records the sort of `n` pairs over the low `bits` bits of the keys, ping-ponging
-    /// between the (keys, values) pairs `a` (the input) and `b`; returns true when the result
-    /// ends in `b` (an odd number of 4-bit passes).
+    /// between the (keys, values) buffers `[a, b]` (`a` the input); returns true when the
+    /// result ends in `b` (an odd number of 4-bit passes).
     pub fn encode(
         &self,
         disp: &Dispatcher,
         enc: &mut Encoder,
         pool: &BufferPool,
-        a: (Bind, Bind),
-        b: (Bind, Bind),
+        [a, b]: [(Bind, Bind); 2],
         n: u32,
         bits: u32,
     ) -> Result<bool> {

@@ -59,14 +59,28 @@ fn prefix_scan_matches_the_cpu_at_every_level() {
     let data = pool.add_storage("data");
     let disp = Dispatcher::new(&ctx, 16);
     // One block, a partial block, two levels, three levels (> 1024² elements), wrap-around.
-    for (n, mask) in [(0, 0xff), (1, 0xff), (1000, 0xff), (1025, 0xffff), (300_001, 0xff), (1_050_000, 7), (5000, u32::MAX)] {
+    for (n, mask) in [
+        (0, 0xff),
+        (1, 0xff),
+        (1000, 0xff),
+        (1025, 0xffff),
+        (300_001, 0xff),
+        (1_050_000, 7),
+        (5000, u32::MAX),
+    ] {
         let v = random_u32s(n, n as u64 + 1, mask);
         pool.begin_frame();
         upload(&ctx, &mut pool, data, &v);
         scan.reserve(&mut pool, n as u64);
         let mut enc = disp.encoder();
-        scan.encode(&disp, &mut enc, &pool, pool.range(data, 0, n as u64 * 4), n as u32)
-            .unwrap();
+        scan.encode(
+            &disp,
+            &mut enc,
+            &pool,
+            pool.range(data, 0, n as u64 * 4),
+            n as u32,
+        )
+        .unwrap();
         disp.submit(enc);
         let got = download(&ctx, &pool, data, n);
         let mut run = 0u32;
@@ -87,10 +101,18 @@ fn radix_sort_is_a_stable_sort() {
     let Some(ctx) = context() else { return };
     let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
     let sort = RadixSort::new(&ctx, &mut pool).unwrap();
-    let ids: Vec<_> = ["ka", "va", "kb", "vb"].into_iter().map(|l| pool.add_storage(l)).collect();
+    let ids: Vec<_> = ["ka", "va", "kb", "vb"]
+        .into_iter()
+        .map(|l| pool.add_storage(l))
+        .collect();
     let disp = Dispatcher::new(&ctx, 16);
     // Few distinct keys (stability matters), full 32-bit keys, an odd number of passes.
-    for (n, bits, mask) in [(1, 32, u32::MAX), (3000, 8, 0x0f), (70_000, 32, u32::MAX), (200_001, 12, 0xfff)] {
+    for (n, bits, mask) in [
+        (1, 32, u32::MAX),
+        (3000, 8, 0x0f),
+        (70_000, 32, u32::MAX),
+        (200_001, 12, 0xfff),
+    ] {
         let keys = random_u32s(n, 7 + n as u64, mask);
         let vals: Vec<u32> = (0..n as u32).collect();
         pool.begin_frame();
@@ -102,10 +124,16 @@ fn radix_sort_is_a_stable_sort() {
         let mut enc = disp.encoder();
         let a = (pool.whole(ids[0]), pool.whole(ids[1]));
         let b = (pool.whole(ids[2]), pool.whole(ids[3]));
-        let in_b = sort.encode(&disp, &mut enc, &pool, a, b, n as u32, bits).unwrap();
+        let in_b = sort
+            .encode(&disp, &mut enc, &pool, [a, b], n as u32, bits)
+            .unwrap();
         disp.submit(enc);
         assert_eq!(in_b, bits.div_ceil(4) % 2 == 1);
-        let (k, v) = if in_b { (ids[2], ids[3]) } else { (ids[0], ids[1]) };
+        let (k, v) = if in_b {
+            (ids[2], ids[3])
+        } else {
+            (ids[0], ids[1])
+        };
         let (gk, gv) = (download(&ctx, &pool, k, n), download(&ctx, &pool, v, n));
         let mut want: Vec<(u32, u32)> = keys.iter().copied().zip(vals).collect();
         want.sort_by_key(|&(key, _)| key); // stable: ties keep the index order
@@ -117,7 +145,10 @@ fn radix_sort_is_a_stable_sort() {
 #[test]
 fn pool_grows_geometrically_and_shrinks_after_the_window() {
     let Some(ctx) = context() else { return };
-    let policy = ShrinkPolicy { window: 3, factor: 4 };
+    let policy = ShrinkPolicy {
+        window: 3,
+        factor: 4,
+    };
     let mut pool = BufferPool::new(&ctx, policy);
     let big = pool.add_storage("big");
     let idle = pool.add_storage("idle");
@@ -129,7 +160,11 @@ fn pool_grows_geometrically_and_shrinks_after_the_window() {
     assert_eq!(pool.capacity(big), 1 << 21, "grows by doubling");
     // Steady, smaller use of `big`; `idle` is never needed again.
     for frame in 0..3 {
-        assert_eq!(pool.begin_frame(), 0, "frame {frame}: not enough history yet");
+        assert_eq!(
+            pool.begin_frame(),
+            0,
+            "frame {frame}: not enough history yet"
+        );
         pool.ensure(big, 100_000);
     }
     let before = pool.allocated_bytes();
@@ -150,10 +185,21 @@ fn pool_grows_geometrically_and_shrinks_after_the_window() {
     let disp = Dispatcher::new(&ctx, 16);
     pool.ensure(big, 4000);
     let mut enc = disp.encoder();
-    disp.dispatch_1d(&mut enc, &k, &[pool.whole(big)], PassUniform { n: 1000, ..Default::default() })
-        .unwrap();
+    disp.dispatch_1d(
+        &mut enc,
+        &k,
+        &[pool.whole(big)],
+        PassUniform {
+            n: 1000,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     disp.submit(enc);
-    assert_eq!(download(&ctx, &pool, big, 1000), (0..1000).collect::<Vec<u32>>());
+    assert_eq!(
+        download(&ctx, &pool, big, 1000),
+        (0..1000).collect::<Vec<u32>>()
+    );
 }
 
 #[test]

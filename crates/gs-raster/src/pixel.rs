@@ -1,8 +1,8 @@
 //! Host-side per-pixel math shared by both backends: pixel rays, plane depth, assembling the
 //! output images from the accumulators, and folding the output gradients per pixel.
 
-use crate::cpu::project::CamParams;
 use crate::cpu::CpuState;
+use crate::cpu::project::CamParams;
 use crate::{
     ForwardState, OutputGradients, PLANE_DEPTH_EPS, RasterConfig, RasterError, RenderOutput,
     RenderRequest, RenderStats, Result, StateInner,
@@ -22,7 +22,12 @@ pub(crate) fn pixel_ray(cam: &CamParams, x: usize, y: usize) -> [f32; 3] {
 /// Plane depth and its denominator at one pixel; `None` where the denominator is at or below
 /// the guard.
 #[inline]
-pub(crate) fn plane_depth_at(n: [f32; 3], d: f32, ray: [f32; 3], min_den: f32) -> Option<(f32, f32)> {
+pub(crate) fn plane_depth_at(
+    n: [f32; 3],
+    d: f32,
+    ray: [f32; 3],
+    min_den: f32,
+) -> Option<(f32, f32)> {
     let den = -(n[0] * ray[0] + n[1] * ray[1] + n[2] * ray[2]) + PLANE_DEPTH_EPS;
     if den > min_den && den.is_finite() {
         Some((d / den, den))

@@ -40,7 +40,11 @@ impl RasterConfig {
 }
 
 /// Validates the inputs of a render or backward and returns the f32 camera constants.
-pub(crate) fn check_inputs(g: &Gaussians, camera: &Camera, cfg: &RasterConfig) -> Result<CamParams> {
+pub(crate) fn check_inputs(
+    g: &Gaussians,
+    camera: &Camera,
+    cfg: &RasterConfig,
+) -> Result<CamParams> {
     cfg.validate()?;
     let n = g.means.len();
     let lens = [
@@ -116,7 +120,12 @@ fn check_grad(
 }
 
 /// Checks every given output gradient against the rendered channels and the image size.
-pub(crate) fn check_all_grads(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
+pub(crate) fn check_all_grads(
+    grads: &OutputGradients,
+    req: &RenderRequest,
+    w: u32,
+    h: u32,
+) -> Result<()> {
     check_grad(grads.color, req.color, "color", w, h, 3)?;
     check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
     check_grad(grads.normal, req.normal, "normal", w, h, 3)?;

@@ -6,8 +6,7 @@ use super::raster;
 use crate::pixel::pixel_grads;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
 use crate::{
-    GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, Result,
-    TILE_SIZE,
+    GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, Result, TILE_SIZE,
 };
 use gs_core::{Camera, Gaussians};
 use rayon::prelude::*;

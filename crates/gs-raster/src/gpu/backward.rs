@@ -6,8 +6,7 @@ use super::{BWD_WINDOW, CamUniform, Frame, GpuState, PARAM_STRIDE, WgpuRasterize
 use crate::cpu::project::CamParams;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
 use crate::{
-    GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, Result,
-    StateInner,
+    GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, Result, StateInner,
 };
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Camera, Gaussians};
@@ -89,7 +88,8 @@ impl WgpuRasterizer {
                 as u32)
                 << 1
             | (grads.expected_depth.is_some() as u32) << 2;
-        self.disp.write_frame(&CamUniform::new(cam, config, g, flags));
+        self.disp
+            .write_frame(&CamUniform::new(cam, config, g, flags));
         self.upload_gaussians(g);
         let bands = self.bands(cam)?;
         let (p, b) = (&mut self.pool, &self.bufs);
@@ -101,14 +101,27 @@ impl WgpuRasterizer {
         self.upload_pixel_grads(cam, config, st, grads);
         let mut enc = self.disp.encoder();
         let (p, b) = (&self.pool, &self.bufs);
-        enc.encoder.clear_buffer(p.buffer(b.gacc), 0, Some(nn * 64 + 4));
+        enc.encoder
+            .clear_buffer(p.buffer(b.gacc), 0, Some(nn * 64 + 4));
         self.blend_backward(&mut enc, cam, &bands, frame)?;
         self.project_backward(&mut enc, g, gstride)?;
-        enc.encoder
-            .copy_buffer_to_buffer(p.buffer(b.gout), 0, p.buffer(b.staging), 0, nn * gstride * 4);
+        enc.encoder.copy_buffer_to_buffer(
+            p.buffer(b.gout),
+            0,
+            p.buffer(b.staging),
+            0,
+            nn * gstride * 4,
+        );
         self.disp.submit(enc);
-        let bytes = self.ctx.read_buffer(p.buffer(b.staging), nn * gstride * 4)?;
-        unpack_gradients(&bytemuck::pod_collect_to_vec(&bytes), gstride as usize, g, out);
+        let bytes = self
+            .ctx
+            .read_buffer(p.buffer(b.staging), nn * gstride * 4)?;
+        unpack_gradients(
+            &bytemuck::pod_collect_to_vec(&bytes),
+            gstride as usize,
+            g,
+            out,
+        );
         Ok(())
     }
 
@@ -133,9 +146,11 @@ impl WgpuRasterizer {
                 pg.push(ga);
             }
         }
-        self.ctx
-            .queue()
-            .write_buffer(self.pool.buffer(self.bufs.pixgrad), 0, bytemuck::cast_slice(&pg));
+        self.ctx.queue().write_buffer(
+            self.pool.buffer(self.bufs.pixgrad),
+            0,
+            bytemuck::cast_slice(&pg),
+        );
         self.scratch_px = pg;
     }
 

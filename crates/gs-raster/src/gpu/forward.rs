@@ -3,8 +3,7 @@
 //! and the readback of the requested planes).
 
 use super::{
-    CamUniform, FWD_WINDOW, Frame, GpuState, PARAM_STRIDE, SPLAT_STRIDE, WgpuRasterizer,
-    chunks,
+    CamUniform, FWD_WINDOW, Frame, GpuState, PARAM_STRIDE, SPLAT_STRIDE, WgpuRasterizer, chunks,
 };
 use crate::cpu::project::CamParams;
 use crate::{
@@ -104,7 +103,8 @@ impl WgpuRasterizer {
             | (request.geo() as u32) << 1
             | (request.expected_depth as u32) << 2
             | (request.observed as u32) << 3;
-        self.disp.write_frame(&CamUniform::new(cam, config, g, flags));
+        self.disp
+            .write_frame(&CamUniform::new(cam, config, g, flags));
         // No buffer holds anything needed any more: the pool may shrink now.
         self.pool.begin_frame();
         self.upload_gaussians(g);
@@ -117,9 +117,20 @@ impl WgpuRasterizer {
         }
         self.check_binding("the tile intersections", total * 4)?;
         let rb = Readback::new(request, nn, npix);
-        let tiles_in_c = self.blend(cam, request, &bands, g.len() as u32, visible, total as u32, &rb)?;
-        let bytes = self.ctx.read_buffer(self.pool.buffer(self.bufs.staging), rb.bytes)?;
-        let out = self.forward_output(g, cam, config, request, &rb, &bytes, visible, total as u32)?;
+        let tiles_in_c = self.blend(
+            cam,
+            request,
+            &bands,
+            g.len() as u32,
+            visible,
+            total as u32,
+            &rb,
+        )?;
+        let bytes = self
+            .ctx
+            .read_buffer(self.pool.buffer(self.bufs.staging), rb.bytes)?;
+        let out =
+            self.forward_output(g, cam, config, request, &rb, &bytes, visible, total as u32)?;
         let max_last = out.last_contributor.iter().copied().max().unwrap_or(0);
         self.frame = Some(Frame {
             generation: self.generation,
@@ -132,7 +143,12 @@ impl WgpuRasterizer {
 
     /// Phase 1: projection (chunked), depth sort, per-Gaussian tile counts and their scan;
     /// returns the visible Gaussians and the exact total of intersections.
-    fn project_and_count(&mut self, g: &Gaussians, npix: u64, n_tiles: u64) -> Result<(usize, u64)> {
+    fn project_and_count(
+        &mut self,
+        g: &Gaussians,
+        npix: u64,
+        n_tiles: u64,
+    ) -> Result<(usize, u64)> {
         let n32 = g.len() as u32;
         let nn = n32 as u64;
         let nc = coeffs_for_degree(g.sh_degree) as u64;
@@ -176,7 +192,7 @@ impl WgpuRasterizer {
             (p.whole(b.keys_a), p.whole(b.vals_a)),
             (p.whole(b.keys_b), p.whole(b.vals_b)),
         );
-        let in_b = self.sort.encode(d, &mut enc, p, a, bpair, n32, 32)?;
+        let in_b = self.sort.encode(d, &mut enc, p, [a, bpair], n32, 32)?;
         debug_assert!(!in_b);
         let binds = [
             p.whole(b.keys_a),
@@ -190,13 +206,17 @@ impl WgpuRasterizer {
             ..Default::default()
         };
         d.dispatch_1d(&mut enc, &k.isect_count, &binds, pass)?;
-        enc.encoder.clear_buffer(p.buffer(b.counts), nn * 4, Some(4));
+        enc.encoder
+            .clear_buffer(p.buffer(b.counts), nn * 4, Some(4));
         let counts = p.range(b.counts, 0, nn * 4 + 4);
-        self.sort.prefix_scan().encode(d, &mut enc, p, counts, n32 + 1)?;
+        self.sort
+            .prefix_scan()
+            .encode(d, &mut enc, p, counts, n32 + 1)?;
         enc.encoder
             .copy_buffer_to_buffer(p.buffer(b.counters), 0, p.buffer(b.staging), 0, 32);
         d.submit(enc);
-        let head: Vec<u32> = bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(p.buffer(b.staging), 32)?);
+        let head: Vec<u32> =
+            bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(p.buffer(b.staging), 32)?);
         Ok((head[0] as usize, head[2] as u64 | (head[3] as u64) << 32))
     }
 
@@ -245,7 +265,13 @@ impl WgpuRasterizer {
     }
 
     /// Emission windows, the stable tile sort and the tile ranges.
-    fn emit_and_sort(&self, enc: &mut Encoder, cam: &CamParams, n32: u32, total: u32) -> Result<bool> {
+    fn emit_and_sort(
+        &self,
+        enc: &mut Encoder,
+        cam: &CamParams,
+        n32: u32,
+        total: u32,
+    ) -> Result<bool> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
         // No rectangle has more entries than there are tiles.
@@ -269,8 +295,9 @@ impl WgpuRasterizer {
         let bits = (32 - (n_tiles.max(2) as u32 - 1).leading_zeros()).max(1);
         let bpair = (p.whole(b.keys_b), p.whole(b.vals_b));
         let cpair = (p.whole(b.keys_c), p.whole(b.vals_c));
-        let tiles_in_c = self.sort.encode(d, enc, p, bpair, cpair, total, bits)?;
-        enc.encoder.clear_buffer(p.buffer(b.ranges), 0, Some(n_tiles * 8));
+        let tiles_in_c = self.sort.encode(d, enc, p, [bpair, cpair], total, bits)?;
+        enc.encoder
+            .clear_buffer(p.buffer(b.ranges), 0, Some(n_tiles * 8));
         let tk = if tiles_in_c { b.keys_c } else { b.keys_b };
         let pass = PassUniform {
             n: total,
@@ -294,7 +321,8 @@ impl WgpuRasterizer {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         if request.observed {
             let nn = n as u64;
-            enc.encoder.clear_buffer(p.buffer(b.observed), 0, Some(nn * 4 + 4));
+            enc.encoder
+                .clear_buffer(p.buffer(b.observed), 0, Some(nn * 4 + 4));
         }
         let tv = if tiles_in_c { b.vals_c } else { b.vals_b };
         // No tile list is longer than the visible Gaussians or the intersections.
@@ -438,4 +466,3 @@ impl WgpuRasterizer {
         Ok(out)
     }
 }
-

@@ -89,7 +89,11 @@ struct Spec<'a> {
 /// The storage-binding type of the gradient accumulators: native `atomic<f32>` or the u32
 /// compare-exchange fallback.
 fn gacc_type(native_atomics: bool) -> &'static str {
-    if native_atomics { "array<atomic<f32>>" } else { "array<atomic<u32>>" }
+    if native_atomics {
+        "array<atomic<f32>>"
+    } else {
+        "array<atomic<u32>>"
+    }
 }
 
 /// Every kernel of the rasterizer (the scan and sort live in gs-gpu).
@@ -107,35 +111,87 @@ fn specs(native_atomics: bool) -> Vec<Spec<'static>> {
         bindings: bindings.to_vec(),
     };
     vec![
-        spec("project", &[include_str!("project.wgsl"), PROJ_COMMON], &[
-            B::read("params", f), B::read("sh", f), B::write("splat", f), B::write("proj", u),
-            B::write("keys", u), B::write("vals", u), B::write("counters", au), B::write("radii", u),
-        ]),
-        spec("project_bwd", &[include_str!("project_bwd.wgsl"), PROJ_COMMON], &[
-            B::read("params", f), B::read("sh", f), B::read("proj", u), B::read("gacc", f),
-            B::write("gout", f),
-        ]),
-        spec("isect_count", &[include_str!("isect_count.wgsl")], &[
-            B::read("keys", u), B::read("vals", u), B::read("proj", u), B::write("counts", u),
-            B::write("counters", au),
-        ]),
-        spec("isect_emit", &[include_str!("isect_emit.wgsl")], &[
-            B::read("keys", u), B::read("vals", u), B::read("proj", u), B::read("offsets", u),
-            B::write("tile_keys", u), B::write("tile_vals", u),
-        ]),
-        spec("tile_ranges", &[include_str!("tile_ranges.wgsl")], &[
-            B::read("tile_keys", u), B::write("ranges", u),
-        ]),
-        spec("raster_fwd", &[include_str!("raster_fwd.wgsl")], &[
-            B::read("ranges", u), B::read("gids", u), B::read("splat", f), B::write("acc", f),
-            B::write("final_t", f), B::write("last", u), B::write("observed", au),
-            B::write("counters", au),
-        ]),
-        spec("raster_bwd", &[include_str!("raster_bwd.wgsl"), gacc], &[
-            B::read("ranges", u), B::read("gids", u), B::read("splat", f), B::read("final_t", f),
-            B::read("last", u), B::read("pixgrad", f), B::write("gacc", gacc_type(native_atomics)),
-            B::write("bstate", f),
-        ]),
+        spec(
+            "project",
+            &[include_str!("project.wgsl"), PROJ_COMMON],
+            &[
+                B::read("params", f),
+                B::read("sh", f),
+                B::write("splat", f),
+                B::write("proj", u),
+                B::write("keys", u),
+                B::write("vals", u),
+                B::write("counters", au),
+                B::write("radii", u),
+            ],
+        ),
+        spec(
+            "project_bwd",
+            &[include_str!("project_bwd.wgsl"), PROJ_COMMON],
+            &[
+                B::read("params", f),
+                B::read("sh", f),
+                B::read("proj", u),
+                B::read("gacc", f),
+                B::write("gout", f),
+            ],
+        ),
+        spec(
+            "isect_count",
+            &[include_str!("isect_count.wgsl")],
+            &[
+                B::read("keys", u),
+                B::read("vals", u),
+                B::read("proj", u),
+                B::write("counts", u),
+                B::write("counters", au),
+            ],
+        ),
+        spec(
+            "isect_emit",
+            &[include_str!("isect_emit.wgsl")],
+            &[
+                B::read("keys", u),
+                B::read("vals", u),
+                B::read("proj", u),
+                B::read("offsets", u),
+                B::write("tile_keys", u),
+                B::write("tile_vals", u),
+            ],
+        ),
+        spec(
+            "tile_ranges",
+            &[include_str!("tile_ranges.wgsl")],
+            &[B::read("tile_keys", u), B::write("ranges", u)],
+        ),
+        spec(
+            "raster_fwd",
+            &[include_str!("raster_fwd.wgsl")],
+            &[
+                B::read("ranges", u),
+                B::read("gids", u),
+                B::read("splat", f),
+                B::write("acc", f),
+                B::write("final_t", f),
+                B::write("last", u),
+                B::write("observed", au),
+                B::write("counters", au),
+            ],
+        ),
+        spec(
+            "raster_bwd",
+            &[include_str!("raster_bwd.wgsl"), gacc],
+            &[
+                B::read("ranges", u),
+                B::read("gids", u),
+                B::read("splat", f),
+                B::read("final_t", f),
+                B::read("last", u),
+                B::read("pixgrad", f),
+                B::write("gacc", gacc_type(native_atomics)),
+                B::write("bstate", f),
+            ],
+        ),
     ]
 }
 
@@ -201,7 +257,8 @@ mod tests {
     /// A field added to the WGSL side only (a hand-written `Cam`) is caught.
     #[test]
     fn a_field_added_on_one_side_fails_the_check() {
-        let edited = CamUniform::wgsl_decl().replace("    pad1: u32,\n", "    pad1: u32,\n    extra: u32,\n");
+        let edited = CamUniform::wgsl_decl()
+            .replace("    pad1: u32,\n", "    pad1: u32,\n    extra: u32,\n");
         assert!(check_layout::<CamUniform>(&edited).is_err());
     }
 }
