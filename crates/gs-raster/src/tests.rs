@@ -9,6 +9,9 @@
 //! 1e-6·‖w ⊙ output‖₂ / eps (w the random loss weights).
 
 use super::*;
+use crate::cpu::project::{self, CamParams, Features, Splat, SplatGrad};
+use crate::cpu::raster;
+use gs_core::{Camera, Gaussians, Image};
 use gs_core::glam::{DMat3, DVec3};
 use gs_core::gradcheck::{GradCheck, check_gradient};
 use gs_core::{Intrinsics, Rng};

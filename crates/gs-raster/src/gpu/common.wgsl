@@ -1,55 +1,9 @@
-// Shared declarations of every gs-raster kernel (prepended to each kernel's source).
+// Shared declarations of every gs-raster kernel (composed after the gs-gpu prelude, which
+// declares `Pass`, `pass_`, `Ids` and the 1D-dispatch helpers).
 
-// Camera, config and frame constants (one per render / backward).
-struct Cam {
-    // Columns of the world-to-camera rotation R_c, and its translation t_c (xyz).
-    r0: vec4<f32>,
-    r1: vec4<f32>,
-    r2: vec4<f32>,
-    tc: vec4<f32>,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    lim_x: f32,
-    lim_y: f32,
-    near: f32,
-    far: f32,
-    threshold: f32,
-    antialiased: u32,
-    sh_degree: u32,
-    // SH coefficients per colour channel in the upload ((degree + 1)^2).
-    nc: u32,
-    width: u32,
-    height: u32,
-    tiles_x: u32,
-    tiles_y: u32,
-    // Channel flags: 1 colour, 2 geometry (normal, distance), 4 depth sum, 8 observed counts.
-    flags: u32,
-    n: u32,
-    pad0: u32,
-    pad1: u32,
-}
-
-// Per-dispatch constants (a dynamic-offset slot of one uniform buffer).
-struct Pass {
-    // Number of elements (or blocks) this dispatch covers.
-    n: u32,
-    // Radix digit shift.
-    shift: u32,
-    // Number of 1024-element blocks of the radix sort / scan level.
-    nb: u32,
-    // First Gaussian of a chunked per-Gaussian dispatch.
-    base: u32,
-    // Scan: 1 = add the scanned block sums.
-    mode: u32,
-    p1: u32,
-    p2: u32,
-    p3: u32,
-}
-
+// Camera, config and frame constants (one per render / backward): `struct Cam` is generated
+// from the Rust `CamUniform` (gpu/kernels.rs).
 @group(0) @binding(0) var<uniform> cam: Cam;
-@group(0) @binding(1) var<uniform> pass_: Pass;
 
 const TILE: u32 = 16u;
 const MAX_ALPHA: f32 = 0.99;
@@ -58,11 +12,6 @@ const LOW_PASS: f32 = 0.3;
 const MIN_COMPENSATION: f32 = 0.005;
 const INVISIBLE: u32 = 0xffffffffu;
 const SPLAT_STRIDE: u32 = 17u;
-
-// Linear id of a 1D dispatch that was split into 2D (at most 65535 workgroups per dimension).
-fn linear_group(wid: vec3<u32>, nwg: vec3<u32>) -> u32 {
-    return wid.y * nwg.x + wid.x;
-}
 
 fn is_finite(v: f32) -> bool {
     return (bitcast<u32>(v) & 0x7f800000u) != 0x7f800000u;

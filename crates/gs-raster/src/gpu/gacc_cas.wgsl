@@ -1,5 +1,3 @@
-@group(0) @binding(8) var<storage, read_write> gacc: array<atomic<u32>>;
-
 // f32 add as a compare-exchange loop on the bit pattern (adapters without f32 atomics).
 fn add_grad(i: u32, v: f32) {
     var old = atomicLoad(&gacc[i]);

@@ -1,17 +1,9 @@
 // Writes the (tile, Gaussian) pairs of each depth-sorted Gaussian at its scanned offset, so
 // that a stable sort by tile keeps every tile list in (depth, index) order.
 
-@group(0) @binding(2) var<storage, read> keys: array<u32>;
-@group(0) @binding(3) var<storage, read> vals: array<u32>;
-@group(0) @binding(4) var<storage, read> proj: array<u32>;
-@group(0) @binding(5) var<storage, read> offsets: array<u32>;
-@group(0) @binding(6) var<storage, read_write> tile_keys: array<u32>;
-@group(0) @binding(7) var<storage, read_write> tile_vals: array<u32>;
-
 @compute @workgroup_size(256)
-fn isect_emit(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-              @builtin(local_invocation_index) li: u32) {
-    let k = linear_group(wid, nwg) * 256u + li;
+fn isect_emit(ids: Ids) {
+    let k = thread_1d(ids);
     if (k >= pass_.n || keys[k] == INVISIBLE) {
         return;
     }

@@ -1,19 +1,9 @@
 // Projection of one Gaussian per thread (chunked over Gaussians: the per-Gaussian arrays are
 // bound from `pass_.base` on, keys/vals/counters whole).
 
-@group(0) @binding(2) var<storage, read> params: array<f32>;
-@group(0) @binding(3) var<storage, read> sh: array<f32>;
-@group(0) @binding(4) var<storage, read_write> splat: array<f32>;
-@group(0) @binding(5) var<storage, read_write> proj: array<u32>;
-@group(0) @binding(6) var<storage, read_write> keys: array<u32>;
-@group(0) @binding(7) var<storage, read_write> vals: array<u32>;
-@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(9) var<storage, read_write> radii: array<u32>;
-
 @compute @workgroup_size(256)
-fn project(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-           @builtin(local_invocation_index) li: u32) {
-    let i = linear_group(wid, nwg) * 256u + li;
+fn project(ids: Ids) {
+    let i = thread_1d(ids);
     if (i >= pass_.n) {
         return;
     }

@@ -3,12 +3,6 @@
 // Output record per Gaussian: mean (3), log-scale (3), quaternion (4), opacity logit (1),
 // mean2d (2, NDC), mean2d_abs (2, NDC), SH (3 * nc).
 
-@group(0) @binding(2) var<storage, read> params: array<f32>;
-@group(0) @binding(3) var<storage, read> sh: array<f32>;
-@group(0) @binding(4) var<storage, read> proj: array<u32>;
-@group(0) @binding(5) var<storage, read> gacc: array<f32>;
-@group(0) @binding(6) var<storage, read_write> gout: array<f32>;
-
 fn rotation_matrix_backward(q: vec4<f32>, g: mat3x3<f32>) -> vec4<f32> {
     let n = quat_norm(q);
     if (!(n > 1e-20) || !is_finite(n)) {
@@ -70,9 +64,8 @@ fn normalize_backward(v: vec3<f32>, g: vec3<f32>) -> vec3<f32> {
 }
 
 @compute @workgroup_size(256)
-fn project_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
-               @builtin(local_invocation_index) li: u32) {
-    let i = linear_group(wid, nwg) * 256u + li;
+fn project_bwd(ids: Ids) {
+    let i = thread_1d(ids);
     if (i >= pass_.n) {
         return;
     }

@@ -12,15 +12,6 @@
 // Bands of tile rows as in the forward (pass_.base = first tile row; per-pixel buffers bound
 // from the band's first pixel).
 
-@group(0) @binding(2) var<storage, read> ranges: array<u32>;
-@group(0) @binding(3) var<storage, read> gids: array<u32>;
-@group(0) @binding(4) var<storage, read> splat: array<f32>;
-@group(0) @binding(5) var<storage, read> final_t: array<f32>;
-@group(0) @binding(6) var<storage, read> last: array<u32>;
-@group(0) @binding(7) var<storage, read> pixgrad: array<f32>;
-//GACC_DECL
-@group(0) @binding(9) var<storage, read_write> bstate: array<f32>;
-
 var<workgroup> red: array<f32, 2048>;
 var<workgroup> ml_atomic: atomic<u32>;
 var<workgroup> ml_plain: u32;

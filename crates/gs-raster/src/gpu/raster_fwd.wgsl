@@ -13,15 +13,6 @@
 // rows: rows [pass_.base, ...) with the per-pixel buffers bound from the band's first pixel;
 // pass_.n is the band's pixel count (the plane stride).
 
-@group(0) @binding(2) var<storage, read> ranges: array<u32>;
-@group(0) @binding(3) var<storage, read> gids: array<u32>;
-@group(0) @binding(4) var<storage, read> splat: array<f32>;
-@group(0) @binding(5) var<storage, read_write> acc: array<f32>;
-@group(0) @binding(6) var<storage, read_write> final_t: array<f32>;
-@group(0) @binding(7) var<storage, read_write> last: array<u32>;
-@group(0) @binding(8) var<storage, read_write> observed: array<atomic<u32>>;
-@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>>;
-
 fn add64(i: u32, v: u32) {
     let old = atomicAdd(&counters[i], v);
     if (old + v < old) {

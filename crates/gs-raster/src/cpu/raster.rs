@@ -1,7 +1,7 @@
 //! Tile binning, the per-tile forward blend, the per-tile backward (reverse traversal), and the
 //! naive per-pixel reference.
 
-use crate::project::{Features, Splat, SplatGrad};
+use super::project::{Features, Splat, SplatGrad};
 use crate::{MAX_ALPHA, RasterError, T_STOP, TILE_SIZE};
 use rayon::prelude::*;
 

@@ -1,0 +1,210 @@
+//! Device tests of gs-gpu: prefix scan and radix sort against CPU references, and the buffer
+//! pool's growth and shrinking, on whatever adapter exists (Mesa lavapipe in CI).
+//!
+//! Without any adapter the tests print `SKIPPED` and pass, except in CI (`CI=true`), where a
+//! missing adapter is a failure (the convention of gs-raster's tests/wgpu_parity.rs).
+
+use gs_gpu::{
+    Binding, BufferPool, Dispatcher, GpuContext, GpuOptions, Kernel, PassUniform, RadixSort,
+    ShrinkPolicy,
+};
+
+/// A context on this machine's adapter, or `None` (skip) when there is none locally; panics
+/// in CI.
+fn context() -> Option<GpuContext> {
+    match GpuContext::new(&GpuOptions::default()) {
+        Ok(c) => {
+            eprintln!("wgpu adapter: {}", c.description());
+            Some(c)
+        }
+        Err(e) => {
+            if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
+                panic!("CI=true but no wgpu adapter: {e} (install mesa-vulkan-drivers)");
+            }
+            eprintln!("SKIPPED: no wgpu adapter ({e}); install mesa-vulkan-drivers for lavapipe");
+            None
+        }
+    }
+}
+
+/// Deterministic pseudo-random u32s (xorshift).
+fn random_u32s(n: usize, seed: u64, mask: u32) -> Vec<u32> {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    (0..n)
+        .map(|_| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 16) as u32 & mask
+        })
+        .collect()
+}
+
+fn upload(ctx: &GpuContext, pool: &mut BufferPool, id: gs_gpu::BufId, data: &[u32]) {
+    pool.ensure(id, (data.len() as u64 * 4).max(4));
+    ctx.queue()
+        .write_buffer(pool.buffer(id), 0, bytemuck::cast_slice(data));
+}
+
+fn download(ctx: &GpuContext, pool: &BufferPool, id: gs_gpu::BufId, n: usize) -> Vec<u32> {
+    bytemuck::pod_collect_to_vec(&ctx.download(pool.buffer(id), 0, n as u64 * 4).unwrap())
+}
+
+#[test]
+fn prefix_scan_matches_the_cpu_at_every_level() {
+    let Some(ctx) = context() else { return };
+    let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
+    let sort = RadixSort::new(&ctx, &mut pool).unwrap();
+    let scan = sort.prefix_scan();
+    let data = pool.add_storage("data");
+    let disp = Dispatcher::new(&ctx, 16);
+    // One block, a partial block, two levels, three levels (> 1024² elements), wrap-around.
+    for (n, mask) in [
+        (0, 0xff),
+        (1, 0xff),
+        (1000, 0xff),
+        (1025, 0xffff),
+        (300_001, 0xff),
+        (1_050_000, 7),
+        (5000, u32::MAX),
+    ] {
+        let v = random_u32s(n, n as u64 + 1, mask);
+        pool.begin_frame();
+        upload(&ctx, &mut pool, data, &v);
+        scan.reserve(&mut pool, n as u64);
+        let mut enc = disp.encoder();
+        scan.encode(
+            &disp,
+            &mut enc,
+            &pool,
+            pool.range(data, 0, n as u64 * 4),
+            n as u32,
+        )
+        .unwrap();
+        disp.submit(enc);
+        let got = download(&ctx, &pool, data, n);
+        let mut run = 0u32;
+        let want: Vec<u32> = v
+            .iter()
+            .map(|&x| {
+                let r = run;
+                run = run.wrapping_add(x);
+                r
+            })
+            .collect();
+        assert_eq!(got, want, "scan of {n}");
+    }
+}
+
+#[test]
+fn radix_sort_is_a_stable_sort() {
+    let Some(ctx) = context() else { return };
+    let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
+    let sort = RadixSort::new(&ctx, &mut pool).unwrap();
+    let ids: Vec<_> = ["ka", "va", "kb", "vb"]
+        .into_iter()
+        .map(|l| pool.add_storage(l))
+        .collect();
+    let disp = Dispatcher::new(&ctx, 16);
+    // Few distinct keys (stability matters), full 32-bit keys, an odd number of passes.
+    for (n, bits, mask) in [
+        (1, 32, u32::MAX),
+        (3000, 8, 0x0f),
+        (70_000, 32, u32::MAX),
+        (200_001, 12, 0xfff),
+    ] {
+        let keys = random_u32s(n, 7 + n as u64, mask);
+        let vals: Vec<u32> = (0..n as u32).collect();
+        pool.begin_frame();
+        upload(&ctx, &mut pool, ids[0], &keys);
+        upload(&ctx, &mut pool, ids[1], &vals);
+        pool.ensure(ids[2], n as u64 * 4);
+        pool.ensure(ids[3], n as u64 * 4);
+        sort.reserve(&mut pool, n as u64);
+        let mut enc = disp.encoder();
+        let a = (pool.whole(ids[0]), pool.whole(ids[1]));
+        let b = (pool.whole(ids[2]), pool.whole(ids[3]));
+        let in_b = sort
+            .encode(&disp, &mut enc, &pool, [a, b], n as u32, bits)
+            .unwrap();
+        disp.submit(enc);
+        assert_eq!(in_b, bits.div_ceil(4) % 2 == 1);
+        let (k, v) = if in_b {
+            (ids[2], ids[3])
+        } else {
+            (ids[0], ids[1])
+        };
+        let (gk, gv) = (download(&ctx, &pool, k, n), download(&ctx, &pool, v, n));
+        let mut want: Vec<(u32, u32)> = keys.iter().copied().zip(vals).collect();
+        want.sort_by_key(|&(key, _)| key); // stable: ties keep the index order
+        let got: Vec<(u32, u32)> = gk.into_iter().zip(gv).collect();
+        assert_eq!(got, want, "sort of {n} keys over {bits} bits");
+    }
+}
+
+#[test]
+fn pool_grows_geometrically_and_shrinks_after_the_window() {
+    let Some(ctx) = context() else { return };
+    let policy = ShrinkPolicy {
+        window: 3,
+        factor: 4,
+    };
+    let mut pool = BufferPool::new(&ctx, policy);
+    let big = pool.add_storage("big");
+    let idle = pool.add_storage("idle");
+    pool.begin_frame();
+    pool.ensure(big, 1 << 20);
+    pool.ensure(idle, 1 << 16);
+    assert_eq!(pool.capacity(big), 1 << 20);
+    pool.ensure(big, (1 << 20) + 4);
+    assert_eq!(pool.capacity(big), 1 << 21, "grows by doubling");
+    // Steady, smaller use of `big`; `idle` is never needed again.
+    for frame in 0..3 {
+        assert_eq!(
+            pool.begin_frame(),
+            0,
+            "frame {frame}: not enough history yet"
+        );
+        pool.ensure(big, 100_000);
+    }
+    let before = pool.allocated_bytes();
+    let freed = pool.begin_frame();
+    assert_eq!(pool.capacity(big), 100_096, "shrunk to the recent need");
+    assert_eq!(pool.capacity(idle), 256, "released");
+    assert_eq!(freed, before - pool.allocated_bytes());
+    // Within the factor nothing moves; the shrunk buffer is still usable by a kernel.
+    pool.ensure(big, 60_000);
+    assert_eq!(pool.begin_frame(), 0);
+    let k = Kernel::new(
+        &ctx,
+        "fill",
+        &["@compute @workgroup_size(256)\nfn fill(ids: Ids) { let i = thread_1d(ids); if (i < pass_.n) { x[i] = i; } }"],
+        &[Binding::write("x", "array<u32>")],
+    )
+    .unwrap();
+    let disp = Dispatcher::new(&ctx, 16);
+    pool.ensure(big, 4000);
+    let mut enc = disp.encoder();
+    disp.dispatch_1d(
+        &mut enc,
+        &k,
+        &[pool.whole(big)],
+        PassUniform {
+            n: 1000,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    disp.submit(enc);
+    assert_eq!(
+        download(&ctx, &pool, big, 1000),
+        (0..1000).collect::<Vec<u32>>()
+    );
+}
+
+#[test]
+fn kernel_errors_are_results() {
+    let Some(ctx) = context() else { return };
+    let err = Kernel::new(&ctx, "broken", &["fn broken( {"], &[]).unwrap_err();
+    assert!(matches!(err, gs_gpu::GpuError::Device(_)), "{err}");
+}

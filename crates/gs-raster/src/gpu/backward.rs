@@ -1,0 +1,234 @@
+//! The wgpu backward: per-pixel channel gradients folded on the host (the CPU code), the
+//! reverse blend `raster_bwd` per band and window, then `project_bwd` per chunk of Gaussians,
+//! and the readback of the parameter gradients.
+
+use super::{BWD_WINDOW, CamUniform, Frame, GpuState, PARAM_STRIDE, WgpuRasterizer, chunks};
+use crate::cpu::project::CamParams;
+use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
+use crate::{
+    GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, Result, StateInner,
+};
+use gs_core::sh::coeffs_for_degree;
+use gs_core::{Camera, Gaussians};
+use gs_gpu::{Encoder, PassUniform};
+
+impl WgpuRasterizer {
+    /// Backward like [`crate::backward`] (same inputs as the render of `forward`, which must
+    /// come from this rasterizer). Fastest right after that render; for an older render the
+    /// device state is rebuilt first.
+    pub fn backward(
+        &mut self,
+        gaussians: &Gaussians,
+        camera: &Camera,
+        config: &RasterConfig,
+        forward: &RenderOutput,
+        grads: &OutputGradients,
+    ) -> Result<GaussianGradients> {
+        let cam = check_inputs(gaussians, camera, config)?;
+        let st = match &forward.state.0 {
+            StateInner::Gpu(st) => st,
+            StateInner::Cpu(_) => {
+                return Err(RasterError::InvalidGradients(
+                    "the forward render came from the CPU backend; use gs_raster::backward".into(),
+                ));
+            }
+        };
+        if st.rasterizer != self.id {
+            return Err(RasterError::InvalidGradients(
+                "the forward render came from another WgpuRasterizer".into(),
+            ));
+        }
+        check_forward_matches((st.n, st.width, st.height), true, gaussians, &cam, "")?;
+        check_all_grads(grads, &st.request, cam.width, cam.height)?;
+        let frame = match self.frame {
+            Some(f) if f.generation == st.generation => f,
+            _ => {
+                // An older render of this rasterizer: a later render overwrote its device
+                // state. The forward is deterministic, so rebuild that state from the same
+                // inputs (one extra forward) and check that it is the same render.
+                self.render(gaussians, camera, &st.request, config)?;
+                match self.frame {
+                    Some(f) if f.total == st.total => f,
+                    _ => {
+                        return Err(RasterError::InvalidGradients(
+                            "the Gaussians, camera or config differ from those of the forward render".into(),
+                        ));
+                    }
+                }
+            }
+        };
+        let n = gaussians.len();
+        let mut out = GaussianGradients::zeros(n);
+        let color = grads.color.is_some();
+        let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
+        let depth = grads.expected_depth.is_some();
+        if frame.total == 0 || !(color || geo || depth || grads.alpha.is_some()) {
+            return Ok(out);
+        }
+        self.scoped(|r| r.backward_inner(gaussians, &cam, config, st, grads, frame, &mut out))?;
+        Ok(out)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn backward_inner(
+        &mut self,
+        g: &Gaussians,
+        cam: &CamParams,
+        config: &RasterConfig,
+        st: &GpuState,
+        grads: &OutputGradients,
+        frame: Frame,
+        out: &mut GaussianGradients,
+    ) -> Result<()> {
+        let nn = g.len() as u64;
+        let gstride = 15 + 3 * coeffs_for_degree(g.sh_degree) as u64;
+        let npix = cam.width as u64 * cam.height as u64;
+        let flags = grads.color.is_some() as u32
+            | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some())
+                as u32)
+                << 1
+            | (grads.expected_depth.is_some() as u32) << 2;
+        self.disp
+            .write_frame(&CamUniform::new(cam, config, g, flags));
+        self.upload_gaussians(g);
+        let bands = self.bands(cam)?;
+        let (p, b) = (&mut self.pool, &self.bufs);
+        p.ensure(b.pixgrad, npix * 36);
+        p.ensure(b.bstate, npix * 36);
+        p.ensure(b.gacc, nn * 64 + 4);
+        p.ensure(b.gout, nn * gstride * 4 + 4);
+        p.ensure(b.staging, nn * gstride * 4 + 4);
+        self.upload_pixel_grads(cam, config, st, grads);
+        let mut enc = self.disp.encoder();
+        let (p, b) = (&self.pool, &self.bufs);
+        enc.encoder
+            .clear_buffer(p.buffer(b.gacc), 0, Some(nn * 64 + 4));
+        self.blend_backward(&mut enc, cam, &bands, frame)?;
+        self.project_backward(&mut enc, g, gstride)?;
+        enc.encoder.copy_buffer_to_buffer(
+            p.buffer(b.gout),
+            0,
+            p.buffer(b.staging),
+            0,
+            nn * gstride * 4,
+        );
+        self.disp.submit(enc);
+        let bytes = self
+            .ctx
+            .read_buffer(p.buffer(b.staging), nn * gstride * 4)?;
+        unpack_gradients(
+            &bytemuck::pod_collect_to_vec(&bytes),
+            gstride as usize,
+            g,
+            out,
+        );
+        Ok(())
+    }
+
+    /// Per-pixel channel gradients, folded on the host exactly as the CPU backend does, and
+    /// uploaded to `pixgrad` (9 floats a pixel).
+    fn upload_pixel_grads(
+        &mut self,
+        cam: &CamParams,
+        config: &RasterConfig,
+        st: &GpuState,
+        grads: &OutputGradients,
+    ) {
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let mut pg = std::mem::take(&mut self.scratch_px);
+        pg.clear();
+        pg.reserve(w * h * 9);
+        for y in 0..h {
+            for x in 0..w {
+                let (gc, ga) =
+                    crate::pixel::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
+                pg.extend_from_slice(&gc);
+                pg.push(ga);
+            }
+        }
+        self.ctx.queue().write_buffer(
+            self.pool.buffer(self.bufs.pixgrad),
+            0,
+            bytemuck::cast_slice(&pg),
+        );
+        self.scratch_px = pg;
+    }
+
+    /// `raster_bwd` per band of tile rows and window of tile-list positions (last first).
+    fn blend_backward(
+        &self,
+        enc: &mut Encoder,
+        cam: &CamParams,
+        bands: &[(u32, u32, u64, u64)],
+        frame: Frame,
+    ) -> Result<()> {
+        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let tv = if frame.tiles_in_c { b.vals_c } else { b.vals_b };
+        let windows = frame.max_last.div_ceil(BWD_WINDOW);
+        for &(r0, rows, p0, bp) in bands {
+            for wi in (0..windows).rev() {
+                d.make_room(enc, 1);
+                let binds = [
+                    p.whole(b.ranges),
+                    p.whole(tv),
+                    p.whole(b.splat),
+                    p.range(b.final_t, p0 * 4, bp * 4),
+                    p.range(b.last, p0 * 4, bp * 4),
+                    p.range(b.pixgrad, p0 * 36, bp * 36),
+                    p.whole(b.gacc),
+                    p.range(b.bstate, p0 * 36, bp * 36),
+                ];
+                let pass = PassUniform {
+                    n: bp as u32,
+                    shift: wi * BWD_WINDOW,
+                    nb: (wi + 1).saturating_mul(BWD_WINDOW),
+                    base: r0,
+                    ..Default::default()
+                };
+                d.dispatch(enc, &k.raster_bwd, &binds, pass, (cam.tiles_x, rows))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// `project_bwd` per chunk of Gaussians (records of `gstride` floats into `gout`).
+    fn project_backward(&self, enc: &mut Encoder, g: &Gaussians, gstride: u64) -> Result<()> {
+        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let ncu = coeffs_for_degree(g.sh_degree) as u64;
+        for (bb, m) in chunks(g.len() as u32) {
+            d.make_room(enc, 1);
+            let binds = [
+                p.range(b.params, bb * PARAM_STRIDE * 4, m * PARAM_STRIDE * 4),
+                p.range(b.sh, bb * ncu * 12, m * ncu * 12),
+                p.range(b.proj, bb * 20, m * 20),
+                p.range(b.gacc, bb * 64, m * 64),
+                p.range(b.gout, bb * gstride * 4, m * gstride * 4),
+            ];
+            let pass = PassUniform {
+                n: m as u32,
+                base: bb as u32,
+                ..Default::default()
+            };
+            d.dispatch_1d(enc, &k.project_bwd, &binds, pass)?;
+        }
+        Ok(())
+    }
+}
+
+/// Spreads the `gstride`-float records of `v` into the gradient arrays (SH only up to the
+/// active degree).
+fn unpack_gradients(v: &[f32], gs: usize, g: &Gaussians, out: &mut GaussianGradients) {
+    let nc = coeffs_for_degree(g.sh_degree);
+    for i in 0..g.len() {
+        let r = &v[i * gs..(i + 1) * gs];
+        out.means[i] = [r[0], r[1], r[2]];
+        out.log_scales[i] = [r[3], r[4], r[5]];
+        out.rotations[i] = [r[6], r[7], r[8], r[9]];
+        out.opacity_logits[i] = r[10];
+        out.mean2d[i] = [r[11], r[12]];
+        out.mean2d_abs[i] = [r[13], r[14]];
+        for k in 0..nc {
+            out.sh[i][k] = [r[15 + 3 * k], r[16 + 3 * k], r[17 + 3 * k]];
+        }
+    }
+}

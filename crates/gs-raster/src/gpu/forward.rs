@@ -1,0 +1,468 @@
+//! The wgpu forward: projection, depth sort and intersection counts (first submission and a
+//! 32-byte readback), then emission, tile sort, tile ranges and the blend (second submission
+//! and the readback of the requested planes).
+
+use super::{
+    CamUniform, FWD_WINDOW, Frame, GpuState, PARAM_STRIDE, SPLAT_STRIDE, WgpuRasterizer, chunks,
+};
+use crate::cpu::project::CamParams;
+use crate::{
+    ForwardState, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats, Result,
+    StateInner,
+};
+use gs_core::sh::coeffs_for_degree;
+use gs_core::{Camera, Gaussians};
+use gs_gpu::{Encoder, PassUniform};
+
+/// Where each forward output lies in the staging buffer.
+struct Readback {
+    /// Accumulator planes read back (colour 0..3, Ñ and D 3..7, depth sum 7).
+    planes: Vec<usize>,
+    radii: u64,
+    final_t: u64,
+    last: u64,
+    counters: u64,
+    observed: u64,
+    planes_at: u64,
+    bytes: u64,
+}
+
+impl Readback {
+    fn new(request: &RenderRequest, n: u64, npix: u64) -> Self {
+        let mut planes = Vec::new();
+        if request.color {
+            planes.extend(0..3);
+        }
+        if request.geo() || request.plane_depth {
+            planes.extend(3..7);
+        }
+        if request.expected_depth {
+            planes.push(7);
+        }
+        let radii = 0u64;
+        let final_t = radii + (n * 4).next_multiple_of(8);
+        let last = final_t + npix * 4;
+        let counters = last + npix * 4;
+        let observed = counters + 64;
+        let obs_bytes = if request.observed { n * 4 } else { 0 };
+        let planes_at = (observed + obs_bytes).next_multiple_of(8);
+        let bytes = planes_at + planes.len() as u64 * npix * 4;
+        Self {
+            planes,
+            radii,
+            final_t,
+            last,
+            counters,
+            observed,
+            planes_at,
+            bytes,
+        }
+    }
+}
+
+impl WgpuRasterizer {
+    /// Renders like [`crate::render`] (same inputs, errors and outputs; `stats.box_pairs` is a
+    /// CPU-only work estimate and stays 0 here).
+    pub fn render(
+        &mut self,
+        gaussians: &Gaussians,
+        camera: &Camera,
+        request: &RenderRequest,
+        config: &RasterConfig,
+    ) -> Result<RenderOutput> {
+        let cam = crate::validate::check_inputs(gaussians, camera, config)?;
+        self.frame = None;
+        self.generation += 1;
+        let res = self.scoped(|r| r.render_inner(gaussians, &cam, request, config));
+        if res.is_err() {
+            self.frame = None;
+        }
+        res
+    }
+
+    fn render_inner(
+        &mut self,
+        g: &Gaussians,
+        cam: &CamParams,
+        request: &RenderRequest,
+        config: &RasterConfig,
+    ) -> Result<RenderOutput> {
+        let nn = g.len() as u64;
+        let npix = cam.width as u64 * cam.height as u64;
+        let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
+        self.check_binding("the splat buffer", nn * SPLAT_STRIDE * 4)?;
+        let bands = self.bands(cam)?;
+        self.check_binding("the tile ranges", n_tiles * 8)?;
+        if cam.tiles_x > 65535 {
+            return Err(RasterError::Gpu(format!(
+                "{} tile columns exceed 65535 workgroups per dimension",
+                cam.tiles_x
+            )));
+        }
+        let flags = request.color as u32
+            | (request.geo() as u32) << 1
+            | (request.expected_depth as u32) << 2
+            | (request.observed as u32) << 3;
+        self.disp
+            .write_frame(&CamUniform::new(cam, config, g, flags));
+        // No buffer holds anything needed any more: the pool may shrink now.
+        self.pool.begin_frame();
+        self.upload_gaussians(g);
+        let (visible, total) = self.project_and_count(g, npix, n_tiles)?;
+        if total > config.max_intersections as u64 || total > u32::MAX as u64 {
+            return Err(RasterError::TooManyIntersections {
+                count: total,
+                cap: config.max_intersections,
+            });
+        }
+        self.check_binding("the tile intersections", total * 4)?;
+        let rb = Readback::new(request, nn, npix);
+        let tiles_in_c = self.blend(
+            cam,
+            request,
+            &bands,
+            g.len() as u32,
+            visible,
+            total as u32,
+            &rb,
+        )?;
+        let bytes = self
+            .ctx
+            .read_buffer(self.pool.buffer(self.bufs.staging), rb.bytes)?;
+        let out =
+            self.forward_output(g, cam, config, request, &rb, &bytes, visible, total as u32)?;
+        let max_last = out.last_contributor.iter().copied().max().unwrap_or(0);
+        self.frame = Some(Frame {
+            generation: self.generation,
+            total: total as u32,
+            max_last,
+            tiles_in_c,
+        });
+        Ok(out)
+    }
+
+    /// Phase 1: projection (chunked), depth sort, per-Gaussian tile counts and their scan;
+    /// returns the visible Gaussians and the exact total of intersections.
+    fn project_and_count(
+        &mut self,
+        g: &Gaussians,
+        npix: u64,
+        n_tiles: u64,
+    ) -> Result<(usize, u64)> {
+        let n32 = g.len() as u32;
+        let nn = n32 as u64;
+        let nc = coeffs_for_degree(g.sh_degree) as u64;
+        let (p, b) = (&mut self.pool, &self.bufs);
+        p.ensure(b.splat, nn * SPLAT_STRIDE * 4 + 4);
+        p.ensure(b.proj, nn * 20 + 4);
+        p.ensure(b.radii, nn * 4 + 4);
+        for k in [b.keys_a, b.vals_a, b.keys_b, b.vals_b, b.counts, b.observed] {
+            p.ensure(k, nn * 4 + 4);
+        }
+        self.sort.reserve(p, nn);
+        self.sort.prefix_scan().reserve(p, nn + 1);
+        p.ensure(b.ranges, n_tiles * 8);
+        p.ensure(b.acc, npix * 32);
+        p.ensure(b.final_t, npix * 4);
+        p.ensure(b.last, npix * 4);
+        p.ensure(b.counters, 64);
+        p.ensure(b.staging, 64);
+        let (d, p, k) = (&self.disp, &self.pool, &self.kernels);
+        let mut enc = d.encoder();
+        enc.encoder.clear_buffer(p.buffer(b.counters), 0, Some(64));
+        for (bb, m) in chunks(n32) {
+            let pass = PassUniform {
+                n: m as u32,
+                base: bb as u32,
+                ..Default::default()
+            };
+            let binds = [
+                p.range(b.params, bb * PARAM_STRIDE * 4, m * PARAM_STRIDE * 4),
+                p.range(b.sh, bb * nc * 12, m * nc * 12),
+                p.range(b.splat, bb * SPLAT_STRIDE * 4, m * SPLAT_STRIDE * 4),
+                p.range(b.proj, bb * 20, m * 20),
+                p.whole(b.keys_a),
+                p.whole(b.vals_a),
+                p.whole(b.counters),
+                p.range(b.radii, bb * 4, m * 4),
+            ];
+            d.dispatch_1d(&mut enc, &k.project, &binds, pass)?;
+        }
+        let (a, bpair) = (
+            (p.whole(b.keys_a), p.whole(b.vals_a)),
+            (p.whole(b.keys_b), p.whole(b.vals_b)),
+        );
+        let in_b = self.sort.encode(d, &mut enc, p, [a, bpair], n32, 32)?;
+        debug_assert!(!in_b);
+        let binds = [
+            p.whole(b.keys_a),
+            p.whole(b.vals_a),
+            p.whole(b.proj),
+            p.whole(b.counts),
+            p.whole(b.counters),
+        ];
+        let pass = PassUniform {
+            n: n32,
+            ..Default::default()
+        };
+        d.dispatch_1d(&mut enc, &k.isect_count, &binds, pass)?;
+        enc.encoder
+            .clear_buffer(p.buffer(b.counts), nn * 4, Some(4));
+        let counts = p.range(b.counts, 0, nn * 4 + 4);
+        self.sort
+            .prefix_scan()
+            .encode(d, &mut enc, p, counts, n32 + 1)?;
+        enc.encoder
+            .copy_buffer_to_buffer(p.buffer(b.counters), 0, p.buffer(b.staging), 0, 32);
+        d.submit(enc);
+        let head: Vec<u32> =
+            bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(p.buffer(b.staging), 32)?);
+        Ok((head[0] as usize, head[2] as u64 | (head[3] as u64) << 32))
+    }
+
+    /// Phase 2: emit the (tile, Gaussian) pairs, sort them by tile, find the tile ranges,
+    /// blend, and copy the outputs to the staging buffer; returns whether the tile-sorted
+    /// pairs ended in the `c` buffers.
+    #[allow(clippy::too_many_arguments)]
+    fn blend(
+        &mut self,
+        cam: &CamParams,
+        request: &RenderRequest,
+        bands: &[(u32, u32, u64, u64)],
+        n: u32,
+        visible: usize,
+        total: u32,
+        rb: &Readback,
+    ) -> Result<bool> {
+        let tot = total as u64;
+        let (p, b) = (&mut self.pool, &self.bufs);
+        for k in [b.keys_b, b.vals_b, b.keys_c, b.vals_c] {
+            p.ensure(k, tot * 4 + 4);
+        }
+        self.sort.reserve(p, tot);
+        p.ensure(b.staging, rb.bytes);
+        let mut enc = self.disp.encoder();
+        let mut tiles_in_c = false;
+        if total > 0 {
+            tiles_in_c = self.emit_and_sort(&mut enc, cam, n, total)?;
+            let lists = (visible, total, tiles_in_c);
+            self.blend_windows(&mut enc, cam, request, bands, n, lists)?;
+            self.copy_outputs(&mut enc, cam, request, bands, n, rb);
+        }
+        let (p, b) = (&self.pool, &self.bufs);
+        let nn = n as u64;
+        if nn > 0 {
+            enc.encoder.copy_buffer_to_buffer(
+                p.buffer(b.radii),
+                0,
+                p.buffer(b.staging),
+                rb.radii,
+                nn * 4,
+            );
+        }
+        self.disp.submit(enc);
+        Ok(tiles_in_c)
+    }
+
+    /// Emission windows, the stable tile sort and the tile ranges.
+    fn emit_and_sort(
+        &self,
+        enc: &mut Encoder,
+        cam: &CamParams,
+        n32: u32,
+        total: u32,
+    ) -> Result<bool> {
+        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
+        // No rectangle has more entries than there are tiles.
+        for wi in 0..(n_tiles as u32).div_ceil(FWD_WINDOW) {
+            let binds = [
+                p.whole(b.keys_a),
+                p.whole(b.vals_a),
+                p.whole(b.proj),
+                p.whole(b.counts),
+                p.whole(b.keys_b),
+                p.whole(b.vals_b),
+            ];
+            let pass = PassUniform {
+                n: n32,
+                shift: wi * FWD_WINDOW,
+                nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                ..Default::default()
+            };
+            d.dispatch_1d(enc, &k.isect_emit, &binds, pass)?;
+        }
+        let bits = (32 - (n_tiles.max(2) as u32 - 1).leading_zeros()).max(1);
+        let bpair = (p.whole(b.keys_b), p.whole(b.vals_b));
+        let cpair = (p.whole(b.keys_c), p.whole(b.vals_c));
+        let tiles_in_c = self.sort.encode(d, enc, p, [bpair, cpair], total, bits)?;
+        enc.encoder
+            .clear_buffer(p.buffer(b.ranges), 0, Some(n_tiles * 8));
+        let tk = if tiles_in_c { b.keys_c } else { b.keys_b };
+        let pass = PassUniform {
+            n: total,
+            ..Default::default()
+        };
+        d.dispatch_1d(enc, &k.tile_ranges, &[p.whole(tk), p.whole(b.ranges)], pass)?;
+        Ok(tiles_in_c)
+    }
+
+    /// The forward blend, per band of tile rows and window of tile-list positions; `lists`
+    /// is (visible Gaussians, intersections, whether the tile lists are in the `c` buffers).
+    fn blend_windows(
+        &self,
+        enc: &mut Encoder,
+        cam: &CamParams,
+        request: &RenderRequest,
+        bands: &[(u32, u32, u64, u64)],
+        n: u32,
+        (visible, total, tiles_in_c): (usize, u32, bool),
+    ) -> Result<()> {
+        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        if request.observed {
+            let nn = n as u64;
+            enc.encoder
+                .clear_buffer(p.buffer(b.observed), 0, Some(nn * 4 + 4));
+        }
+        let tv = if tiles_in_c { b.vals_c } else { b.vals_b };
+        // No tile list is longer than the visible Gaussians or the intersections.
+        let longest = total.min(visible as u32).max(1);
+        let windows = longest.div_ceil(FWD_WINDOW);
+        for &(r0, rows, p0, bp) in bands {
+            for wi in 0..windows {
+                d.make_room(enc, 1);
+                let binds = [
+                    p.whole(b.ranges),
+                    p.whole(tv),
+                    p.whole(b.splat),
+                    p.range(b.acc, p0 * 32, bp * 32),
+                    p.range(b.final_t, p0 * 4, bp * 4),
+                    p.range(b.last, p0 * 4, bp * 4),
+                    p.whole(b.observed),
+                    p.whole(b.counters),
+                ];
+                let pass = PassUniform {
+                    n: bp as u32,
+                    shift: wi * FWD_WINDOW,
+                    nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                    base: r0,
+                    mode: (wi == 0) as u32 | ((wi + 1 == windows) as u32) << 1,
+                    ..Default::default()
+                };
+                d.dispatch(enc, &k.raster_fwd, &binds, pass, (cam.tiles_x, rows))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Copies T_final, last contributors, counters, observed counts and the requested planes
+    /// to the staging buffer.
+    fn copy_outputs(
+        &self,
+        enc: &mut Encoder,
+        cam: &CamParams,
+        request: &RenderRequest,
+        bands: &[(u32, u32, u64, u64)],
+        n: u32,
+        rb: &Readback,
+    ) {
+        let (p, b) = (&self.pool, &self.bufs);
+        let npix = cam.width as u64 * cam.height as u64;
+        let nn = n as u64;
+        let staging = p.buffer(b.staging);
+        let e = &mut enc.encoder;
+        e.copy_buffer_to_buffer(p.buffer(b.final_t), 0, staging, rb.final_t, npix * 4);
+        e.copy_buffer_to_buffer(p.buffer(b.last), 0, staging, rb.last, npix * 4);
+        e.copy_buffer_to_buffer(p.buffer(b.counters), 0, staging, rb.counters, 64);
+        if request.observed && nn > 0 {
+            e.copy_buffer_to_buffer(p.buffer(b.observed), 0, staging, rb.observed, nn * 4);
+        }
+        for (k, &plane) in rb.planes.iter().enumerate() {
+            for &(_, _, p0, bp) in bands {
+                e.copy_buffer_to_buffer(
+                    p.buffer(b.acc),
+                    p0 * 32 + plane as u64 * bp * 4,
+                    staging,
+                    rb.planes_at + (k as u64 * npix + p0) * 4,
+                    bp * 4,
+                );
+            }
+        }
+    }
+
+    /// Builds the [`RenderOutput`] (images, radii, counters, device-state handle) from the
+    /// staging bytes.
+    #[allow(clippy::too_many_arguments)]
+    fn forward_output(
+        &self,
+        g: &Gaussians,
+        cam: &CamParams,
+        config: &RasterConfig,
+        request: &RenderRequest,
+        rb: &Readback,
+        bytes: &[u8],
+        visible: usize,
+        total: u32,
+    ) -> Result<RenderOutput> {
+        let n = g.len();
+        let npix = cam.width as usize * cam.height as usize;
+        let u32s = |off: u64, count: usize| -> Vec<u32> {
+            bytemuck::pod_collect_to_vec(&bytes[off as usize..off as usize + count * 4])
+        };
+        let f32s = |off: u64, count: usize| -> Vec<f32> {
+            bytemuck::pod_collect_to_vec(&bytes[off as usize..off as usize + count * 4])
+        };
+        let radii = u32s(rb.radii, n);
+        let mut acc = vec![[0.0f32; 8]; npix];
+        let (final_t, last, counters, observed) = if total > 0 {
+            for (k, &p) in rb.planes.iter().enumerate() {
+                let plane = f32s(rb.planes_at + k as u64 * npix as u64 * 4, npix);
+                for (a, v) in acc.iter_mut().zip(plane) {
+                    a[p] = v;
+                }
+            }
+            (
+                f32s(rb.final_t, npix),
+                u32s(rb.last, npix),
+                u32s(rb.counters, 16),
+                request.observed.then(|| u32s(rb.observed, n)),
+            )
+        } else {
+            (
+                vec![1.0; npix],
+                vec![0; npix],
+                vec![0; 16],
+                request.observed.then(|| vec![0; n]),
+            )
+        };
+        let mut out = crate::pixel::assemble(cam, config, request, &acc, &final_t)?;
+        out.radii = radii;
+        out.observed = observed;
+        out.stats = RenderStats {
+            visible,
+            intersections: total as usize,
+            forward_pairs: counters[4] as u64 | (counters[5] as u64) << 32,
+            backward_pairs: counters[6] as u64 | (counters[7] as u64) << 32,
+            box_pairs: 0,
+        };
+        let geo = if request.plane_depth || request.expected_depth {
+            acc.iter().map(|a| [a[3], a[4], a[5], a[6], a[7]]).collect()
+        } else {
+            Vec::new()
+        };
+        out.state = ForwardState(StateInner::Gpu(GpuState {
+            rasterizer: self.id,
+            generation: self.generation,
+            n,
+            width: cam.width,
+            height: cam.height,
+            request: *request,
+            total,
+            final_t: final_t.clone(),
+            geo,
+        }));
+        out.final_t = final_t;
+        out.last_contributor = last;
+        Ok(out)
+    }
+}

@@ -1,0 +1,264 @@
+//! The rasterizer's kernels: the camera uniform (its WGSL generated from the Rust definition)
+//! and each kernel's sources and storage-binding table.
+
+use crate::RasterConfig;
+use crate::cpu::project::CamParams;
+use gs_core::Gaussians;
+use gs_core::sh::coeffs_for_degree;
+use gs_gpu::{Binding, GpuContext, Kernel, WgslStruct};
+
+gs_gpu::wgsl_struct! {
+    /// Camera, config and frame constants of one render / backward (binding 0 of every
+    /// kernel; WGSL `struct Cam`).
+    pub(crate) struct CamUniform as "Cam" {
+        /// Columns of the world-to-camera rotation R_c (xyz).
+        r0: [f32; 4],
+        r1: [f32; 4],
+        r2: [f32; 4],
+        /// Translation t_c (xyz).
+        tc: [f32; 4],
+        fx: f32,
+        fy: f32,
+        cx: f32,
+        cy: f32,
+        lim_x: f32,
+        lim_y: f32,
+        near: f32,
+        far: f32,
+        threshold: f32,
+        antialiased: u32,
+        sh_degree: u32,
+        /// SH coefficients per colour channel in the upload ((degree + 1)²).
+        nc: u32,
+        width: u32,
+        height: u32,
+        tiles_x: u32,
+        tiles_y: u32,
+        /// Channel flags: 1 colour, 2 geometry (normal, distance), 4 depth sum, 8 observed.
+        flags: u32,
+        n: u32,
+        pad0: u32,
+        pad1: u32,
+    }
+}
+
+impl CamUniform {
+    /// The uniform of camera `cam`, config `cfg` and Gaussians `g` with channel `flags`.
+    pub(crate) fn new(cam: &CamParams, cfg: &RasterConfig, g: &Gaussians, flags: u32) -> Self {
+        let r = cam.r;
+        Self {
+            r0: [r.x_axis.x, r.x_axis.y, r.x_axis.z, 0.0],
+            r1: [r.y_axis.x, r.y_axis.y, r.y_axis.z, 0.0],
+            r2: [r.z_axis.x, r.z_axis.y, r.z_axis.z, 0.0],
+            tc: [cam.t.x, cam.t.y, cam.t.z, 0.0],
+            fx: cam.fx,
+            fy: cam.fy,
+            cx: cam.cx,
+            cy: cam.cy,
+            lim_x: cam.lim_x,
+            lim_y: cam.lim_y,
+            near: cfg.near,
+            far: cfg.far,
+            threshold: cfg.alpha_threshold,
+            antialiased: cfg.antialiased as u32,
+            sh_degree: g.sh_degree,
+            nc: coeffs_for_degree(g.sh_degree) as u32,
+            width: cam.width,
+            height: cam.height,
+            tiles_x: cam.tiles_x,
+            tiles_y: cam.tiles_y,
+            flags,
+            n: g.len() as u32,
+            pad0: 0,
+            pad1: 0,
+        }
+    }
+}
+
+const COMMON: &str = include_str!("common.wgsl");
+const PROJ_COMMON: &str = include_str!("proj_common.wgsl");
+
+/// One kernel: entry point, its own source (after the camera struct and common.wgsl) and
+/// its storage bindings (slots 2..).
+struct Spec<'a> {
+    entry: &'a str,
+    sources: Vec<&'a str>,
+    bindings: Vec<Binding<'a>>,
+}
+
+/// The storage-binding type of the gradient accumulators: native `atomic<f32>` or the u32
+/// compare-exchange fallback.
+fn gacc_type(native_atomics: bool) -> &'static str {
+    if native_atomics {
+        "array<atomic<f32>>"
+    } else {
+        "array<atomic<u32>>"
+    }
+}
+
+/// Every kernel of the rasterizer (the scan and sort live in gs-gpu).
+fn specs(native_atomics: bool) -> Vec<Spec<'static>> {
+    use Binding as B;
+    let (f, u, au) = ("array<f32>", "array<u32>", "array<atomic<u32>>");
+    let gacc = if native_atomics {
+        include_str!("gacc_native.wgsl")
+    } else {
+        include_str!("gacc_cas.wgsl")
+    };
+    let spec = |entry, sources: &[&'static str], bindings: &[Binding<'static>]| Spec {
+        entry,
+        sources: sources.to_vec(),
+        bindings: bindings.to_vec(),
+    };
+    vec![
+        spec(
+            "project",
+            &[include_str!("project.wgsl"), PROJ_COMMON],
+            &[
+                B::read("params", f),
+                B::read("sh", f),
+                B::write("splat", f),
+                B::write("proj", u),
+                B::write("keys", u),
+                B::write("vals", u),
+                B::write("counters", au),
+                B::write("radii", u),
+            ],
+        ),
+        spec(
+            "project_bwd",
+            &[include_str!("project_bwd.wgsl"), PROJ_COMMON],
+            &[
+                B::read("params", f),
+                B::read("sh", f),
+                B::read("proj", u),
+                B::read("gacc", f),
+                B::write("gout", f),
+            ],
+        ),
+        spec(
+            "isect_count",
+            &[include_str!("isect_count.wgsl")],
+            &[
+                B::read("keys", u),
+                B::read("vals", u),
+                B::read("proj", u),
+                B::write("counts", u),
+                B::write("counters", au),
+            ],
+        ),
+        spec(
+            "isect_emit",
+            &[include_str!("isect_emit.wgsl")],
+            &[
+                B::read("keys", u),
+                B::read("vals", u),
+                B::read("proj", u),
+                B::read("offsets", u),
+                B::write("tile_keys", u),
+                B::write("tile_vals", u),
+            ],
+        ),
+        spec(
+            "tile_ranges",
+            &[include_str!("tile_ranges.wgsl")],
+            &[B::read("tile_keys", u), B::write("ranges", u)],
+        ),
+        spec(
+            "raster_fwd",
+            &[include_str!("raster_fwd.wgsl")],
+            &[
+                B::read("ranges", u),
+                B::read("gids", u),
+                B::read("splat", f),
+                B::write("acc", f),
+                B::write("final_t", f),
+                B::write("last", u),
+                B::write("observed", au),
+                B::write("counters", au),
+            ],
+        ),
+        spec(
+            "raster_bwd",
+            &[include_str!("raster_bwd.wgsl"), gacc],
+            &[
+                B::read("ranges", u),
+                B::read("gids", u),
+                B::read("splat", f),
+                B::read("final_t", f),
+                B::read("last", u),
+                B::read("pixgrad", f),
+                B::write("gacc", gacc_type(native_atomics)),
+                B::write("bstate", f),
+            ],
+        ),
+    ]
+}
+
+/// The full source list of a spec: the generated camera struct, common.wgsl, its own.
+fn sources<'a>(cam_decl: &'a str, spec: &Spec<'a>) -> Vec<&'a str> {
+    let mut s = vec![cam_decl, COMMON];
+    s.extend(spec.sources.iter().copied());
+    s
+}
+
+/// The compiled kernels of the rasterizer.
+pub(crate) struct Kernels {
+    pub project: Kernel,
+    pub project_bwd: Kernel,
+    pub isect_count: Kernel,
+    pub isect_emit: Kernel,
+    pub tile_ranges: Kernel,
+    pub raster_fwd: Kernel,
+    pub raster_bwd: Kernel,
+}
+
+impl Kernels {
+    /// Compiles every kernel (gradient accumulation per the context's f32-atomics feature).
+    pub fn new(ctx: &GpuContext) -> gs_gpu::Result<Self> {
+        let cam_decl = CamUniform::wgsl_decl();
+        let mut k = specs(ctx.native_f32_atomics())
+            .into_iter()
+            .map(|s| Kernel::new(ctx, s.entry, &sources(&cam_decl, &s), &s.bindings));
+        let mut next = || k.next().expect("one kernel per spec");
+        Ok(Self {
+            project: next()?,
+            project_bwd: next()?,
+            isect_count: next()?,
+            isect_emit: next()?,
+            tile_ranges: next()?,
+            raster_fwd: next()?,
+            raster_bwd: next()?,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gs_gpu::{PassUniform, check_layout, kernel_source};
+
+    /// Every kernel's full source (exactly what the device compiles) parses, and its `Cam`
+    /// and `Pass` structs have the Rust offsets and sizes (naga's layouter against
+    /// `offset_of!` / `size_of`), for both gradient-accumulation variants.
+    #[test]
+    fn host_and_wgsl_struct_layouts_agree_in_every_kernel() {
+        let cam_decl = CamUniform::wgsl_decl();
+        for native in [false, true] {
+            for s in specs(native) {
+                let src = kernel_source(&sources(&cam_decl, &s), &s.bindings);
+                check_layout::<CamUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+                check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            }
+        }
+        assert_eq!(std::mem::size_of::<CamUniform>(), 144);
+    }
+
+    /// A field added to the WGSL side only (a hand-written `Cam`) is caught.
+    #[test]
+    fn a_field_added_on_one_side_fails_the_check() {
+        let edited = CamUniform::wgsl_decl()
+            .replace("    pad1: u32,\n", "    pad1: u32,\n    extra: u32,\n");
+        assert!(check_layout::<CamUniform>(&edited).is_err());
+    }
+}

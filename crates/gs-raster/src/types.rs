@@ -1,0 +1,278 @@
+//! The public data types of the rasterizer: constants, errors, configuration, requests,
+//! outputs and gradients (shared by both backends).
+
+use crate::cpu::CpuState;
+use gs_core::Image;
+use thiserror::Error;
+
+/// Tile edge in pixels.
+pub const TILE_SIZE: u32 = 16;
+/// Alpha cap.
+pub const MAX_ALPHA: f32 = 0.99;
+/// Transmittance stop: a pixel is done when T·(1−α) would fall below this.
+pub const T_STOP: f32 = 1e-4;
+/// Default alpha skip threshold 1/255.
+pub const ALPHA_THRESHOLD: f32 = 1.0 / 255.0;
+/// The constant added to the plane-depth denominator (PGSR).
+pub const PLANE_DEPTH_EPS: f32 = 1e-8;
+/// A Gaussian is "observed" by a pixel when it contributes while T is above this (PGSR).
+pub const OBSERVE_T: f32 = 0.5;
+
+/// Errors of the rasterizer (all caused by its inputs).
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum RasterError {
+    /// Zero-sized or over-cap image, non-finite intrinsics.
+    #[error("invalid camera: {0}")]
+    InvalidCamera(String),
+    /// Gaussian arrays of different lengths or an SH degree above 3.
+    #[error("invalid Gaussians: {0}")]
+    InvalidGaussians(String),
+    /// A configuration value out of range.
+    #[error("invalid raster config: {0}")]
+    InvalidConfig(String),
+    /// The Gaussians' tile footprints add up to more than the cap (huge or too many Gaussians).
+    #[error(
+        "{count} tile intersections exceed the cap of {cap}; raise RasterConfig::max_intersections or prune huge Gaussians"
+    )]
+    TooManyIntersections {
+        /// Counted intersections.
+        count: u64,
+        /// The cap.
+        cap: usize,
+    },
+    /// Output gradients that do not match the forward render (missing channel, wrong size),
+    /// or a forward render from another backend / an older render of the same rasterizer.
+    #[error("invalid output gradients: {0}")]
+    InvalidGradients(String),
+    /// The requested backend cannot be used here (no adapter, or built without the feature).
+    #[error("backend unavailable: {0}")]
+    BackendUnavailable(String),
+    /// The GPU backend failed (device lost, out of memory, or an input beyond the adapter's
+    /// limits, e.g. a buffer larger than its maximum storage binding).
+    #[error("GPU backend error: {0}")]
+    Gpu(String),
+}
+
+/// Result alias of gs-raster.
+pub type Result<T> = std::result::Result<T, RasterError>;
+
+/// Rasterizer settings; the same values must be passed to [`render`](crate::render) and [`backward`](crate::backward).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RasterConfig {
+    /// Near plane: Gaussians with camera z ≤ near are culled (method-spec §2: 0.01).
+    pub near: f32,
+    /// Far plane: camera z > far is culled.
+    pub far: f32,
+    /// Background colour added as T_final·background.
+    pub background: [f32; 3],
+    /// Mip-splatting / gsplat "antialiased" opacity compensation √(det Σ / det Σ').
+    pub antialiased: bool,
+    /// Alpha skip threshold (1/255). It also sets the radius, so lowering it (tests do, to
+    /// make the render continuous for finite differences) keeps everything consistent.
+    pub alpha_threshold: f32,
+    /// Plane depth is output only where −Ñ·r + 1e-8 exceeds this (background pixels with
+    /// Ñ ≈ 0, grazing planes); elsewhere the depth is 0 (= "no depth") with zero gradient.
+    pub plane_depth_min_denominator: f32,
+    /// Cap on tile intersections (memory bound for huge or very many Gaussians).
+    pub max_intersections: usize,
+}
+
+impl Default for RasterConfig {
+    fn default() -> Self {
+        Self {
+            near: 0.01,
+            far: 1e10,
+            background: [0.0; 3],
+            antialiased: false,
+            alpha_threshold: ALPHA_THRESHOLD,
+            plane_depth_min_denominator: 1e-4,
+            max_intersections: 1 << 27,
+        }
+    }
+}
+
+/// Which outputs to render. Geometry channels (Ñ, D) are blended only when normal, distance
+/// or plane depth is requested; the depth sum only for expected depth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RenderRequest {
+    /// Colour (3 channels, with background).
+    pub color: bool,
+    /// Accumulated alpha A = 1 − T_final.
+    pub alpha: bool,
+    /// Rendered camera-space normal Ñ = Σ wᵢ n_c,i (not normalised).
+    pub normal: bool,
+    /// Rendered distance D = Σ wᵢ dᵢ (not divided by A).
+    pub distance: bool,
+    /// Plane depth z = D / (−Ñ·K⁻¹p̄ + 1e-8) at pixel centres.
+    pub plane_depth: bool,
+    /// Expected depth Σ wᵢ t_z,i / A (0 where A = 0).
+    pub expected_depth: bool,
+    /// Per-Gaussian observed counts (pixels where it contributed while T > 0.5).
+    pub observed: bool,
+}
+
+impl Default for RenderRequest {
+    /// Colour and alpha.
+    fn default() -> Self {
+        Self {
+            color: true,
+            alpha: true,
+            normal: false,
+            distance: false,
+            plane_depth: false,
+            expected_depth: false,
+            observed: false,
+        }
+    }
+}
+
+impl RenderRequest {
+    /// Every output.
+    pub fn all() -> Self {
+        Self {
+            color: true,
+            alpha: true,
+            normal: true,
+            distance: true,
+            plane_depth: true,
+            expected_depth: true,
+            observed: true,
+        }
+    }
+    /// Whether the geometry accumulators (Ñ, D) are blended.
+    pub(crate) fn geo(&self) -> bool {
+        self.normal || self.distance || self.plane_depth
+    }
+}
+
+/// Work counters of a render (for benches and logs).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RenderStats {
+    /// Gaussians that survived culling.
+    pub visible: usize,
+    /// (tile, Gaussian) intersections.
+    pub intersections: usize,
+    /// Σ over pixels of the tile-list entries the pixel went through before it saturated (the
+    /// forward's Gaussian-pixel pairs, GPU semantics: one thread per pixel).
+    pub forward_pairs: u64,
+    /// Σ over pixels of the entries up to the last contributor (the backward's pairs).
+    pub backward_pairs: u64,
+    /// Σ over (tile, Gaussian) of the pixel box actually visited inside the tile (CPU work).
+    pub box_pairs: u64,
+}
+
+/// What the backward needs from the forward: the CPU backend's per-pixel and per-Gaussian
+/// state, or a handle to the wgpu backend's device-resident state.
+#[derive(Debug, Clone)]
+pub struct ForwardState(pub(crate) StateInner);
+
+#[derive(Debug, Clone)]
+pub(crate) enum StateInner {
+    Cpu(CpuState),
+    #[cfg(feature = "wgpu")]
+    Gpu(crate::gpu::GpuState),
+}
+
+impl ForwardState {
+    /// The CPU backend's state, if this came from the CPU backend.
+    pub(crate) fn cpu(&self) -> Option<&CpuState> {
+        match &self.0 {
+            StateInner::Cpu(s) => Some(s),
+            #[cfg(feature = "wgpu")]
+            StateInner::Gpu(_) => None,
+        }
+    }
+}
+
+/// Rendered maps (only the requested ones are `Some`) and per-Gaussian outputs.
+#[derive(Debug, Clone)]
+pub struct RenderOutput {
+    /// Colour + T_final·background, 3 channels.
+    pub color: Option<Image>,
+    /// Accumulated alpha A, 1 channel.
+    pub alpha: Option<Image>,
+    /// Rendered camera-space normal Ñ, 3 channels.
+    pub normal: Option<Image>,
+    /// Rendered distance D, 1 channel.
+    pub distance: Option<Image>,
+    /// Plane depth z, 1 channel (0 = no depth).
+    pub plane_depth: Option<Image>,
+    /// Expected depth, 1 channel (0 where A = 0).
+    pub expected_depth: Option<Image>,
+    /// Screen radius in pixels per Gaussian (0 = culled).
+    pub radii: Vec<u32>,
+    /// Per-Gaussian observed counts (when requested).
+    pub observed: Option<Vec<u32>>,
+    /// Work counters.
+    pub stats: RenderStats,
+    /// Per-pixel final transmittance (the backward starts from it).
+    pub final_t: Vec<f32>,
+    /// Per pixel: 1 + index (in its tile list) of the last contributing Gaussian, 0 if none.
+    pub last_contributor: Vec<u32>,
+    pub(crate) state: ForwardState,
+}
+
+/// Gradients w.r.t. the rendered maps (each optional; `None` = zero). Each must match the
+/// size and channel count of the corresponding output, which must have been rendered.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct OutputGradients<'a> {
+    /// ∂L/∂colour.
+    pub color: Option<&'a Image>,
+    /// ∂L/∂A.
+    pub alpha: Option<&'a Image>,
+    /// ∂L/∂Ñ.
+    pub normal: Option<&'a Image>,
+    /// ∂L/∂D.
+    pub distance: Option<&'a Image>,
+    /// ∂L/∂plane depth (folded into Ñ and D per pixel).
+    pub plane_depth: Option<&'a Image>,
+    /// ∂L/∂expected depth.
+    pub expected_depth: Option<&'a Image>,
+}
+
+/// Gradients of the Gaussian parameters (same layout as [`Gaussians`](gs_core::Gaussians)) and the densification
+/// accumulators of this view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaussianGradients {
+    /// ∂L/∂μ.
+    pub means: Vec<[f32; 3]>,
+    /// ∂L/∂log-scales.
+    pub log_scales: Vec<[f32; 3]>,
+    /// ∂L/∂quaternion (w, x, y, z), through the normalisation.
+    pub rotations: Vec<[f32; 4]>,
+    /// ∂L/∂opacity logit.
+    pub opacity_logits: Vec<f32>,
+    /// ∂L/∂SH coefficients (zero above the active degree).
+    pub sh: Vec<[[f32; 3]; 16]>,
+    /// ∂L/∂mean2d summed over pixels (signed), NDC units; ‖·‖ is 3DGS's densification signal.
+    pub mean2d: Vec<[f32; 2]>,
+    /// Σ over pixels of |∂L/∂x|, |∂L/∂y| (AbsGS), NDC units.
+    pub mean2d_abs: Vec<[f32; 2]>,
+}
+
+impl GaussianGradients {
+    /// All-zero gradients of `n` Gaussians.
+    pub(crate) fn zeros(n: usize) -> Self {
+        Self {
+            means: vec![[0.0; 3]; n],
+            log_scales: vec![[0.0; 3]; n],
+            rotations: vec![[0.0; 4]; n],
+            opacity_logits: vec![0.0; n],
+            sh: vec![[[0.0; 3]; 16]; n],
+            mean2d: vec![[0.0; 2]; n],
+            mean2d_abs: vec![[0.0; 2]; n],
+        }
+    }
+
+    /// ‖∂L/∂mean2d‖ of Gaussian `i` (NDC units).
+    pub fn mean2d_norm(&self, i: usize) -> f32 {
+        let [x, y] = self.mean2d[i];
+        (x * x + y * y).sqrt()
+    }
+
+    /// ‖(Σ|∂L/∂x|, Σ|∂L/∂y|)‖ of Gaussian `i` (AbsGS, NDC units).
+    pub fn mean2d_abs_norm(&self, i: usize) -> f32 {
+        let [x, y] = self.mean2d_abs[i];
+        (x * x + y * y).sqrt()
+    }
+}

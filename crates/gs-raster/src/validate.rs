@@ -1,0 +1,163 @@
+//! Input validation shared by both backends: configuration, Gaussians and camera, and the
+//! output gradients given to a backward.
+
+use crate::cpu::project::CamParams;
+use crate::{OutputGradients, RasterConfig, RasterError, RenderRequest, Result};
+use gs_core::{Camera, Gaussians, Image};
+
+impl RasterConfig {
+    /// Rejects out-of-range values (NaN included).
+    pub(crate) fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(RasterError::InvalidConfig(m));
+        if !(self.near > 0.0 && self.near.is_finite()) {
+            return bad(format!("near = {} must be positive and finite", self.near));
+        }
+        if !(self.far > self.near) {
+            return bad(format!(
+                "far = {} must exceed near = {}",
+                self.far, self.near
+            ));
+        }
+        if !(self.alpha_threshold > 0.0 && self.alpha_threshold <= 0.5) {
+            return bad(format!(
+                "alpha_threshold = {} must lie in (0, 0.5]",
+                self.alpha_threshold
+            ));
+        }
+        if !(self.plane_depth_min_denominator >= 0.0
+            && self.plane_depth_min_denominator.is_finite())
+        {
+            return bad(format!(
+                "plane_depth_min_denominator = {} must be ≥ 0",
+                self.plane_depth_min_denominator
+            ));
+        }
+        if !self.background.iter().all(|v| v.is_finite()) {
+            return bad("background colour is not finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// Validates the inputs of a render or backward and returns the f32 camera constants.
+pub(crate) fn check_inputs(
+    g: &Gaussians,
+    camera: &Camera,
+    cfg: &RasterConfig,
+) -> Result<CamParams> {
+    cfg.validate()?;
+    let n = g.means.len();
+    let lens = [
+        g.log_scales.len(),
+        g.rotations.len(),
+        g.opacity_logits.len(),
+        g.sh.len(),
+    ];
+    if lens.iter().any(|&l| l != n) {
+        return Err(RasterError::InvalidGaussians(format!(
+            "array lengths differ: means {n}, log_scales {}, rotations {}, opacity {}, sh {}",
+            lens[0], lens[1], lens[2], lens[3]
+        )));
+    }
+    if n > u32::MAX as usize - 1 {
+        return Err(RasterError::InvalidGaussians(format!(
+            "{n} Gaussians exceed the u32 index range"
+        )));
+    }
+    if g.sh_degree > gs_core::sh::MAX_SH_DEGREE {
+        return Err(RasterError::InvalidGaussians(format!(
+            "SH degree {} > 3",
+            g.sh_degree
+        )));
+    }
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    if w == 0 || h == 0 {
+        return Err(RasterError::InvalidCamera(format!(
+            "image size {w}x{h} is empty"
+        )));
+    }
+    if w.saturating_mul(h) > gs_core::image::MAX_IMAGE_PIXELS {
+        return Err(RasterError::InvalidCamera(format!(
+            "image size {w}x{h} exceeds the cap of {} pixels",
+            gs_core::image::MAX_IMAGE_PIXELS
+        )));
+    }
+    let k = &camera.intrinsics;
+    let finite = [k.fx, k.fy, k.cx, k.cy].iter().all(|v| v.is_finite()) && k.fx > 0.0 && k.fy > 0.0;
+    if !finite || !camera.rotation.is_finite() || !camera.translation.is_finite() {
+        return Err(RasterError::InvalidCamera(
+            "non-finite pose or non-positive focal length".into(),
+        ));
+    }
+    Ok(CamParams::new(camera))
+}
+
+/// One output gradient: it must belong to a rendered channel and match the render's size.
+fn check_grad(
+    img: Option<&Image>,
+    rendered: bool,
+    name: &str,
+    w: u32,
+    h: u32,
+    c: usize,
+) -> Result<()> {
+    if let Some(im) = img {
+        if !rendered {
+            return Err(RasterError::InvalidGradients(format!(
+                "gradient for {name} given but {name} was not rendered"
+            )));
+        }
+        if im.width() != w as usize || im.height() != h as usize || im.channels() != c {
+            return Err(RasterError::InvalidGradients(format!(
+                "{name} gradient is {}x{}x{}, the render is {w}x{h}x{c}",
+                im.width(),
+                im.height(),
+                im.channels()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Checks every given output gradient against the rendered channels and the image size.
+pub(crate) fn check_all_grads(
+    grads: &OutputGradients,
+    req: &RenderRequest,
+    w: u32,
+    h: u32,
+) -> Result<()> {
+    check_grad(grads.color, req.color, "color", w, h, 3)?;
+    check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
+    check_grad(grads.normal, req.normal, "normal", w, h, 3)?;
+    check_grad(grads.distance, req.distance, "distance", w, h, 1)?;
+    check_grad(grads.plane_depth, req.plane_depth, "plane_depth", w, h, 1)?;
+    check_grad(
+        grads.expected_depth,
+        req.expected_depth,
+        "expected_depth",
+        w,
+        h,
+        1,
+    )
+}
+
+/// Checks that a forward state of `(n, width, height)` belongs to these inputs (`usable` is
+/// false for a state that cannot be differentiated, e.g. one from `render_naive`); `note` ends
+/// the error message.
+pub(crate) fn check_forward_matches(
+    (n, width, height): (usize, u32, u32),
+    usable: bool,
+    g: &Gaussians,
+    cam: &CamParams,
+    note: &str,
+) -> Result<()> {
+    if n != g.len() || width != cam.width || height != cam.height || !usable {
+        return Err(RasterError::InvalidGradients(format!(
+            "forward state ({n} Gaussians, {width}x{height}) does not match the inputs ({} Gaussians, {}x{}){note}",
+            g.len(),
+            cam.width,
+            cam.height
+        )));
+    }
+    Ok(())
+}
