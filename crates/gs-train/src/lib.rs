@@ -4,7 +4,7 @@
 //! path of one iteration:
 //!
 //! 1. [`plan`]: a pure [`StepPlan`] from the [`TrainConfig`] and the iteration — view, source
-//!    views, channels to render, active loss terms and their weights ([`TermWeights`]), the
+//!    views, channels to render, active loss terms and their weights ([`LossWeights`], zero for the terms left off), the
 //!    means' learning rate and the density control to run afterwards.
 //! 2. [`Trainer::execute`] (the CPU reference executor): render on the chosen rasterizer,
 //!    evaluate every term through the [`LossTerm`] contract into the output-gradient buffers,
@@ -58,5 +58,5 @@ pub use params::Param;
 pub use plan::{RefinePlan, StepPlan, plan_step};
 pub use refine::RefineReport;
 pub use sh_policy::ShBandDecision;
-pub use terms::{GradientBuffers, LossTerm, LossValues, TermInputs, TermWeights};
+pub use terms::{GradientBuffers, LossTerm, LossValues, TermInputs};
 pub use trainer::{StepReport, TrainState, Trainer};

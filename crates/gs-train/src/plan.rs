@@ -9,7 +9,8 @@
 //! sampling seed); the density control continues the same stream ([`StepPlan::refine_rng`]).
 
 use crate::config::{Phase, TrainConfig};
-use crate::terms::{FeatureTerm, ImageTerm, LossTerm, NormalTerms, PhotometricTerm, TermWeights};
+use crate::config::LossWeights;
+use crate::terms::{FeatureTerm, ImageTerm, LossTerm, NormalTerms, PhotometricTerm};
 use gs_core::{ExponentialLr, Rng};
 use gs_losses::NormalLossConfig;
 use gs_mvs::{PhotometricConfig, SourceViewSelector};
@@ -52,7 +53,7 @@ pub struct StepPlan {
     /// Channels to render.
     pub render: RenderRequest,
     /// Weights of the terms.
-    pub weights: TermWeights,
+    pub weights: LossWeights,
     /// L_p's settings including its pixel-sampling seed (when L_p runs).
     pub photometric: Option<PhotometricConfig>,
     /// Density control after the step.
@@ -127,13 +128,14 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         observed: false,
     };
     let w = &config.weights;
-    let weights = TermWeights {
+    let weights = LossWeights {
         beta1: w.beta1,
         beta2: if phase.edge { w.beta2 } else { 0.0 },
         lambda_nc: if phase.normal_consistency { w.lambda_nc } else { 0.0 },
         lambda_ns: if phase.normal_smoothing { w.lambda_ns } else { 0.0 },
         lambda_p: if photometric.is_some() { w.lambda_p } else { 0.0 },
         lambda_f: if phase.features && !sources.is_empty() { w.lambda_f } else { 0.0 },
+        tau: w.tau,
     };
     let d = &config.densify;
     let refine = if it <= d.until {

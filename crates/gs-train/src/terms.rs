@@ -1,13 +1,14 @@
 //! The loss-term contract (method-spec §5): every term of L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p
 //! + λ4·L_f reads the rendered view, records its unweighted value(s) in [`LossValues`] and adds
 //! its weighted gradient into the renderer's output-gradient buffers ([`GradientBuffers`]).
-//! The weights come from one place ([`TermWeights`], built by the step plan from the
-//! configuration and the phase), and so does the total ([`TermWeights::total`]).
+//! The weights come from one place (the [`LossWeights`] of the step plan: the configuration's,
+//! zero for the terms its phase leaves off), and so does the total ([`LossWeights::total`]).
 //!
 //! A term receives its weight rather than returning an unweighted gradient because some fold
 //! it into their kernels (L_nc and L_ns share one back-propagation through the depth normal
 //! N̂); the executor never scales a term's gradient itself.
 
+use crate::config::LossWeights;
 use crate::error::Result;
 use gs_core::{Camera, Image};
 use gs_features::FeatureMap;
@@ -39,26 +40,10 @@ pub struct LossValues {
     pub total: f64,
 }
 
-/// The weights of one iteration's terms; a term that is off has weight 0 and is not evaluated.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
-pub struct TermWeights {
-    /// β1 (D-SSIM inside L_I).
-    pub beta1: f32,
-    /// β2 (edge term inside L_I; 0 = off).
-    pub beta2: f32,
-    /// λ1 of L_nc.
-    pub lambda_nc: f32,
-    /// λ2 of L_ns.
-    pub lambda_ns: f32,
-    /// λ3 of L_p.
-    pub lambda_p: f32,
-    /// λ4 of L_f.
-    pub lambda_f: f32,
-}
-
-impl TermWeights {
+impl LossWeights {
     /// L = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L_edge + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f of
-    /// recorded values (absent terms count 0).
+    /// recorded values (absent terms count 0). The step plan's weights are zero for the terms
+    /// its phase leaves off.
     pub fn total(&self, v: &LossValues) -> f64 {
         let w = |x: f32| x as f64;
         let b1 = w(self.beta1);
@@ -153,7 +138,7 @@ pub struct TermInputs<'a> {
 pub trait LossTerm {
     /// Evaluates the term on `x`: records its unweighted value(s) in `values` and adds its
     /// gradient, weighted by `w`, into `grads`.
-    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()>;
+    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()>;
 }
 
 fn channel<'a>(c: &'a Option<Image>, name: &str) -> Result<&'a Image> {
@@ -171,7 +156,7 @@ pub struct ImageTerm {
 }
 
 impl LossTerm for ImageTerm {
-    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
         let li = image_loss(x.color, x.photo, x.guide, &cfg)?;
         (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
@@ -192,7 +177,7 @@ pub struct NormalTerms {
 }
 
 impl LossTerm for NormalTerms {
-    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let cfg = NormalLossConfig {
             lambda_nc: if self.consistency { w.lambda_nc } else { 0.0 },
             lambda_ns: if self.smoothing { w.lambda_ns } else { 0.0 },
@@ -222,7 +207,7 @@ pub struct PhotometricTerm {
 }
 
 impl LossTerm for PhotometricTerm {
-    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let r = x.render;
         let reference = PhotometricReference {
             camera: x.camera,
@@ -252,7 +237,7 @@ impl LossTerm for PhotometricTerm {
 pub struct FeatureTerm;
 
 impl LossTerm for FeatureTerm {
-    fn evaluate(&self, x: &TermInputs<'_>, w: &TermWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let reference = FeatureReference {
             camera: x.camera,
             plane_depth: channel(&x.render.plane_depth, "plane depth")?.into(),
