@@ -21,6 +21,17 @@ pub struct Image {
 /// Luma weights used for grey images (ITU-R BT.601, as PGSR's `0.299R + 0.587G + 0.114B`).
 pub const GREY_WEIGHTS: [f32; 3] = [0.299, 0.587, 0.114];
 
+/// Why a flat buffer of `len` values is not a row-major `width × height × channels` grid
+/// (`None` when it is): the one size check behind [`Image`] and the other crates' maps
+/// (feature maps, reprojection views), each of which wraps the message in its own error.
+pub fn grid_len_mismatch(width: usize, height: usize, channels: usize, len: usize) -> Option<String> {
+    let need = width.checked_mul(height).and_then(|p| p.checked_mul(channels));
+    (need != Some(len)).then(|| match need {
+        Some(n) => format!("a {width}x{height}x{channels} grid needs {n} values, the buffer has {len}"),
+        None => format!("a {width}x{height}x{channels} grid is too large to address"),
+    })
+}
+
 impl Image {
     fn check_size(width: usize, height: usize, channels: usize) -> Result<()> {
         if width == 0 || height == 0 || channels == 0 {
@@ -50,12 +61,8 @@ impl Image {
     /// Wraps a row-major `[H][W][C]` buffer; an error when its length does not match.
     pub fn from_vec(width: usize, height: usize, channels: usize, data: Vec<f32>) -> Result<Self> {
         Self::check_size(width, height, channels)?;
-        if data.len() != width * height * channels {
-            return Err(CoreError::InvalidImage(format!(
-                "buffer has {} values, {width}x{height}x{channels} needs {}",
-                data.len(),
-                width * height * channels
-            )));
+        if let Some(m) = grid_len_mismatch(width, height, channels, data.len()) {
+            return Err(CoreError::InvalidImage(m));
         }
         Ok(Self { width, height, channels, data })
     }
@@ -233,6 +240,15 @@ fn area_weights(n_in: usize, n_out: usize) -> Vec<Vec<(usize, f32)>> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn grid_sizes_are_checked_in_one_place() {
+        assert_eq!(super::grid_len_mismatch(4, 3, 2, 24), None);
+        assert_eq!(super::grid_len_mismatch(4, 3, 2, 23).unwrap(), "a 4x3x2 grid needs 24 values, the buffer has 23");
+        assert!(super::grid_len_mismatch(usize::MAX, 2, 1, 0).unwrap().contains("too large"));
+        assert!(Image::from_vec(2, 2, 3, vec![0.0; 11]).unwrap_err().to_string().contains("needs 12 values"));
+    }
+
     use super::*;
 
     #[test]

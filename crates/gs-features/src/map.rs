@@ -68,12 +68,8 @@ impl FeatureMap {
         if !(stride.is_finite() && stride > 0.0) {
             return Err(FeatureError::InvalidParameter(format!("feature stride {stride} must be > 0")));
         }
-        let n = width.checked_mul(height).and_then(|p| p.checked_mul(channels));
-        if n != Some(data.len()) {
-            return Err(FeatureError::InvalidParameter(format!(
-                "feature buffer has {} values, {width}x{height}x{channels} needs {n:?}",
-                data.len()
-            )));
+        if let Some(m) = gs_core::image::grid_len_mismatch(width, height, channels, data.len()) {
+            return Err(FeatureError::InvalidParameter(format!("feature map: {m}")));
         }
         if let Some(i) = data.iter().position(|v| !v.is_finite()) {
             return Err(FeatureError::InvalidParameter(format!("feature value {i} is not finite")));

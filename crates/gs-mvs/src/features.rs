@@ -62,16 +62,8 @@ impl<T: Real> GridFeatureMaps<T> {
                 "feature grid {width}x{height}x{channels} with stride {stride} is empty"
             )));
         }
-        if width
-            .checked_mul(height)
-            .and_then(|p| p.checked_mul(channels))
-            != Some(data.len())
-        {
-            return Err(MvsError::InvalidInput(format!(
-                "feature grid {width}x{height}x{channels} needs {} values, got {}",
-                width.saturating_mul(height).saturating_mul(channels),
-                data.len()
-            )));
+        if let Some(m) = gs_core::image::grid_len_mismatch(width, height, channels, data.len()) {
+            return Err(MvsError::InvalidInput(format!("feature grid: {m}")));
         }
         Ok(Self {
             width,

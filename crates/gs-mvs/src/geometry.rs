@@ -23,16 +23,8 @@ pub struct MapView<'a, T> {
 impl<'a, T> MapView<'a, T> {
     /// Wraps a buffer; an error when its length is not `width × height × channels`.
     pub fn new(width: usize, height: usize, channels: usize, data: &'a [T]) -> Result<Self> {
-        if width
-            .checked_mul(height)
-            .and_then(|p| p.checked_mul(channels))
-            != Some(data.len())
-        {
-            return Err(MvsError::InvalidInput(format!(
-                "a {width}x{height}x{channels} map needs {} values, got {}",
-                width.saturating_mul(height).saturating_mul(channels),
-                data.len()
-            )));
+        if let Some(m) = gs_core::image::grid_len_mismatch(width, height, channels, data.len()) {
+            return Err(MvsError::InvalidInput(m));
         }
         Ok(Self {
             width,
