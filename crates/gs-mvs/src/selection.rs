@@ -78,20 +78,7 @@ mod tests {
     use gs_core::glam::DVec3;
 
     fn ring(n: usize) -> Vec<Camera> {
-        (0..n)
-            .map(|k| {
-                let a = k as f64 / n as f64 * std::f64::consts::TAU;
-                Camera::look_at(
-                    64,
-                    48,
-                    Intrinsics::new(60.0, 60.0, 32.0, 24.0),
-                    DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 1.0),
-                    DVec3::ZERO,
-                    DVec3::Z,
-                )
-                .unwrap()
-            })
-            .collect()
+        gs_core::scene::camera_ring(n)
     }
 
     #[test]

@@ -171,14 +171,7 @@ mod tests {
     use gs_mvs::SourceSelection;
 
     fn selector(n: usize) -> SourceViewSelector {
-        let cams: Vec<gs_core::Camera> = (0..n)
-            .map(|i| {
-                let a = i as f64 * 0.3;
-                let eye = gs_core::glam::DVec3::new(4.0 * a.cos(), 0.5, 4.0 * a.sin());
-                let k = gs_core::Intrinsics::new(60.0, 60.0, 32.0, 24.0);
-                gs_core::Camera::look_at(64, 48, k, eye, gs_core::glam::DVec3::ZERO, gs_core::glam::DVec3::Y).unwrap()
-            })
-            .collect();
+        let cams = gs_core::scene::camera_ring(n);
         let refs: Vec<&gs_core::Camera> = cams.iter().collect();
         SourceViewSelector::new(&refs, &NeighbourRule::default(), 3, SourceSelection::RandomN).unwrap()
     }
@@ -186,7 +179,7 @@ mod tests {
     #[test]
     fn the_plan_follows_the_phases_and_is_pure() {
         let c = TrainConfig::default().scaled(60);
-        let (views, sel) = ((10..18).collect::<Vec<usize>>(), selector(8));
+        let (views, sel) = ((10..34).collect::<Vec<usize>>(), selector(24));
         let warm = plan_step(&c, &views, &sel, 2.0, 5);
         assert!(warm.sources.is_empty() && warm.photometric.is_none() && !warm.render.plane_depth);
         assert_eq!(warm.weights.lambda_nc, 0.0);
