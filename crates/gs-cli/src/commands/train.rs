@@ -253,9 +253,19 @@ fn describe(r: &StepReport) -> String {
     s
 }
 
-/// Runs `vagsl train`.
-pub fn run(args: &TrainArgs) -> Result<()> {
-    let out = &args.output;
+/// Where a run starts: its configuration, a checkpointed state (with `--resume`), the time
+/// spent before, the run configuration of a `--config OUT/config.json`, and the scene source.
+struct Start {
+    config: TrainConfig,
+    resumed: Option<gs_train::TrainState>,
+    earlier: Option<Elapsed>,
+    from_run: Option<RunConfig>,
+    source: SceneSource,
+}
+
+/// Reads `--resume` or builds the configuration, and picks the scene source (a run's own
+/// config.json brings its scene unless the command line names one).
+fn start(args: &TrainArgs) -> Result<Start> {
     let (config, resumed, earlier, from_run) = match &args.resume {
         Some(p) => {
             let ck = checkpoint::load(p)?;
@@ -270,12 +280,18 @@ pub fn run(args: &TrainArgs) -> Result<()> {
             (config, None, Some(Elapsed::default()), run)
         }
     };
-    // A run's own config.json brings its scene unless the command line names one.
     let cli_scene = args.scene.is_some() || args.resolution.is_some() || args.width.is_some() || args.eval;
     let source = match &from_run {
         Some(run) if !cli_scene => run.scene.clone(),
         _ => SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: args.width, eval: args.eval },
     };
+    Ok(Start { config, resumed, earlier, from_run, source })
+}
+
+/// Runs `vagsl train`.
+pub fn run(args: &TrainArgs) -> Result<()> {
+    let out = &args.output;
+    let Start { config, resumed, earlier, from_run, source } = start(args)?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))?;
     let resumed_from = resumed.as_ref().map(|s| s.iteration);
     let t_load = Instant::now();
@@ -324,80 +340,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     }
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
 
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        // A second Ctrl-C while the checkpoint is written is ignored; the write is atomic anyway.
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
-    // Without a terminal indicatif draws nothing, so a redirected run logs lines instead.
-    let log_lines = args.quiet || !std::io::stderr().is_terminal();
-    let bar = if log_lines {
-        ProgressBar::hidden()
-    } else {
-        let b = ProgressBar::new(config.iterations);
-        b.set_style(
-            ProgressStyle::with_template("{bar:30} {pos}/{len} {per_sec} ETA {eta} {msg}")
-                .expect("valid template"),
-        );
-        b.set_position(trainer.iteration());
-        b
-    };
-    let ckpt_path = out.join("checkpoint.bin");
-    // The whole run's time: the checkpoint's earlier segments plus this one.
     let mut elapsed = earlier.unwrap_or_default();
-    let mut last: Option<StepReport> = None;
-    let mut checkpoint_error: Option<anyhow::Error> = None;
-    let mut warned_cap = false;
-    let mut sh_bands = Vec::new();
     let t0 = Instant::now();
-    let mut t_prev = Instant::now();
-    trainer.run(|tr, r| {
-        let now = Instant::now();
-        elapsed.add(&config, r.iteration, (now - t_prev).as_secs_f64());
-        t_prev = now;
-        if r.iteration % 10 == 0 || r.iteration == config.iterations {
-            bar.set_position(r.iteration);
-            bar.set_message(describe(r));
-        }
-        if log_lines && (r.iteration % 500 == 0 || r.iteration == config.iterations) {
-            eprintln!("[{:>6}/{}] {} ({:.1}s)", r.iteration, config.iterations, describe(r), t0.elapsed().as_secs_f64());
-        }
-        // A hidden bar (log-line mode) prints nothing, so notices go to stderr directly there.
-        let notice = |m: String| if log_lines { eprintln!("{m}") } else { bar.println(m) };
-        if let Some(b) = r.sh_band {
-            sh_bands.push(b);
-            notice(format!(
-                "[{:>6}] SH band {}: L1 {:.5} → {:.5} ({:+.2} %), {}; degree {}",
-                r.iteration,
-                b.band,
-                b.l1_without,
-                b.l1_with,
-                -100.0 * b.gain,
-                if b.kept { "pays" } else { "does not pay, dropped" },
-                b.degree
-            ));
-        }
-        if r.densify.is_some_and(|d| d.capped) && !warned_cap {
-            warned_cap = true;
-            notice(format!("warning: reached --max-gaussians {}; densification stops", config.max_gaussians));
-        }
-        if let Some(every) = args.checkpoint_every
-            && every > 0
-            && r.iteration % every == 0
-            && r.iteration < config.iterations
-            && let Err(e) = checkpoint::save(&ckpt_path, &config, tr.state(), &elapsed)
-        {
-            checkpoint_error = Some(e.into());
-            return false;
-        }
-        last = Some(r.clone());
-        !stop.load(Ordering::SeqCst)
-    })?;
-    bar.finish_and_clear();
-    if let Some(e) = checkpoint_error {
-        return Err(e.context(format!("writing {}", ckpt_path.display())));
-    }
+    let Looped { last, sh_bands } = train_loop(args, &config, &mut trainer, &mut elapsed)?;
+    let ckpt_path = out.join("checkpoint.bin");
     let segment_seconds = t0.elapsed().as_secs_f64();
     let train_seconds = elapsed.total();
     let interrupted = !trainer.finished();
@@ -406,18 +352,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
     gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
-    if let Some(e) = &trainer.state().exposure {
-        let per_view: serde_json::Map<String, serde_json::Value> = run_config
-            .train_views
-            .iter()
-            .zip(&e.params)
-            .map(|(name, p)| {
-                let gain: Vec<f32> = p[..3].iter().map(|a| a.exp()).collect();
-                (name.clone(), serde_json::json!({ "gain_rgb": gain, "bias_rgb": &p[3..] }))
-            })
-            .collect();
-        write_json(&out.join("exposure.json"), &per_view)?;
-    }
+    write_exposure(out, &run_config, &trainer)?;
     let report = TrainReport {
         iterations: trainer.iteration(),
         interrupted,
@@ -453,4 +388,106 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         bail!("interrupted at iteration {}; checkpoint in {}", report.iterations, ckpt_path.display());
     }
     Ok(())
+}
+
+/// `OUT/exposure.json`: each training photo's learned gain and bias (with `--exposure`).
+fn write_exposure(out: &Path, run_config: &RunConfig, trainer: &Trainer) -> Result<()> {
+    if let Some(e) = &trainer.state().exposure {
+        let per_view: serde_json::Map<String, serde_json::Value> = run_config
+            .train_views
+            .iter()
+            .zip(&e.params)
+            .map(|(name, p)| {
+                let gain: Vec<f32> = p[..3].iter().map(|a| a.exp()).collect();
+                (name.clone(), serde_json::json!({ "gain_rgb": gain, "bias_rgb": &p[3..] }))
+            })
+            .collect();
+        write_json(&out.join("exposure.json"), &per_view)?;
+    }
+    Ok(())
+}
+
+/// What the training loop hands back for the report.
+struct Looped {
+    last: Option<StepReport>,
+    sh_bands: Vec<gs_train::ShBandDecision>,
+}
+
+/// The training loop with progress (a bar on a terminal, else a line every 500 iterations),
+/// notices, periodic checkpoints and Ctrl-C (stops after the current iteration). `elapsed`
+/// gains this segment's time per phase.
+fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, elapsed: &mut Elapsed) -> Result<Looped> {
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // A second Ctrl-C while the checkpoint is written is ignored; the write is atomic anyway.
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    // Without a terminal indicatif draws nothing, so a redirected run logs lines instead.
+    let log_lines = args.quiet || !std::io::stderr().is_terminal();
+    let bar = if log_lines {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(config.iterations);
+        b.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} {per_sec} ETA {eta} {msg}")
+                .expect("valid template"),
+        );
+        b.set_position(trainer.iteration());
+        b
+    };
+    let ckpt_path = args.output.join("checkpoint.bin");
+    let mut last: Option<StepReport> = None;
+    let mut checkpoint_error: Option<anyhow::Error> = None;
+    let mut warned_cap = false;
+    let mut sh_bands = Vec::new();
+    let t0 = Instant::now();
+    let mut t_prev = Instant::now();
+    trainer.run(|tr, r| {
+        let now = Instant::now();
+        elapsed.add(config, r.iteration, (now - t_prev).as_secs_f64());
+        t_prev = now;
+        if r.iteration % 10 == 0 || r.iteration == config.iterations {
+            bar.set_position(r.iteration);
+            bar.set_message(describe(r));
+        }
+        if log_lines && (r.iteration % 500 == 0 || r.iteration == config.iterations) {
+            eprintln!("[{:>6}/{}] {} ({:.1}s)", r.iteration, config.iterations, describe(r), t0.elapsed().as_secs_f64());
+        }
+        // A hidden bar (log-line mode) prints nothing, so notices go to stderr directly there.
+        let notice = |m: String| if log_lines { eprintln!("{m}") } else { bar.println(m) };
+        if let Some(b) = r.sh_band {
+            sh_bands.push(b);
+            notice(format!(
+                "[{:>6}] SH band {}: L1 {:.5} → {:.5} ({:+.2} %), {}; degree {}",
+                r.iteration,
+                b.band,
+                b.l1_without,
+                b.l1_with,
+                -100.0 * b.gain,
+                if b.kept { "pays" } else { "does not pay, dropped" },
+                b.degree
+            ));
+        }
+        if r.densify.is_some_and(|d| d.capped) && !warned_cap {
+            warned_cap = true;
+            notice(format!("warning: reached --max-gaussians {}; densification stops", config.max_gaussians));
+        }
+        if let Some(every) = args.checkpoint_every
+            && every > 0
+            && r.iteration % every == 0
+            && r.iteration < config.iterations
+            && let Err(e) = checkpoint::save(&ckpt_path, config, tr.state(), elapsed)
+        {
+            checkpoint_error = Some(e.into());
+            return false;
+        }
+        last = Some(r.clone());
+        !stop.load(Ordering::SeqCst)
+    })?;
+    bar.finish_and_clear();
+    if let Some(e) = checkpoint_error {
+        return Err(e.context(format!("writing {}", ckpt_path.display())));
+    }
+    Ok(Looped { last, sh_bands })
 }
