@@ -13,6 +13,16 @@ pub struct ViewCaches {
     greys: Vec<Option<Image>>,
     vgg: Option<Vgg16>,
     features: Vec<Option<FeatureMap>>,
+    /// Downscaled photographs of coarse-to-fine rendering: (scale, image) per slot.
+    scaled: Vec<Vec<(u32, Image)>>,
+}
+
+/// The camera of an image `scale` times smaller (each side floored, at least 1 pixel).
+pub fn downscaled_camera(camera: &gs_core::Camera, scale: u32) -> Result<gs_core::Camera> {
+    if scale <= 1 {
+        return Ok(camera.clone());
+    }
+    Ok(camera.resized((camera.width / scale).max(1), (camera.height / scale).max(1))?)
 }
 
 impl ViewCaches {
@@ -23,7 +33,23 @@ impl ViewCaches {
             greys: (0..views).map(|_| None).collect(),
             vgg: None,
             features: (0..views).map(|_| None).collect(),
+            scaled: (0..views).map(|_| Vec::new()).collect(),
         }
+    }
+
+    /// Area-averages the photograph of slot `slot` to `camera`'s size (a downscaled camera of
+    /// coarse-to-fine rendering) when not cached yet.
+    pub fn ensure_scaled(&mut self, slot: usize, photo: &Image, scale: u32, camera: &gs_core::Camera) -> Result<()> {
+        if scale > 1 && !self.scaled[slot].iter().any(|(s, _)| *s == scale) {
+            let img = photo.resize_area(camera.width as usize, camera.height as usize)?;
+            self.scaled[slot].push((scale, img));
+        }
+        Ok(())
+    }
+
+    /// The photograph of slot `slot` at 1/`scale` size if cached.
+    pub fn scaled(&self, slot: usize, scale: u32) -> Option<&Image> {
+        self.scaled[slot].iter().find(|(s, _)| *s == scale).map(|(_, i)| i)
     }
 
     /// Bytes held (guides, grey images, feature maps).
@@ -32,6 +58,7 @@ impl ViewCaches {
         self.guides.iter().flatten().map(|g| img(&g.gradient) + img(&g.delta)).sum::<usize>()
             + self.greys.iter().flatten().map(img).sum::<usize>()
             + self.features.iter().flatten().map(|f| f.memory_bytes()).sum::<usize>()
+            + self.scaled.iter().flatten().map(|(_, i)| img(i)).sum::<usize>()
     }
 
     /// The edge guide of slot `slot`, built from `photo` on first use. Without `delta`

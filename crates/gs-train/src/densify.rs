@@ -2,6 +2,7 @@
 //! clone / split / prune, opacity reset and the multi-view trim, applied to the Gaussians and
 //! the optimiser's moments together so rows never fall out of step.
 
+use crate::budget::GrowthLimit;
 use crate::config::DensifyConfig;
 use crate::error::Result;
 use gs_core::gaussians::{inverse_sigmoid, rotation_matrix, sigmoid};
@@ -44,14 +45,28 @@ impl DensifyStats {
         self.grad_sum.is_empty()
     }
 
-    /// Adds one view's gradients for the Gaussians visible in it (radius > 0).
-    pub fn accumulate(&mut self, radii: &[u32], grads: &GaussianGradients) {
+    /// Keeps the statistics of the rows with `keep = true` (after the model dropped the others).
+    pub fn retain(&mut self, keep: &[bool]) {
+        let filter = |v: &mut Vec<f32>| {
+            let mut k = keep.iter();
+            v.retain(|_| *k.next().unwrap_or(&false));
+        };
+        filter(&mut self.grad_sum);
+        filter(&mut self.abs_grad_sum);
+        filter(&mut self.max_radius);
+        let mut k = keep.iter();
+        self.visible_count.retain(|_| *k.next().unwrap_or(&false));
+    }
+
+    /// Adds one view's gradients for the Gaussians visible in it (radius > 0); the view was
+    /// rendered at 1/`scale` of the training size, so its radii count `scale` times.
+    pub fn accumulate(&mut self, radii: &[u32], grads: &GaussianGradients, scale: f32) {
         for (i, &r) in radii.iter().enumerate() {
             if r > 0 {
                 self.grad_sum[i] += grads.mean2d_norm(i);
                 self.abs_grad_sum[i] += grads.mean2d_abs_norm(i);
                 self.visible_count[i] += 1;
-                self.max_radius[i] = self.max_radius[i].max(r as f32);
+                self.max_radius[i] = self.max_radius[i].max(r as f32 * scale);
             }
         }
     }
@@ -68,6 +83,41 @@ pub struct DensifyReport {
     pub pruned: usize,
     /// Whether the Gaussian cap limited the step.
     pub capped: bool,
+    /// What bounded the growth of this step.
+    pub limit: GrowthLimit,
+}
+
+/// How far one densification step may grow the model: the scheduled `target`
+/// ([`crate::budget::Budget::target`]) and the user's hard `cap`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Growth {
+    /// The schedule's target (usize::MAX without a budget).
+    pub target: usize,
+    /// `max_gaussians`.
+    pub cap: usize,
+}
+
+/// The densification score of Gaussian `i`: its mean screen-space gradient relative to the
+/// clone/split threshold, or its mean absolute gradient relative to the AbsGS threshold,
+/// whichever is larger — how wrong the images still are where it projects.
+fn score(stats: &DensifyStats, cfg: &DensifyConfig, i: usize) -> f32 {
+    let v = stats.visible_count[i].max(1) as f32;
+    let g = stats.grad_sum[i] / v / cfg.grad_threshold.max(f32::MIN_POSITIVE);
+    let a = stats.abs_grad_sum[i] / v / cfg.abs_grad_threshold.max(f32::MIN_POSITIVE);
+    g.max(a)
+}
+
+/// Keeps the `room` highest-scoring of the candidates `clone` ∪ `split` (ties by index), each
+/// list staying in index order, so the random draws that follow are deterministic.
+fn keep_best(clone: &mut Vec<usize>, split: &mut Vec<usize>, room: usize, stats: &DensifyStats, cfg: &DensifyConfig) {
+    let mut all: Vec<(f32, usize)> = clone.iter().chain(split.iter()).map(|&i| (score(stats, cfg, i), i)).collect();
+    all.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut chosen = vec![false; stats.len()];
+    for &(_, i) in all.iter().take(room) {
+        chosen[i] = true;
+    }
+    clone.retain(|&i| chosen[i]);
+    split.retain(|&i| chosen[i]);
 }
 
 
@@ -84,9 +134,11 @@ fn sample_position(g: &Gaussians, i: usize, rng: &mut Rng) -> [f32; 3] {
     (Vec3::from(g.means[i]) + r * n).to_array()
 }
 
-/// Clone, split and prune (PGSR's `densify_and_prune` with AbsGS): `size_limit` is the screen
-/// radius above which Gaussians are pruned (set after `prune_big_after`), `extent` the scene
-/// extent r. New Gaussians get zero Adam moments; statistics are reset for every Gaussian.
+/// Clone, split and prune (PGSR's `densify_and_prune` with AbsGS): `prune_big` also prunes
+/// Gaussians too large on screen or in the world, `extent` is the scene extent r. Growth
+/// (a clone adds one Gaussian, a split one net) stops at `growth`'s target and cap; when
+/// more candidates pass the thresholds than that allows, the highest-scoring ones are taken
+/// ([`score`]). New Gaussians get zero Adam moments; statistics are reset for every Gaussian.
 #[allow(clippy::too_many_arguments)]
 pub fn densify_and_prune(
     g: &mut Gaussians,
@@ -95,7 +147,7 @@ pub fn densify_and_prune(
     cfg: &DensifyConfig,
     extent: f32,
     prune_big: bool,
-    max_gaussians: usize,
+    growth: Growth,
     rng: &mut Rng,
 ) -> Result<DensifyReport> {
     let n = g.len();
@@ -119,13 +171,12 @@ pub fn densify_and_prune(
     abs_split.truncate(cfg.max_abs_splits);
     split.extend(abs_split);
     split.sort_unstable();
-    // The cap: clones add one Gaussian each, splits one net (two children replace the parent).
-    let room = max_gaussians.saturating_sub(n);
+    // Clones add one Gaussian each, splits one net (two children replace the parent).
+    let room = growth.target.min(growth.cap).saturating_sub(n);
     if clone.len() + split.len() > room {
-        report.capped = true;
-        let keep_clone = clone.len().min(room);
-        clone.truncate(keep_clone);
-        split.truncate(room - keep_clone);
+        report.limit = if growth.cap <= growth.target { GrowthLimit::Cap } else { GrowthLimit::Budget };
+        report.capped = report.limit == GrowthLimit::Cap;
+        keep_best(&mut clone, &mut split, room, stats, cfg);
     }
     let mut born = Gaussians::with_len(0)?;
     for &i in &clone {
@@ -197,15 +248,7 @@ pub fn trim_unobserved(g: &mut Gaussians, adam: &mut Adam, stats: &mut DensifySt
     let removed = retain_rows(g, adam, &mut keep)?;
     if removed > 0 {
         // Keep the accumulated statistics of the survivors.
-        let filter = |v: &mut Vec<f32>| {
-            let mut k = keep.iter();
-            v.retain(|_| *k.next().unwrap_or(&false));
-        };
-        filter(&mut stats.grad_sum);
-        filter(&mut stats.abs_grad_sum);
-        filter(&mut stats.max_radius);
-        let mut k = keep.iter();
-        stats.visible_count.retain(|_| *k.next().unwrap_or(&false));
+        stats.retain(&keep);
     }
     Ok(removed)
 }
@@ -239,7 +282,7 @@ mod tests {
         st.visible_count = vec![1, 1, 1, 1];
         let cfg = DensifyConfig { percent_dense: 0.1, ..Default::default() };
         let mut rng = Rng::new(1);
-        let r = densify_and_prune(&mut g, &mut adam, &mut st, &cfg, 1.0, false, 100, &mut rng).unwrap();
+        let r = densify_and_prune(&mut g, &mut adam, &mut st, &cfg, 1.0, false, Growth { target: usize::MAX, cap: 100 }, &mut rng).unwrap();
         assert_eq!((r.cloned, r.split, r.pruned, r.capped), (1, 1, 1, false));
         // 4 + 1 clone + 2 children − 1 parent − 1 pruned = 5.
         assert_eq!(g.len(), 5);
@@ -259,8 +302,20 @@ mod tests {
         let mut st = DensifyStats::new(4);
         st.grad_sum = vec![1.0; 4];
         st.visible_count = vec![1; 4];
-        let r = densify_and_prune(&mut g, &mut adam, &mut st, &DensifyConfig::default(), 100.0, false, 6, &mut Rng::new(0)).unwrap();
-        assert!(r.capped && r.cloned == 2 && g.len() == 6);
+        st.grad_sum[2] = 2.0;
+        let growth = Growth { target: usize::MAX, cap: 6 };
+        let r = densify_and_prune(&mut g, &mut adam, &mut st, &DensifyConfig::default(), 100.0, false, growth, &mut Rng::new(0)).unwrap();
+        assert!(r.capped && r.cloned == 2 && g.len() == 6 && r.limit == GrowthLimit::Cap);
+        // The best-scoring candidates are densified: Gaussian 2 (score 2) and then 0 (ties by index).
+        assert_eq!(g.sh.iter().map(|s| s[0][0]).collect::<Vec<_>>(), vec![0.0, 1.0, 2.0, 3.0, 0.0, 2.0]);
+        // The schedule's target below the cap: the budget limits.
+        let (mut g, mut adam) = model(4);
+        let mut st = DensifyStats::new(4);
+        st.grad_sum = vec![1.0; 4];
+        st.visible_count = vec![1; 4];
+        let growth = Growth { target: 5, cap: 100 };
+        let r = densify_and_prune(&mut g, &mut adam, &mut st, &DensifyConfig::default(), 100.0, false, growth, &mut Rng::new(0)).unwrap();
+        assert!(!r.capped && r.cloned == 1 && g.len() == 5 && r.limit == GrowthLimit::Budget);
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //! reference for any executor that runs the terms elsewhere (a GPU executor implements the same
 //! plan and must match it).
 
-use crate::caches::photo;
+use crate::caches::{downscaled_camera, photo};
 use crate::error::{Result, TrainError};
 use crate::params::{Param, adam_step, set_lr};
 use crate::plan::StepPlan;
@@ -49,7 +49,11 @@ impl Trainer<'_> {
         let it = plan.iteration;
         set_lr(&mut self.state.adam, Param::Means, plan.lr_means)?;
         self.prepare_caches(plan)?;
-        let camera = &self.scene.views[plan.view].camera;
+        let small = downscaled_camera(&self.scene.views[plan.view].camera, plan.scale)?;
+        let camera = if plan.scale > 1 { &small } else { &self.scene.views[plan.view].camera };
+        if plan.scale > 1 {
+            self.caches.ensure_scaled(plan.slot, &self.scene.views[plan.view].image, plan.scale, camera)?;
+        }
         let out = self.rasterizer.render(&self.state.gaussians, camera, &plan.render, &self.raster)?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
@@ -71,7 +75,7 @@ impl Trainer<'_> {
             .collect();
         let inputs = TermInputs {
             camera,
-            photo: &self.scene.views[plan.view].image,
+            photo: self.caches.scaled(plan.slot, plan.scale).unwrap_or(&self.scene.views[plan.view].image),
             render: &out,
             color: corrected.as_ref().unwrap_or(rendered),
             guide: self.caches.guide_of(plan.slot),
@@ -100,7 +104,7 @@ impl Trainer<'_> {
         };
         let g = self.rasterizer.backward(&self.state.gaussians, camera, &self.raster, &out, &grads.as_output(Some(&grad_color)))?;
         if plan.refine.accumulate {
-            self.state.stats.accumulate(&out.radii, &g);
+            self.state.stats.accumulate(&out.radii, &g, plan.scale as f32);
         }
         adam_step(&mut self.state.adam, &mut self.state.gaussians, &g, it)?;
         Ok(values)

@@ -29,6 +29,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod budget;
 pub mod caches;
 pub mod checkpoint;
 pub mod config;
@@ -37,6 +38,7 @@ pub mod error;
 pub mod evaluate;
 mod executor;
 pub mod exposure;
+pub mod floaters;
 pub mod init;
 pub mod mesh;
 pub mod model;
@@ -48,10 +50,12 @@ pub mod terms;
 pub mod trainer;
 
 pub use config::{DensifyConfig, InitMode, LearningRates, LossSwitches, LossWeights, Phase, Preset, ShPolicy, TrainConfig};
-pub use densify::{DensifyReport, DensifyStats};
+pub use budget::{Budget, GrowthLimit};
+pub use densify::{DensifyReport, DensifyStats, Growth};
 pub use error::{Result, TrainError};
 pub use evaluate::{ImageMetrics, ViewMetrics, evaluate_images};
 pub use exposure::{Exposure, ExposureParams};
+pub use floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
 pub use mesh::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, MeshReport, default_voxel, extract_mesh, fuse_mesh};
 pub use model::TrainedModel;
 pub use params::Param;

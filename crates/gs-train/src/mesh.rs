@@ -1,8 +1,10 @@
 //! Surface extraction (method-spec §8), one path for every depth source: depth maps (a trained
 //! model's rendered plane depths, or given maps such as ground truth) are fused into a TSDF,
 //! marching cubes extracts the surface and the clean-up keeps the components ≥ 50 triangles
-//! (or the largest). One default-voxel rule: r / 512 with r the extent of *all* the scene's
-//! cameras, so holding out views (`--eval`) does not change the voxel.
+//! (or the largest). One default-voxel rule ([`default_voxel`]): the world size of one pixel
+//! at the fused surfaces, measured on up to [`FOOTPRINT_PROBES`] evenly spaced views of the
+//! fusion itself, clamped to [r/1024, r/256] with r the extent of *all* the scene's cameras
+//! (r/512 when nothing is fused), so holding out views (`--eval`) does not change the clamp.
 
 use crate::error::{Result, TrainError};
 use crate::model::TrainedModel;
@@ -14,7 +16,7 @@ use serde::Serialize;
 /// Options of [`fuse_mesh`] (Open3D's names).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MeshOptions {
-    /// Voxel size v; `None` = [`default_voxel`].
+    /// Voxel size v; `None` = [`default_voxel`] of the fused views' pixel footprint.
     pub voxel_size: Option<f64>,
     /// Truncation; `None` = 4·v.
     pub sdf_trunc: Option<f64>,
@@ -80,9 +82,37 @@ pub struct MeshReport {
 /// A voxel finer than this fraction of the pixel footprint draws a warning from callers.
 pub const FINE_VOXEL_FRACTION: f64 = 0.75;
 
-/// The default voxel of a scene: r / 512 with r the extent of all its cameras.
-pub fn default_voxel(scene: &Scene) -> f64 {
-    scene.extent() / 512.0
+/// Views whose depth maps measure the pixel footprint before a fusion with the default voxel.
+pub const FOOTPRINT_PROBES: usize = 8;
+
+/// The default voxel: the pixel `footprint` (median depth / fx) when known — finer only fuses
+/// per-pixel depth noise, coarser loses detail the images hold — clamped to [r/1024, r/256]
+/// (memory, sanity) with r the extent of all the scene's cameras; r/512 without a footprint.
+pub fn default_voxel(scene: &Scene, footprint: Option<f64>) -> f64 {
+    let r = scene.extent();
+    match footprint {
+        Some(f) if f.is_finite() && f > 0.0 => f.clamp(r / 1024.0, r / 256.0),
+        _ => r / 512.0,
+    }
+}
+
+/// Median of the positive depths of `depth` divided by `fx`, or `None` when it has none.
+fn median_footprint(depth: &Image, fx: f64) -> Option<f64> {
+    let mut d: Vec<f32> = depth.data().iter().copied().filter(|z| z.is_finite() && *z > 0.0).collect();
+    if d.is_empty() {
+        return None;
+    }
+    let mid = d.len() / 2;
+    Some(*d.select_nth_unstable_by(mid, f32::total_cmp).1 as f64 / fx)
+}
+
+/// Median of `values` (None when empty).
+fn median(mut values: Vec<f64>) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let mid = values.len() / 2;
+    Some(*values.select_nth_unstable_by(mid, f64::total_cmp).1)
 }
 
 /// Where the depth maps of a fusion come from.
@@ -126,7 +156,23 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     if views.is_empty() {
         return Err(TrainError::InvalidScene("no views to fuse into a mesh".into()));
     }
-    let voxel = opts.voxel_size.unwrap_or_else(|| default_voxel(scene));
+    let (mut render_s, mut fuse_s) = (0.0, 0.0);
+    // Without a given voxel, the first views' depth maps (kept for the fusion) measure the footprint.
+    let mut probed: Vec<(usize, Image, Option<Image>)> = Vec::new();
+    if opts.voxel_size.is_none() {
+        let t0 = std::time::Instant::now();
+        for k in 0..FOOTPRINT_PROBES.min(views.len()) {
+            let i = views[k * views.len() / FOOTPRINT_PROBES.min(views.len())];
+            let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
+            let (depth, color) = source.depth_of(i, view, opts.min_alpha)?;
+            probed.push((i, depth, color));
+        }
+        render_s += t0.elapsed().as_secs_f64();
+    }
+    let probe_footprint = median(
+        probed.iter().filter_map(|(i, d, _)| median_footprint(d, scene.views[*i].camera.intrinsics.fx)).collect(),
+    );
+    let voxel = opts.voxel_size.unwrap_or_else(|| default_voxel(scene, probe_footprint));
     let depth_trunc = opts.depth_trunc.unwrap_or(3.0 * scene.extent());
     let config = TsdfConfig {
         voxel_size: voxel,
@@ -137,12 +183,17 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         with_color: true,
     };
     let mut volume = TsdfVolume::new(config)?;
-    let (mut render_s, mut fuse_s) = (0.0, 0.0);
     let mut footprints = Vec::with_capacity(views.len());
     for &i in views {
         let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
         let t0 = std::time::Instant::now();
-        let (depth, color) = source.depth_of(i, view, opts.min_alpha)?;
+        let (depth, color) = match probed.iter().position(|(p, _, _)| *p == i) {
+            Some(k) => {
+                let (_, d, c) = probed.swap_remove(k);
+                (d, c)
+            }
+            None => source.depth_of(i, view, opts.min_alpha)?,
+        };
         let t1 = std::time::Instant::now();
         let mask = if opts.use_masks { view.mask.as_ref() } else { None };
         let fused = volume
@@ -168,10 +219,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         triangles: mesh.triangles.len(),
         render_seconds: render_s,
         fuse_seconds: fuse_s,
-        pixel_footprint: (!footprints.is_empty()).then(|| {
-            let mid = footprints.len() / 2;
-            *footprints.select_nth_unstable_by(mid, f64::total_cmp).1
-        }),
+        pixel_footprint: median(footprints),
     };
     Ok((mesh, report))
 }

@@ -33,6 +33,8 @@ pub struct RefinePlan {
     pub reset_opacity: bool,
     /// Multi-view trim.
     pub trim: bool,
+    /// Free-space floater removal (before the opacity reset).
+    pub remove_floaters: bool,
 }
 
 /// What iteration `iteration` does.
@@ -46,6 +48,8 @@ pub struct StepPlan {
     pub view: usize,
     /// Active terms.
     pub phase: Phase,
+    /// Render at 1/scale of the training size (coarse-to-fine, colour warm-up only).
+    pub scale: u32,
     /// Learning rate of the means this iteration.
     pub lr_means: f32,
     /// Training slots of the source views of L_p / L_f (empty when neither is on).
@@ -110,7 +114,9 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
     };
     let slot = view_slot(config.seed, train_views.len(), it);
     let phase = config.phase(it);
-    let sources = if phase.photometric || phase.features { selector.select(slot, &mut rng) } else { Vec::new() };
+    let multiview_now = it % config.multiview_interval == 0;
+    let sources =
+        if (phase.photometric || phase.features) && multiview_now { selector.select(slot, &mut rng) } else { Vec::new() };
     let photometric = (phase.photometric && !sources.is_empty()).then(|| PhotometricConfig {
         patch_size: config.patch_size,
         ncc: config.ncc,
@@ -138,22 +144,27 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         tau: w.tau,
     };
     let d = &config.densify;
-    let refine = if it <= d.until {
+    let mut refine = if it <= d.until {
         RefinePlan {
             accumulate: true,
             densify: it > d.from && it % d.interval == 0,
             prune_big: it > d.prune_big_after,
             reset_opacity: d.opacity_reset_interval > 0 && it % d.opacity_reset_interval == 0 && it < d.until,
             trim: d.trim_interval > 0 && it % d.trim_interval == 0,
+            remove_floaters: false,
         }
     } else {
         RefinePlan::default()
     };
+    // Floaters: with the trims once the surfaces have formed (after the colour warm-up), and
+    // after the last iteration so the model handed out carries none.
+    refine.remove_floaters = d.floaters.enabled && ((refine.trim && it > config.warmup_end) || it == config.iterations);
     StepPlan {
         iteration: it,
         slot,
         view: train_views[slot],
         phase,
+        scale: if geometry { 1 } else { config.coarse_to_fine.scale(it) },
         lr_means: lr_means as f32,
         sources,
         render,

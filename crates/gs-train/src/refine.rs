@@ -18,6 +18,8 @@ pub struct RefineReport {
     pub trimmed: Option<usize>,
     /// Whether the opacity was reset.
     pub opacity_reset: bool,
+    /// Free-space floaters removed, when the removal ran.
+    pub floaters: Option<crate::floaters::FloaterReport>,
 }
 
 impl Trainer<'_> {
@@ -36,12 +38,17 @@ impl Trainer<'_> {
                 &self.config.densify,
                 self.extent as f32,
                 r.prune_big,
-                self.config.max_gaussians,
+                densify::Growth { target: self.budget.target(plan.iteration, &self.config.densify), cap: self.config.max_gaussians },
                 &mut rng,
             )?;
             s.capped |= d.capped;
             report.densify = Some(d);
         }
+        if r.remove_floaters {
+            let rule = self.config.densify.floaters;
+            report.floaters = Some(self.remove_floaters(&rule)?);
+        }
+        let s = &mut self.state;
         if r.reset_opacity {
             densify::reset_opacity(&mut s.gaussians, &mut s.adam)?;
             report.opacity_reset = true;

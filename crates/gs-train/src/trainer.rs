@@ -7,6 +7,7 @@
 //! the iteration (see [`crate::plan`]), so the state to checkpoint is only the parameters, the
 //! optimiser and the statistics — and a resumed run continues bit-identically.
 
+use crate::budget::Budget;
 use crate::caches::ViewCaches;
 use crate::config::{Phase, TrainConfig};
 use crate::densify::{DensifyReport, DensifyStats};
@@ -41,6 +42,8 @@ pub struct StepReport {
     pub trimmed: Option<usize>,
     /// Whether the opacity was reset.
     pub opacity_reset: bool,
+    /// Free-space floaters removed, when the removal ran.
+    pub floaters: Option<crate::floaters::FloaterReport>,
     /// The judgement of an SH band ([`crate::ShPolicy::Adaptive`]), when one was made.
     pub sh_band: Option<ShBandDecision>,
 }
@@ -76,6 +79,7 @@ pub struct Trainer<'s> {
     selector: SourceViewSelector,
     pub(crate) state: TrainState,
     pub(crate) caches: ViewCaches,
+    pub(crate) budget: Budget,
 }
 
 fn check_scene(scene: &Scene, train_views: &[usize]) -> Result<()> {
@@ -99,6 +103,12 @@ fn check_scene(scene: &Scene, train_views: &[usize]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The budget of a run over `train_views` starting from `init`.
+fn budget_of(scene: &Scene, train_views: &[usize], config: &TrainConfig, init: &Gaussians) -> Budget {
+    let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
+    Budget::of_scene(&cams, init, &config.densify, config.max_gaussians, config.near)
 }
 
 /// Checks that a state fits the configuration and the number of training views.
@@ -136,19 +146,23 @@ impl<'s> Trainer<'s> {
         let n = gaussians.len();
         let adam = crate::params::new_optimiser(&config.lr, n)?;
         let exposure = if config.exposure { Some(Exposure::new(train_views.len())?) } else { None };
+        let budget = budget_of(scene, &train_views, &config, &gaussians);
         let state = TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false, exposure };
-        Self::assemble(scene, train_views, config, state)
+        Self::assemble(scene, train_views, config, state, budget)
     }
 
     /// Continues from a checkpointed state (same scene, split and configuration).
     pub fn with_state(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, state: TrainState) -> Result<Self> {
         config.validate()?;
         check_scene(scene, &train_views)?;
-        Self::assemble(scene, train_views, config, state)
+        // The budget depends only on the scene and the (deterministic) initialisation.
+        let (init, _) = initial_gaussians(scene, config.init, config.random_points, config.seed)?;
+        let budget = budget_of(scene, &train_views, &config, &init);
+        Self::assemble(scene, train_views, config, state, budget)
     }
 
     /// The trainer around a checked configuration, scene and state.
-    fn assemble(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, state: TrainState) -> Result<Self> {
+    fn assemble(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, state: TrainState, budget: Budget) -> Result<Self> {
         check_state(&config, &state, train_views.len())?;
         let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
         let extent = gs_core::scene_extent(&cams).max(1e-9);
@@ -165,7 +179,13 @@ impl<'s> Trainer<'s> {
             extent,
             selector,
             state,
+            budget,
         })
+    }
+
+    /// The scene's Gaussian budget ([`crate::budget`]).
+    pub fn budget(&self) -> &Budget {
+        &self.budget
     }
 
     /// The configuration.
@@ -315,6 +335,7 @@ impl<'s> Trainer<'s> {
             densify: refined.densify,
             trimmed: refined.trimmed,
             opacity_reset: refined.opacity_reset,
+            floaters: refined.floaters,
             sh_band,
         })
     }

@@ -237,6 +237,14 @@ pub struct TrainReport {
     pub sh_degree: u32,
     /// The adaptive SH policy's band judgements of this run (empty on the schedule).
     pub sh_bands: Vec<gs_train::ShBandDecision>,
+    /// The scene's Gaussian budget (training pixels, views per surface point, B).
+    pub budget: gs_train::Budget,
+    /// Final Gaussians per training pixel.
+    pub gaussians_per_training_pixel: f64,
+    /// Why the model stopped growing, in words.
+    pub growth_stopped: String,
+    /// Free-space floaters removed over this process's run (see gs_train::floaters).
+    pub floaters_removed: usize,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
 }
@@ -339,10 +347,17 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
+    let b = *trainer.budget();
+    if b.active {
+        eprintln!(
+            "Gaussian budget: {} ({} per surface pixel × {:.0} training pixels ÷ {:.1} views per point)",
+            b.gaussians, config.densify.gaussians_per_surface_pixel, b.training_pixels as f64, b.views_per_point
+        );
+    }
 
     let mut elapsed = earlier.unwrap_or_default();
     let t0 = Instant::now();
-    let Looped { last, sh_bands } = train_loop(args, &config, &mut trainer, &mut elapsed)?;
+    let Looped { last, sh_bands, growth, floaters_removed } = train_loop(args, &config, &mut trainer, &mut elapsed)?;
     let ckpt_path = out.join("checkpoint.bin");
     let segment_seconds = t0.elapsed().as_secs_f64();
     let train_seconds = elapsed.total();
@@ -367,6 +382,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         cache_bytes: trainer.cache_bytes(),
         sh_degree: trainer.gaussians().sh_degree,
         sh_bands,
+        budget: b,
+        gaussians_per_training_pixel: trainer.gaussians().len() as f64 / b.training_pixels.max(1) as f64,
+        growth_stopped: growth_stopped(growth, &b, trainer.gaussians().len()),
+        floaters_removed,
         last,
     };
     write_json(&out.join("report.json"), &report)?;
@@ -411,6 +430,23 @@ fn write_exposure(out: &Path, run_config: &RunConfig, trainer: &Trainer) -> Resu
 struct Looped {
     last: Option<StepReport>,
     sh_bands: Vec<gs_train::ShBandDecision>,
+    /// The iteration and the limit of the last densification step.
+    growth: Option<(u64, gs_train::GrowthLimit)>,
+    /// Floaters removed.
+    floaters_removed: usize,
+}
+
+/// Why the model stopped growing, from the last densification step of this process.
+fn growth_stopped(last: Option<(u64, gs_train::GrowthLimit)>, b: &gs_train::Budget, n: usize) -> String {
+    match last {
+        None => "no densification step ran in this process".into(),
+        Some((it, limit)) => format!(
+            "the last densification step (iteration {it}) was bounded by {}; {n} Gaussians for a budget of {}{}",
+            limit.describe(),
+            b.gaussians,
+            if b.active { "" } else { " (no budget: ρ = 0)" }
+        ),
+    }
 }
 
 /// The training loop with progress (a bar on a terminal, else a line every 500 iterations),
@@ -441,6 +477,8 @@ fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, ela
     let mut checkpoint_error: Option<anyhow::Error> = None;
     let mut warned_cap = false;
     let mut sh_bands = Vec::new();
+    let mut growth = None;
+    let mut floaters_removed = 0;
     let t0 = Instant::now();
     let mut t_prev = Instant::now();
     trainer.run(|tr, r| {
@@ -469,6 +507,21 @@ fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, ela
                 b.degree
             ));
         }
+        if let Some(d) = r.densify {
+            growth = Some((r.iteration, d.limit));
+        }
+        if let Some(f) = r.floaters
+            && f.removed() > 0
+        {
+            floaters_removed += f.removed();
+            notice(format!(
+                "[{:>6}] removed {} floaters ({} seen through by training views, {} in no training view)",
+                r.iteration,
+                f.removed(),
+                f.see_through,
+                f.outside_all_frusta
+            ));
+        }
         if r.densify.is_some_and(|d| d.capped) && !warned_cap {
             warned_cap = true;
             notice(format!("warning: reached --max-gaussians {}; densification stops", config.max_gaussians));
@@ -489,5 +542,5 @@ fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, ela
     if let Some(e) = checkpoint_error {
         return Err(e.context(format!("writing {}", ckpt_path.display())));
     }
-    Ok(Looped { last, sh_bands })
+    Ok(Looped { last, sh_bands, growth, floaters_removed })
 }

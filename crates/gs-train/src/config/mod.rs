@@ -4,8 +4,11 @@
 use serde::{Deserialize, Serialize};
 
 mod overrides;
+mod resolution;
 mod summary;
 mod validate;
+
+pub use resolution::CoarseToFine;
 
 
 /// Named settings for typical scenes (method-spec §4, §7).
@@ -178,6 +181,25 @@ pub struct DensifyConfig {
     pub trim_interval: u64,
     /// Gaussians observed in fewer views than this are trimmed.
     pub trim_min_views: u32,
+    /// ρ of the scene's budget B = ρ · training pixels ÷ views per surface point
+    /// ([`crate::budget`]); 0 = no budget (the thresholds and `max_gaussians` alone).
+    #[serde(default = "default_gaussians_per_surface_pixel")]
+    pub gaussians_per_surface_pixel: f32,
+    /// Growth reaches the budget after this fraction of [from, until] (Taming 3DGS' schedule).
+    #[serde(default = "default_growth_window")]
+    pub growth_window: f32,
+    /// Free-space floater removal ([`crate::floaters`]), run with the multi-view trims of the
+    /// geometry phases and after the last iteration.
+    #[serde(default)]
+    pub floaters: crate::floaters::FloaterRule,
+}
+
+fn default_gaussians_per_surface_pixel() -> f32 {
+    1.0
+}
+
+fn default_growth_window() -> f32 {
+    0.6
 }
 
 impl Default for DensifyConfig {
@@ -197,6 +219,9 @@ impl Default for DensifyConfig {
             opacity_reset_interval: 3000,
             trim_interval: 1000,
             trim_min_views: 2,
+            gaussians_per_surface_pixel: default_gaussians_per_surface_pixel(),
+            growth_window: default_growth_window(),
+            floaters: crate::floaters::FloaterRule::default(),
         }
     }
 }
@@ -269,6 +294,17 @@ pub struct TrainConfig {
     pub background: [f32; 3],
     /// Near plane of the rasterizer.
     pub near: f32,
+    /// Render resolution of the colour warm-up (coarse-to-fine); off = full size throughout.
+    #[serde(default)]
+    pub coarse_to_fine: CoarseToFine,
+    /// L_p and L_f run on every this-many-th iteration of their phases (1 = every iteration,
+    /// the paper); the other iterations skip the source views.
+    #[serde(default = "one_u64")]
+    pub multiview_interval: u64,
+}
+
+fn one_u64() -> u64 {
+    1
 }
 
 fn one_u32() -> u32 {
@@ -342,6 +378,8 @@ impl TrainConfig {
             random_points: 100_000,
             background: [0.0; 3],
             near: 0.01,
+            coarse_to_fine: CoarseToFine::default(),
+            multiview_interval: 1,
         };
         match preset {
             Preset::Dtu => base,
@@ -374,6 +412,7 @@ impl TrainConfig {
             photometric_end: s(self.photometric_end),
             features_end: s(self.features_end),
             sh_degree_interval: si(self.sh_degree_interval, 1),
+            coarse_to_fine: CoarseToFine { until: s(self.coarse_to_fine.until), ..self.coarse_to_fine },
             densify: DensifyConfig {
                 from: self.densify.from.min(until / 4),
                 until,

@@ -27,6 +27,13 @@ impl TrainConfig {
             self.ncc,
             p = self.patch_size
         ));
+        if self.multiview_interval > 1 {
+            s.push_str(&format!("; L_p/L_f every {} iterations", self.multiview_interval));
+        }
+        let c2f = &self.coarse_to_fine;
+        if c2f.levels > 0 && c2f.until > 0 {
+            s.push_str(&format!("; coarse-to-fine from 1/{} size to full by {}", 1u32 << c2f.levels, c2f.until));
+        }
         let off: Vec<&str> = [
             (l.edge, "edge"),
             (l.normal_consistency, "L_nc"),

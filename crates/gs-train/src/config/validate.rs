@@ -82,10 +82,40 @@ impl TrainConfig {
             ("densify.min_opacity", d.min_opacity),
             ("densify.max_screen_radius", d.max_screen_radius),
             ("densify.max_world_scale", d.max_world_scale),
+            ("densify.gaussians_per_surface_pixel", d.gaussians_per_surface_pixel),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(format!("{name} = {v} must be finite and ≥ 0"));
             }
+        }
+        let f = &d.floaters;
+        if !(f.fraction.is_finite() && (0.0..=1.0).contains(&f.fraction)) {
+            return bad(format!("densify.floaters.fraction = {} must be in [0, 1]", f.fraction));
+        }
+        if !(f.margin.is_finite() && (0.0..1.0).contains(&f.margin)) {
+            return bad(format!("densify.floaters.margin = {} must be in [0, 1)", f.margin));
+        }
+        if !(f.min_alpha.is_finite() && f.min_alpha > 0.0 && f.min_alpha <= 1.0) {
+            return bad(format!("densify.floaters.min_alpha = {} must be in (0, 1]", f.min_alpha));
+        }
+        if f.min_views == 0 {
+            return bad("densify.floaters.min_views must be positive".into());
+        }
+        if !(d.growth_window > 0.0 && d.growth_window <= 1.0) {
+            return bad(format!("densify.growth_window = {} must be in (0, 1]", d.growth_window));
+        }
+        let c2f = &self.coarse_to_fine;
+        if c2f.levels > 3 {
+            return bad(format!("coarse_to_fine.levels = {} must be ≤ 3", c2f.levels));
+        }
+        if c2f.levels > 0 && c2f.until > self.warmup_end {
+            return bad(format!(
+                "coarse_to_fine.until = {} must not pass warmup_end = {} (the geometry terms run at full size)",
+                c2f.until, self.warmup_end
+            ));
+        }
+        if self.multiview_interval == 0 {
+            return bad("multiview_interval must be positive".into());
         }
         if !(self.near > 0.0 && self.near.is_finite()) {
             return bad(format!("near = {} must be positive", self.near));

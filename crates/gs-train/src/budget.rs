@@ -1,0 +1,144 @@
+//! The Gaussian budget a scene sets ("model only what a scene requires").
+//!
+//! PGSR's fixed gradient thresholds grow a model until about one Gaussian per *training* pixel
+//! on a CPU-sized capture (946k for 35 × 240 × 180 pixels), and longer runs then give worse
+//! meshes. Here the size follows the scene instead:
+//!
+//! - **Surface pixels.** A capture of `P` training pixels in which a surface point is seen by
+//!   `K̄` training views on average holds about `P / K̄` distinct surface pixels. `K̄` is the
+//!   mean number of training frusta that contain an initial Gaussian (SfM points lie on the
+//!   seen surfaces; occlusion is ignored, so `K̄` is an upper bound and the budget errs small).
+//! - **The budget** `B = ρ · P / K̄`, ρ = `densify.gaussians_per_surface_pixel`, never below the
+//!   initial count and never above `max_gaussians` (the user's hard cap).
+//! - **Growth** is scheduled as in Taming 3DGS: the target rises linearly from the initial
+//!   count to `B` over the first `growth_window` of the densification window. Each step may add
+//!   at most `target − current` Gaussians, chosen where the images are still wrong (highest
+//!   accumulated screen-space gradient, [`crate::densify`]); when fewer Gaussians pass the
+//!   thresholds than the schedule allows, the residual error — not the budget — limits growth.
+
+use crate::config::DensifyConfig;
+use gs_core::{Camera, Gaussians};
+use serde::Serialize;
+
+/// What bounded one densification step's growth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GrowthLimit {
+    /// Every Gaussian over the error thresholds was densified: the residual error limits growth.
+    #[default]
+    Residual,
+    /// The scheduled target (rising to the budget) allowed fewer.
+    Budget,
+    /// The user's hard cap `max_gaussians` allowed fewer.
+    Cap,
+}
+
+impl GrowthLimit {
+    /// In words, for the run summary.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::Residual => "the residual error (no more Gaussians over the error thresholds)",
+            Self::Budget => "the scene's budget",
+            Self::Cap => "the --max-gaussians cap",
+        }
+    }
+}
+
+/// The Gaussian budget of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Budget {
+    /// Σ over training views of width × height, P.
+    pub training_pixels: u64,
+    /// Mean number of training frusta containing an initial Gaussian, K̄.
+    pub views_per_point: f64,
+    /// P / K̄.
+    pub surface_pixels: f64,
+    /// Gaussians at the start, N₀.
+    pub initial: usize,
+    /// The budget B (the initial count when budgets are off, ρ = 0: then only the thresholds
+    /// and the cap bound growth).
+    pub gaussians: usize,
+    /// Whether a budget applies (ρ > 0).
+    pub active: bool,
+}
+
+impl Budget {
+    /// The budget of `init` (the run's initial Gaussians) seen by the training cameras `cams`.
+    pub fn of_scene(cams: &[&Camera], init: &Gaussians, d: &DensifyConfig, max_gaussians: usize, near: f32) -> Self {
+        let training_pixels: u64 = cams.iter().map(|c| c.width as u64 * c.height as u64).sum();
+        let views_per_point = mean_frusta(cams, &init.means, near as f64).max(1.0);
+        let surface_pixels = training_pixels as f64 / views_per_point;
+        let initial = init.len();
+        let active = d.gaussians_per_surface_pixel > 0.0;
+        let gaussians = if active {
+            ((d.gaussians_per_surface_pixel as f64 * surface_pixels).round() as usize).max(initial).min(max_gaussians)
+        } else {
+            initial
+        };
+        Self { training_pixels, views_per_point, surface_pixels, initial, gaussians, active }
+    }
+
+    /// The most Gaussians densification may reach at 1-based iteration `it`: N₀ rising
+    /// linearly to B over `growth_window` of [from, until]; `usize::MAX` without a budget.
+    pub fn target(&self, it: u64, d: &DensifyConfig) -> usize {
+        if !self.active {
+            return usize::MAX;
+        }
+        let span = ((d.until.saturating_sub(d.from)) as f64 * d.growth_window.clamp(0.0, 1.0) as f64).max(1.0);
+        let f = (it.saturating_sub(d.from) as f64 / span).min(1.0);
+        let grow = self.gaussians.saturating_sub(self.initial) as f64;
+        self.initial + (grow * f).round() as usize
+    }
+}
+
+/// Mean over (at most 20,000 evenly strided) points of the number of cameras whose image
+/// contains the point in front of the near plane.
+fn mean_frusta(cams: &[&Camera], means: &[[f32; 3]], near: f64) -> f64 {
+    if means.is_empty() {
+        return 1.0;
+    }
+    let stride = means.len().div_ceil(20_000);
+    let mut total = 0u64;
+    let mut count = 0u64;
+    for m in means.iter().step_by(stride) {
+        let p = gs_core::glam::DVec3::new(m[0] as f64, m[1] as f64, m[2] as f64);
+        total += cams
+            .iter()
+            .filter(|c| c.world_to_camera(p).z > near && c.project(p).is_some_and(|(uv, _)| c.contains(uv)))
+            .count() as u64;
+        count += 1;
+    }
+    total as f64 / count as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_budget_follows_surface_pixels_and_the_schedule() {
+        let cams = gs_core::scene::camera_ring(8);
+        let mut g = Gaussians::with_len(0).unwrap();
+        for i in 0..100 {
+            g.push([0.01 * i as f32, 0.0, 0.0], [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 0.0, [[0.0; 3]; 16]);
+        }
+        let refs: Vec<&Camera> = cams.iter().collect();
+        let k = mean_frusta(&refs, &g.means, 0.01);
+        assert!(k > 1.0 && k <= 8.0, "{k}");
+        let d = DensifyConfig { gaussians_per_surface_pixel: 0.5, from: 100, until: 1100, growth_window: 0.5, ..Default::default() };
+        let b = Budget::of_scene(&refs, &g, &d, 1_000_000, 0.01);
+        let p: u64 = cams.iter().map(|c| c.width as u64 * c.height as u64).sum();
+        assert_eq!(b.training_pixels, p);
+        assert_eq!(b.gaussians, (0.5 * p as f64 / k).round() as usize);
+        assert!(b.gaussians > 100);
+        assert_eq!(b.target(100, &d), 100);
+        assert_eq!(b.target(600, &d), b.gaussians);
+        assert_eq!(b.target(5000, &d), b.gaussians);
+        let mid = b.target(350, &d);
+        assert!(mid > 100 && mid < b.gaussians);
+        // The cap wins; ρ = 0 switches the budget off.
+        assert_eq!(Budget::of_scene(&refs, &g, &d, 150, 0.01).gaussians, 150);
+        let off = Budget::of_scene(&refs, &g, &DensifyConfig { gaussians_per_surface_pixel: 0.0, ..d }, 1000, 0.01);
+        assert!(!off.active && off.target(500, &d) == usize::MAX);
+    }
+}

@@ -1,0 +1,267 @@
+//! Free-space floater removal: what no training view supports goes.
+//!
+//! A floater is a Gaussian in empty space — typically semi-transparent, in front of the
+//! surfaces, often close to a camera of the capture ring that no training view looks out of.
+//! Training views do not remove it on their own: where it is faint, the images barely change,
+//! and where it is outside every training frustum, no gradient reaches it. A held-out view
+//! looking through it sees a veil. The rule reasons about free space from the training views'
+//! own renders (rendered plane depth D and alpha A of method-spec §2):
+//!
+//! - For Gaussian i with centre μᵢ and training view v where μᵢ projects inside the image in
+//!   front of the near plane, at depth z, onto a pixel that renders a surface (A ≥ `min_alpha`,
+//!   D > 0):
+//!   - v **sees through** i when z < D·(1 − m) − 3·sᵢ (clearly in front of the surface that v
+//!     renders there; sᵢ the largest scale, m = `margin`),
+//!   - v **supports** i when z is within D·(1 ± m) ± 3·sᵢ,
+//!   - otherwise i is occluded in v (neutral).
+//! - i is a floater when at least `min_views` views see through it and they are at least
+//!   `fraction` of the views that see through or support it. The fraction protects the
+//!   silhouettes of real objects, whose centre pixels render the background in a few views.
+//! - i is also removed when it lies in no training frustum at all.
+//!
+//! Thin real structure survives: where it is opaque, the views render its own depth there and
+//! support it.
+
+use crate::error::{Result, TrainError};
+use crate::trainer::Trainer;
+use gs_core::glam::DVec3;
+use gs_core::{Camera, Gaussians, Image};
+use gs_raster::RenderRequest;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// The thresholds of the floater rule (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FloaterRule {
+    /// Remove floaters at all.
+    pub enabled: bool,
+    /// Fewest training views that must see through a Gaussian.
+    pub min_views: u32,
+    /// Smallest share of see-through views among see-through + supporting views.
+    pub fraction: f32,
+    /// Relative depth margin m.
+    pub margin: f32,
+    /// Pixels rendering less alpha than this carry no surface (neutral).
+    pub min_alpha: f32,
+}
+
+impl Default for FloaterRule {
+    fn default() -> Self {
+        Self { enabled: true, min_views: 2, fraction: 0.5, margin: 0.1, min_alpha: 0.5 }
+    }
+}
+
+/// What one floater removal found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct FloaterReport {
+    /// Gaussians in free space that training views see through.
+    pub see_through: usize,
+    /// Gaussians inside no training frustum.
+    pub outside_all_frusta: usize,
+}
+
+impl FloaterReport {
+    /// Gaussians removed.
+    pub fn removed(&self) -> usize {
+        self.see_through + self.outside_all_frusta
+    }
+}
+
+/// Per-Gaussian counts over the training views.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FreeSpaceVotes {
+    /// Views that see through the Gaussian.
+    pub through: Vec<u32>,
+    /// Views that render a surface at the Gaussian's depth.
+    pub support: Vec<u32>,
+    /// Views whose frustum holds the Gaussian's centre.
+    pub in_frustum: Vec<u32>,
+}
+
+impl FreeSpaceVotes {
+    /// Zero votes for `n` Gaussians.
+    pub fn new(n: usize) -> Self {
+        Self { through: vec![0; n], support: vec![0; n], in_frustum: vec![0; n] }
+    }
+
+    /// Adds the votes of one view: `depth` and `alpha` are its rendered plane depth and alpha
+    /// (1 channel, the camera's size), `near` the rasterizer's near plane.
+    pub fn add_view(&mut self, g: &Gaussians, camera: &Camera, depth: &Image, alpha: &Image, near: f32, rule: &FloaterRule) -> Result<()> {
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        for (name, img) in [("depth", depth), ("alpha", alpha)] {
+            if (img.width(), img.height(), img.channels()) != (w, h, 1) {
+                return Err(TrainError::InvalidScene(format!(
+                    "floater check: the {name} map is {}x{}x{}, its camera {w}x{h}x1",
+                    img.width(),
+                    img.height(),
+                    img.channels()
+                )));
+            }
+        }
+        if self.through.len() != g.len() {
+            return Err(TrainError::InvalidConfig(format!("floater check: votes for {} Gaussians, model has {}", self.through.len(), g.len())));
+        }
+        let m = rule.margin as f64;
+        let (d, a) = (depth.data(), alpha.data());
+        self.through
+            .par_iter_mut()
+            .zip(self.support.par_iter_mut())
+            .zip(self.in_frustum.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, ((through, support), in_frustum))| {
+                let mu = g.means[i];
+                let pc = camera.world_to_camera(DVec3::new(mu[0] as f64, mu[1] as f64, mu[2] as f64));
+                if pc.z <= near as f64 {
+                    return;
+                }
+                let uv = camera.project_camera(pc);
+                if !camera.contains(uv) {
+                    return;
+                }
+                *in_frustum += 1;
+                let p = uv.y as usize * w + uv.x as usize;
+                let (dp, ap) = (d[p] as f64, a[p]);
+                if !(ap >= rule.min_alpha && dp > 0.0 && dp.is_finite()) {
+                    return;
+                }
+                let slack = 3.0 * g.scale(i).into_iter().fold(0.0f32, f32::max) as f64;
+                if pc.z < dp * (1.0 - m) - slack {
+                    *through += 1;
+                } else if pc.z <= dp * (1.0 + m) + slack {
+                    *support += 1;
+                }
+            });
+        Ok(())
+    }
+
+    /// The keep mask of the rule and what it removes.
+    pub fn verdict(&self, rule: &FloaterRule) -> (Vec<bool>, FloaterReport) {
+        let mut report = FloaterReport::default();
+        let keep = (0..self.through.len())
+            .map(|i| {
+                let (t, s) = (self.through[i], self.support[i]);
+                if self.in_frustum[i] == 0 {
+                    report.outside_all_frusta += 1;
+                    false
+                } else if t >= rule.min_views && t as f32 >= rule.fraction * (t + s) as f32 {
+                    report.see_through += 1;
+                    false
+                } else {
+                    true
+                }
+            })
+            .collect();
+        (keep, report)
+    }
+}
+
+impl Trainer<'_> {
+    /// Renders every training view's plane depth and alpha and collects the free-space votes
+    /// of the current model.
+    pub fn free_space_votes(&mut self, rule: &FloaterRule) -> Result<FreeSpaceVotes> {
+        let mut votes = FreeSpaceVotes::new(self.state.gaussians.len());
+        let req = RenderRequest { color: false, alpha: true, plane_depth: true, ..RenderRequest::default() };
+        for &v in &self.train_views {
+            let camera = &self.scene.views[v].camera;
+            let out = self.rasterizer.render(&self.state.gaussians, camera, &req, &self.raster)?;
+            let (depth, alpha) = (out.plane_depth.expect("requested"), out.alpha.expect("requested"));
+            votes.add_view(&self.state.gaussians, camera, &depth, &alpha, self.raster.near, rule)?;
+        }
+        Ok(votes)
+    }
+
+    /// Removes the floaters of `rule` (Gaussians, optimiser rows and statistics together).
+    pub fn remove_floaters(&mut self, rule: &FloaterRule) -> Result<FloaterReport> {
+        let votes = self.free_space_votes(rule)?;
+        let (mut keep, report) = votes.verdict(rule);
+        let s = &mut self.state;
+        crate::densify::retain_rows(&mut s.gaussians, &mut s.adam, &mut keep)?;
+        s.stats.retain(&keep);
+        Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gs_core::camera::Intrinsics;
+    use gs_core::gaussians::inverse_sigmoid;
+    use gs_raster::{Backend, RasterConfig, Rasterizer};
+
+    /// Six cameras on a line looking at a wall 4 units away.
+    fn cameras() -> Vec<Camera> {
+        [-1.5, -0.9, -0.3, 0.3, 0.9, 1.5]
+            .iter()
+            .map(|&x| {
+                let k = Intrinsics::new(60.0, 60.0, 32.0, 24.0);
+                Camera::look_at(64, 48, k, DVec3::new(x, 0.0, 0.0), DVec3::new(0.0, 4.0, 0.0), DVec3::Z).unwrap()
+            })
+            .collect()
+    }
+
+    fn push(g: &mut Gaussians, at: [f32; 3], scale: [f32; 3], opacity: f32) {
+        let mut sh = [[0.0; 3]; 16];
+        sh[0] = [1.0, 0.5, 0.2];
+        g.push(at, scale.map(f32::ln), [1.0, 0.0, 0.0, 0.0], inverse_sigmoid(opacity), sh);
+    }
+
+    /// An opaque wall (y = 4), a thin opaque rod 1.5 units in front of it (about 2 px wide on
+    /// screen), a faint floater in free space and one behind every camera. Returns the model
+    /// and the index ranges of wall, rod and the two floaters.
+    fn scene() -> (Gaussians, std::ops::Range<usize>, std::ops::Range<usize>, [usize; 2]) {
+        let mut g = Gaussians::with_len(0).unwrap();
+        for ix in -15..=15 {
+            for iz in -12..=12 {
+                push(&mut g, [ix as f32 * 0.1, 4.0, iz as f32 * 0.1], [0.06, 0.005, 0.06], 0.95);
+            }
+        }
+        let wall = 0..g.len();
+        for iz in -50..=50 {
+            push(&mut g, [0.2, 2.5, iz as f32 * 0.02], [0.04; 3], 0.95);
+        }
+        let rod = wall.end..g.len();
+        let floaters = [g.len(), g.len() + 1];
+        push(&mut g, [-0.5, 2.0, 0.5], [0.05; 3], 0.3);
+        push(&mut g, [0.0, -3.0, 0.0], [0.05; 3], 0.5);
+        (g, wall, rod, floaters)
+    }
+
+    fn votes(g: &Gaussians, rule: &FloaterRule) -> FreeSpaceVotes {
+        let mut r = Rasterizer::new(Backend::Cpu).unwrap();
+        let cfg = RasterConfig::default();
+        let req = RenderRequest { color: false, alpha: true, plane_depth: true, ..RenderRequest::default() };
+        let mut v = FreeSpaceVotes::new(g.len());
+        for cam in cameras() {
+            let out = r.render(g, &cam, &req, &cfg).unwrap();
+            v.add_view(g, &cam, out.plane_depth.as_ref().unwrap(), out.alpha.as_ref().unwrap(), cfg.near, rule).unwrap();
+        }
+        v
+    }
+
+    #[test]
+    fn floaters_go_thin_structure_stays() {
+        let (g, wall, rod, [faint, behind]) = scene();
+        let rule = FloaterRule::default();
+        let v = votes(&g, &rule);
+        let (keep, report) = v.verdict(&rule);
+        assert!(!keep[faint], "faint floater kept: through {} support {}", v.through[faint], v.support[faint]);
+        assert!(!keep[behind] && v.in_frustum[behind] == 0);
+        assert_eq!((report.see_through, report.outside_all_frusta), (1, 1), "{report:?}");
+        assert!(wall.chain(rod.clone()).all(|i| keep[i]));
+        // The rod is supported by the views that see it, not merely left alone.
+        assert!(rod.clone().all(|i| v.support[i] >= 3), "{:?}", rod.map(|i| v.support[i]).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn one_view_is_not_enough_and_bad_maps_are_errors() {
+        let (g, _, _, [faint, _]) = scene();
+        let rule = FloaterRule { min_views: 7, ..FloaterRule::default() };
+        let (keep, _) = votes(&g, &rule).verdict(&rule);
+        assert!(keep[faint], "six views cannot reach min_views = 7");
+        let cam = &cameras()[0];
+        let wrong = Image::new(10, 10, 1).unwrap();
+        let ok = Image::new(64, 48, 1).unwrap();
+        let e = FreeSpaceVotes::new(g.len()).add_view(&g, cam, &wrong, &ok, 0.01, &rule).unwrap_err().to_string();
+        assert!(e.contains("depth map is 10x10x1"), "{e}");
+    }
+}
