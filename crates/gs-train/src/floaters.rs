@@ -10,9 +10,10 @@
 //! - For Gaussian i with centre μᵢ and training view v where μᵢ projects inside the image in
 //!   front of the near plane, at depth z, onto a pixel that renders a surface (A ≥ `min_alpha`,
 //!   D > 0):
-//!   - v **sees through** i when z < D·(1 − m) − 3·sᵢ (clearly in front of the surface that v
-//!     renders there; sᵢ the largest scale, m = `margin`),
-//!   - v **supports** i when z is within D·(1 ± m) ± 3·sᵢ,
+//!   - v **sees through** i when z < D·(1 − m) − 2·σᵢ (clearly in front of the surface that v
+//!     renders there; σᵢ = √(rᵀΣᵢr) the Gaussian's extent along the viewing ray r, so a flat
+//!     Gaussian lying on a surface is judged by its thickness; m = `margin`),
+//!   - v **supports** i when z is within D·(1 ± m) ± 2·σᵢ,
 //!   - otherwise i is occluded in v (neutral).
 //! - i is a floater when at least `min_views` views see through it and they are at least
 //!   `fraction` of the views that see through or support it. The fraction protects the
@@ -103,6 +104,7 @@ impl FreeSpaceVotes {
         }
         let m = rule.margin as f64;
         let (d, a) = (depth.data(), alpha.data());
+        let centre = camera.center();
         self.through
             .par_iter_mut()
             .zip(self.support.par_iter_mut())
@@ -124,7 +126,7 @@ impl FreeSpaceVotes {
                 if !(ap >= rule.min_alpha && dp > 0.0 && dp.is_finite()) {
                     return;
                 }
-                let slack = 3.0 * g.scale(i).into_iter().fold(0.0f32, f32::max) as f64;
+                let slack = 2.0 * extent_along(g, i, (DVec3::new(mu[0] as f64, mu[1] as f64, mu[2] as f64) - centre).normalize());
                 if pc.z < dp * (1.0 - m) - slack {
                     *through += 1;
                 } else if pc.z <= dp * (1.0 + m) + slack {
@@ -153,6 +155,15 @@ impl FreeSpaceVotes {
             .collect();
         (keep, report)
     }
+}
+
+/// σ = √(rᵀΣr) of Gaussian `i` along the unit direction `r` (Σ = R S² Rᵀ).
+fn extent_along(g: &Gaussians, i: usize, r: DVec3) -> f64 {
+    let rot = gs_core::gaussians::rotation_matrix(g.rotations[i]);
+    let s = g.scale(i);
+    let r = r.as_vec3();
+    let var: f32 = (0..3).map(|k| (s[k] * rot.col(k).dot(r)).powi(2)).sum();
+    var.sqrt() as f64
 }
 
 impl Trainer<'_> {

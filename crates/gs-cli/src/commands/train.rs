@@ -23,7 +23,7 @@ pub struct TrainArgs {
     /// Output folder (created): config.json, point_cloud.ply, report.json, checkpoint.bin.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Settings preset: fast, dtu (the default), tnt or mip360.
+    /// Settings preset: standard (the default), fast, or the paper's dtu, tnt and mip360.
     #[arg(long)]
     pub preset: Option<Preset>,
     /// Settings from a file (.toml or .json): a partial configuration (keys as for --set,

@@ -15,22 +15,28 @@ pub use resolution::CoarseToFine;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
-    /// Object-scale scenes (DTU): the paper's surface schedule, 20,000 iterations,
-    /// absolute-gradient split threshold 8e-4. The default.
+    /// The default: the `dtu` schedule compressed to 6,000 iterations for a CPU, with the
+    /// scene's Gaussian budget, a coarse-to-fine colour warm-up and L_p / L_f on every second
+    /// iteration. The best mesh in about a quarter of an hour on 2 cores for 40 views of
+    /// 480×360 (measured in BENCHMARKS.md).
     #[default]
+    Standard,
+    /// Object-scale scenes (DTU): the paper's surface schedule, 20,000 iterations,
+    /// absolute-gradient split threshold 8e-4.
     Dtu,
     /// Large scenes (Tanks and Temples): as `dtu` with the absolute-gradient threshold 1.5e-4.
     Tnt,
     /// Novel-view synthesis (Mip-NeRF 360): the 20,000-iteration surface schedule, then 10,000
     /// more with L_I and the normal terms; absolute-gradient threshold 2e-4.
     Mip360,
-    /// A quick look: the `dtu` schedule compressed to 3,000 iterations (every phase boundary
-    /// scaled) with 2 source views. Its accuracy cost is measured in BENCHMARKS.md.
+    /// A quick look: `standard` in 3,000 iterations with 2 source views. Its accuracy cost is
+    /// measured in BENCHMARKS.md.
     Fast,
 }
 
 gs_core::named_choices!(Preset, "preset", {
     Preset::Fast => "fast",
+    Preset::Standard => "standard",
     Preset::Dtu => "dtu",
     Preset::Tnt => "tnt",
     Preset::Mip360 => "mip360",
@@ -340,6 +346,11 @@ impl Default for TrainConfig {
 }
 
 
+/// Iterations of the `standard` preset.
+pub const STANDARD_ITERATIONS: u64 = 6_000;
+/// Iterations of the `fast` preset.
+pub const FAST_ITERATIONS: u64 = 3_000;
+
 /// Fewest iterations between two densification steps of a scaled schedule: a step judges the
 /// gradients accumulated since the last one, and fewer than this many iterations give noisy
 /// means that clone and split most of the model every step (a 20-iteration run once grew
@@ -389,7 +400,19 @@ impl TrainConfig {
                 densify: DensifyConfig { abs_grad_threshold: 2e-4, ..base.densify },
                 ..base
             },
-            Preset::Fast => Self { source_views: 2, ..base }.scaled(3_000),
+            Preset::Standard => base.cpu_schedule().scaled(STANDARD_ITERATIONS),
+            Preset::Fast => Self { source_views: 2, ..base.cpu_schedule() }.scaled(FAST_ITERATIONS),
+        }
+    }
+
+    /// The paper's schedule made for a CPU (the `standard` and `fast` presets): the colour
+    /// warm-up starts at half size and reaches full size halfway through it, and L_p / L_f run
+    /// on every second iteration of their phases.
+    fn cpu_schedule(self) -> Self {
+        Self {
+            coarse_to_fine: CoarseToFine { levels: 1, until: self.warmup_end / 2 },
+            multiview_interval: 2,
+            ..self
         }
     }
 
