@@ -26,7 +26,7 @@ fn a_runs_own_config_reproduces_it_byte_for_byte() {
     assert_eq!(std::fs::read(a.join("point_cloud.ply")).unwrap(), std::fs::read(b.join("point_cloud.ply")).unwrap());
     assert_eq!(std::fs::read_to_string(&cfg).unwrap(), std::fs::read_to_string(b.join("config.json")).unwrap());
     // The start-up line is words, not a Rust struct.
-    assert!(err.contains("config: preset dtu, 30 iterations: colour warm-up to") && !err.contains("LossSwitches"), "{err}");
+    assert!(err.contains("config: preset standard, 30 iterations: colour warm-up to") && !err.contains("LossSwitches"), "{err}");
 }
 
 #[test]
