@@ -50,6 +50,7 @@ pub mod atomic;
 pub mod colmap;
 pub mod error;
 pub mod exr;
+pub mod integrity;
 pub mod npy;
 pub mod obj;
 pub mod ply;
