@@ -186,6 +186,9 @@ pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
             .collect::<Result<_>>()?,
     };
     selected.sort_by(|a, b| a.name.cmp(&b.name));
+    if let Some(w) = selected.windows(2).find(|w| w[0].name == w[1].name) {
+        return Err(IoError::invalid(&model_dir, format!("image '{}' is selected twice", w[0].name)));
+    }
 
     // Pass 1 (headers only): file sizes, so cameras can be matched to the files' resolution.
     let sizes: Vec<(PathBuf, (u32, u32))> = selected

@@ -272,8 +272,9 @@ impl ColmapPoint3D {
 
 impl ColmapModel {
     /// Checks the model as a whole: at least one image; every camera, pose and point valid;
-    /// every image's camera exists; every track entry names an existing image and an existing
-    /// 2D point of it; every 2D point's 3D point exists. `paths` name the files in errors.
+    /// image names unique; every image's camera exists; every track entry names an existing
+    /// image and an existing 2D point of it; every 2D point's 3D point exists. `paths` name the
+    /// files in errors.
     pub fn validate(&self, paths: &ModelPaths) -> Result<()> {
         for cam in self.cameras.values() {
             cam.check().map_err(|m| IoError::format(&paths.cameras, m))?;
@@ -306,6 +307,7 @@ impl ColmapModel {
                 }
             }
         }
+        self.check_unique_names(paths)?;
         for pt in self.points3d.values() {
             pt.check().map_err(|m| IoError::format(&paths.points3d, m))?;
             for &(image_id, idx) in &pt.track {
@@ -325,6 +327,24 @@ impl ColmapModel {
                         ),
                     ));
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses two images with the same name: views, renders and run configurations are
+    /// keyed by name, so a duplicate would silently overwrite or shadow the other view.
+    fn check_unique_names(&self, paths: &ModelPaths) -> Result<()> {
+        let mut seen: std::collections::HashMap<&str, u32> = std::collections::HashMap::new();
+        for img in self.images.values() {
+            if let Some(first) = seen.insert(img.name.as_str(), img.id) {
+                return Err(IoError::invalid(
+                    &paths.images,
+                    format!(
+                        "images {first} and {} have the same name '{}' (every image needs its own file name)",
+                        img.id, img.name
+                    ),
+                ));
             }
         }
         Ok(())
