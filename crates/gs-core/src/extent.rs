@@ -58,7 +58,7 @@ fn robust_spread(positions: &[DVec3], min_for_outliers: usize) -> Spread {
         let dist: Vec<f64> = finite.iter().map(|&i| (positions[i] - centre).length()).collect();
         let m = median(&mut dist.clone());
         if m > 0.0 && m.is_finite() {
-            outliers.extend(finite.iter().zip(&dist).filter(|(_, d)| !(**d <= OUTLIER_FACTOR * m)).map(|(&i, _)| i));
+            outliers.extend(finite.iter().zip(&dist).filter(|(_, d)| !d.is_finite() || **d > OUTLIER_FACTOR * m).map(|(&i, _)| i));
             outliers.sort_unstable();
         }
     }
