@@ -33,8 +33,20 @@ pub struct RunConfig {
     pub train: TrainConfig,
 }
 
-/// Loads the scene a source describes (the built-in scene is regenerated deterministically).
+/// Loads the scene a source describes (the built-in scene is regenerated deterministically),
+/// printing the scene-extent warnings (outlier cameras left out, an extent taken from the
+/// sparse points) and refusing a scene whose cameras coincide with nothing else to set its scale.
 pub fn load_scene(src: &SceneSource) -> Result<Scene> {
+    let scene = load_scene_quietly(src)?;
+    let place = src.path.as_ref().map_or("the built-in scene".to_string(), |p| p.display().to_string());
+    for w in scene.check_extent().with_context(|| format!("loading scene {place}"))? {
+        eprintln!("warning: {place}: {w}");
+    }
+    Ok(scene)
+}
+
+/// [`load_scene`] without the scene-extent check.
+fn load_scene_quietly(src: &SceneSource) -> Result<Scene> {
     match &src.path {
         None => {
             if src.resolution_factor.is_some() || src.width.is_some() {
@@ -146,7 +158,7 @@ impl OpenRun {
         let train = view_indices(&scene, &config.train_views)?;
         let test = view_indices(&scene, &config.test_views)?;
         let cams: Vec<&gs_core::Camera> = train.iter().map(|&i| &scene.views[i].camera).collect();
-        let extent = gs_core::scene_extent(&cams);
+        let extent = gs_core::extent_report(&cams, &scene.points).radius;
         let raster = config.train.raster_config();
         Ok(Self { dir: dir.to_path_buf(), scene, gaussians, train, test, raster, extent })
     }

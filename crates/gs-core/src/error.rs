@@ -20,6 +20,9 @@ pub enum CoreError {
     /// A value outside its documented range (resource caps, absurd parameters).
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),
+    /// A scene that cannot be trained as given (e.g. no camera spread sets its scale).
+    #[error("invalid scene: {0}")]
+    InvalidScene(String),
 }
 
 /// Result alias of gs-core.

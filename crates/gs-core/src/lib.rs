@@ -17,6 +17,7 @@
 
 pub mod camera;
 pub mod error;
+pub mod extent;
 pub mod gaussians;
 pub mod gradcheck;
 pub mod half;
@@ -36,5 +37,6 @@ pub use image::Image;
 pub use mesh::TriangleMesh;
 pub use optim::{Adam, AdamConfig, ExponentialLr};
 pub use rng::Rng;
-pub use scene::{NeighbourRule, Scene, ScenePoint, View, scene_extent, source_view_candidates};
+pub use extent::{ExtentBasis, ExtentReport, extent_report, scene_extent};
+pub use scene::{NeighbourRule, Scene, ScenePoint, View, source_view_candidates};
 pub use glam;

@@ -5,6 +5,9 @@
 //! candidates of method-spec §1 and §7 live here so every crate computes them the same way.
 
 use crate::camera::Camera;
+use crate::error::Result;
+pub use crate::extent::scene_extent;
+use crate::extent::{ExtentReport, extent_report};
 use crate::image::Image;
 use glam::DVec3;
 
@@ -37,18 +40,6 @@ pub struct Scene {
     pub views: Vec<View>,
     /// Sparse points, possibly empty.
     pub points: Vec<ScenePoint>,
-}
-
-/// Scene extent r = 1.1 × the largest distance of a camera centre from the mean centre
-/// (method-spec §1, as 3DGS). A single camera gives r = 1.1 × 1 so thresholds stay usable.
-pub fn scene_extent(cameras: &[&Camera]) -> f64 {
-    if cameras.is_empty() {
-        return 1.1;
-    }
-    let centres: Vec<DVec3> = cameras.iter().map(|c| c.center()).collect();
-    let mean = centres.iter().copied().sum::<DVec3>() / centres.len() as f64;
-    let radius = centres.iter().map(|c| (*c - mean).length()).fold(0.0, f64::max);
-    1.1 * if radius > 0.0 { radius } else { 1.0 }
 }
 
 /// Parameters of the source-view candidate rule of method-spec §7.
@@ -103,9 +94,23 @@ impl Scene {
         self.views.iter().map(|v| &v.camera).collect()
     }
 
-    /// Scene extent r of method-spec §1.
+    /// Scene extent r of method-spec §1, robust to outlier and coincident cameras
+    /// ([`crate::extent`]).
     pub fn extent(&self) -> f64 {
-        scene_extent(&self.cameras())
+        self.extent_report().radius
+    }
+
+    /// The scene extent with what it was computed from and the outlier cameras left out.
+    pub fn extent_report(&self) -> ExtentReport {
+        extent_report(&self.cameras(), &self.points)
+    }
+
+    /// Checks that the scene has a scale: warnings in words naming outlier views and an extent
+    /// taken from the sparse points (for the caller to print), or an error when nothing sets
+    /// the scale (coincident cameras and no spread-out points).
+    pub fn check_extent(&self) -> Result<Vec<String>> {
+        let names: Vec<&str> = self.views.iter().map(|v| v.name.as_str()).collect();
+        self.extent_report().warnings(&names)
     }
 
     /// Indices of `(train, test)` views: with `eval`, every 8th view (index % 8 == 0, views

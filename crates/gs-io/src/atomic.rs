@@ -1,8 +1,17 @@
 //! Atomic file writes: write to a temporary file in the same folder, then rename.
+//!
+//! The temporary file is `.NAME.PID.tmp`. A process killed mid-write leaves its temporary file
+//! behind; the next write of the same target removes such leftovers of processes that no longer
+//! exist ([`remove_stale_temps`]).
 
 use crate::error::{IoError, Result};
 use std::io::{BufWriter, Write};
 use std::path::Path;
+use std::time::Duration;
+
+/// A leftover temporary file is removed only when it has not been modified for this long, so a
+/// live writer that `/proc` cannot see (another PID namespace sharing the folder) is spared.
+pub const STALE_TEMP_AGE: Duration = Duration::from_secs(10 * 60);
 
 /// Writes a file atomically: `write` fills a buffered temporary file next to `path`
 /// (same folder, so the rename is atomic), which is flushed, synced and renamed onto `path`.
@@ -17,6 +26,7 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
         .ok_or_else(|| IoError::invalid(path, "output path has no file name"))?
         .to_string_lossy()
         .into_owned();
+    remove_stale_temps(&dir, &file_name);
     let tmp = dir.join(format!(".{file_name}.{}.tmp", std::process::id()));
     let result = (|| -> std::io::Result<()> {
         let file = std::fs::File::create(&tmp)?;
@@ -31,6 +41,35 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
         return Err(IoError::io(path, e));
     }
     Ok(())
+}
+
+/// Removes `dir/.FILE_NAME.PID.tmp` files left by killed writes of the same target: PID is not
+/// this process, `/proc/PID` does not exist (Linux, with `/proc` mounted; elsewhere nothing is
+/// removed, as liveness cannot be told) and the file is older than [`STALE_TEMP_AGE`]. Best
+/// effort: a failure to list or remove never fails the write. Returns the files removed.
+pub fn remove_stale_temps(dir: &Path, file_name: &str) -> Vec<std::path::PathBuf> {
+    let mut removed = Vec::new();
+    let proc = Path::new("/proc");
+    if !cfg!(target_os = "linux") || !proc.join("self").exists() {
+        return removed;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return removed };
+    let prefix = format!(".{file_name}.");
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(|n| n.strip_prefix(&prefix)).and_then(|r| r.strip_suffix(".tmp")) else {
+            continue;
+        };
+        if pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) || pid.parse::<u32>().ok() == Some(std::process::id()) {
+            continue;
+        }
+        let Ok(meta) = entry.path().symlink_metadata() else { continue };
+        let old = meta.modified().ok().and_then(|m| m.elapsed().ok()).is_some_and(|age| age >= STALE_TEMP_AGE);
+        if meta.is_file() && old && !proc.join(pid).exists() && std::fs::remove_file(entry.path()).is_ok() {
+            removed.push(entry.path());
+        }
+    }
+    removed
 }
 
 #[cfg(test)]

@@ -50,6 +50,7 @@ pub mod atomic;
 pub mod colmap;
 pub mod error;
 pub mod exr;
+pub mod integrity;
 pub mod npy;
 pub mod obj;
 pub mod ply;
@@ -57,7 +58,7 @@ pub mod png;
 pub mod scene;
 pub mod undistort;
 
-pub use atomic::write_atomic;
+pub use atomic::{remove_stale_temps, write_atomic};
 pub use colmap::{ColmapModel, read_model};
 pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, model_summary};
 pub use error::{IoError, Result};

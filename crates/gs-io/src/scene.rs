@@ -92,7 +92,8 @@ pub fn find_model_dir(dir: &Path) -> Result<PathBuf> {
 }
 
 /// Decodes an 8- or 16-bit PNG/JPEG as RGB f32 (value / 255 or / 65535, grey replicated,
-/// alpha dropped).
+/// alpha dropped). A truncated or structurally broken file is an error naming it
+/// ([`crate::integrity`]), never a partial image.
 pub fn decode_rgb(path: &Path) -> Result<Image> {
     let img = open_checked(path)?;
     let (w, h) = (img.width() as usize, img.height() as usize);
@@ -136,7 +137,15 @@ fn open_checked(path: &Path) -> Result<image::DynamicImage> {
             format!("image {w}x{h} exceeds the cap of {} pixels", gs_core::image::MAX_IMAGE_PIXELS),
         ));
     }
-    image::open(path).map_err(|e| IoError::format(path, format!("cannot decode image: {e}")))
+    // Read once, check the container is complete (a cut JPEG would otherwise decode with grey
+    // rows), then decode the same bytes as `image::open` would (format from the extension).
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    crate::integrity::check_complete(path, &bytes)?;
+    let decode = || -> image::ImageResult<image::DynamicImage> {
+        let format = image::ImageFormat::from_path(path)?;
+        image::ImageReader::with_format(std::io::Cursor::new(&bytes), format).decode()
+    };
+    decode().map_err(|e| IoError::format(path, format!("cannot decode image: {e}")))
 }
 
 /// The mask file of an image name, if one exists: `masks/<stem>.png`, then `masks/<name>.png`.
@@ -177,6 +186,9 @@ pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
             .collect::<Result<_>>()?,
     };
     selected.sort_by(|a, b| a.name.cmp(&b.name));
+    if let Some(w) = selected.windows(2).find(|w| w[0].name == w[1].name) {
+        return Err(IoError::invalid(&model_dir, format!("image '{}' is selected twice", w[0].name)));
+    }
 
     // Pass 1 (headers only): file sizes, so cameras can be matched to the files' resolution.
     let sizes: Vec<(PathBuf, (u32, u32))> = selected

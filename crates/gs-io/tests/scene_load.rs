@@ -246,5 +246,9 @@ fn full_scenes_load() {
         assert!(s.views.iter().all(|v| (v.camera.width, v.camera.height) == size));
         assert!(s.views.windows(2).all(|w| w[0].name < w[1].name));
         assert_eq!(s.views.iter().all(|v| v.mask.is_some()), name != "fox");
+        // A normal capture: no outlier camera, the extent comes from the cameras.
+        let report = s.extent_report();
+        assert_eq!((report.basis, report.outliers.len()), (gs_core::ExtentBasis::Cameras, 0), "{name}");
+        assert!(s.check_extent().unwrap().is_empty(), "{name}");
     }
 }

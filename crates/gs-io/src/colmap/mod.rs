@@ -156,6 +156,11 @@ pub fn read_model(dir: &Path) -> Result<ColmapModel> {
     }
 }
 
+/// Largest accepted magnitude of a camera centre or point coordinate: far beyond any real
+/// capture (Earth-centred coordinates are ~6.4e6 m), small enough that squared distances and
+/// sums over thousands of cameras stay finite in f64 and positions finite in f32.
+pub const MAX_COORDINATE: f64 = 1e12;
+
 fn finite_all(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
@@ -239,7 +244,8 @@ impl ColmapCamera {
 }
 
 impl ColmapImage {
-    /// Checks that the pose is finite and the quaternion has a usable norm.
+    /// Checks that the pose is finite, the quaternion has a usable norm and the camera centre
+    /// lies within [`MAX_COORDINATE`] of the origin.
     pub fn check_pose(&self) -> std::result::Result<(), String> {
         if !finite_all(&self.qvec) || !finite_all(&self.tvec) {
             return Err(format!("image {} ({}): pose contains NaN or infinity", self.id, self.name));
@@ -247,6 +253,15 @@ impl ColmapImage {
         let n2: f64 = self.qvec.iter().map(|q| q * q).sum();
         if n2.sqrt() < 1e-12 {
             return Err(format!("image {} ({}): quaternion has zero norm", self.id, self.name));
+        }
+        // The centre -Rᵀt lies |t| from the origin; beyond the limit distances overflow.
+        let far = self.tvec.iter().map(|t| t.abs()).fold(0.0, f64::max);
+        if far > MAX_COORDINATE {
+            return Err(format!(
+                "image {} ({}): camera centre lies about {far:e} from the origin, beyond the limit of \
+                 {MAX_COORDINATE:e} (corrupt pose?)",
+                self.id, self.name
+            ));
         }
         Ok(())
     }
@@ -258,10 +273,18 @@ impl ColmapImage {
 }
 
 impl ColmapPoint3D {
-    /// Checks that the position and error are finite.
+    /// Checks that the position and error are finite and the position lies within
+    /// [`MAX_COORDINATE`] of the origin.
     pub fn check(&self) -> std::result::Result<(), String> {
         if !finite_all(&self.xyz) {
             return Err(format!("point {}: position contains NaN or infinity", self.id));
+        }
+        let far = self.xyz.iter().map(|x| x.abs()).fold(0.0, f64::max);
+        if far > MAX_COORDINATE {
+            return Err(format!(
+                "point {}: position lies about {far:e} from the origin, beyond the limit of {MAX_COORDINATE:e}",
+                self.id
+            ));
         }
         if !self.error.is_finite() {
             return Err(format!("point {}: error is NaN or infinite", self.id));
@@ -272,8 +295,9 @@ impl ColmapPoint3D {
 
 impl ColmapModel {
     /// Checks the model as a whole: at least one image; every camera, pose and point valid;
-    /// every image's camera exists; every track entry names an existing image and an existing
-    /// 2D point of it; every 2D point's 3D point exists. `paths` name the files in errors.
+    /// image names unique; every image's camera exists; every track entry names an existing
+    /// image and an existing 2D point of it; every 2D point's 3D point exists. `paths` name the
+    /// files in errors.
     pub fn validate(&self, paths: &ModelPaths) -> Result<()> {
         for cam in self.cameras.values() {
             cam.check().map_err(|m| IoError::format(&paths.cameras, m))?;
@@ -306,6 +330,7 @@ impl ColmapModel {
                 }
             }
         }
+        self.check_unique_names(paths)?;
         for pt in self.points3d.values() {
             pt.check().map_err(|m| IoError::format(&paths.points3d, m))?;
             for &(image_id, idx) in &pt.track {
@@ -325,6 +350,24 @@ impl ColmapModel {
                         ),
                     ));
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses two images with the same name: views, renders and run configurations are
+    /// keyed by name, so a duplicate would silently overwrite or shadow the other view.
+    fn check_unique_names(&self, paths: &ModelPaths) -> Result<()> {
+        let mut seen: std::collections::HashMap<&str, u32> = std::collections::HashMap::new();
+        for img in self.images.values() {
+            if let Some(first) = seen.insert(img.name.as_str(), img.id) {
+                return Err(IoError::invalid(
+                    &paths.images,
+                    format!(
+                        "images {first} and {} have the same name '{}' (every image needs its own file name)",
+                        img.id, img.name
+                    ),
+                ));
             }
         }
         Ok(())
