@@ -121,6 +121,11 @@ impl BlockCensus {
         Ok(())
     }
 
+    /// Probe views added so far.
+    pub fn probes(&self) -> usize {
+        self.probes
+    }
+
     /// Blocks the probes touch together (exact).
     pub fn probed_blocks(&self) -> u64 {
         self.all.len() as u64

@@ -39,6 +39,10 @@ pub struct MeshArgs {
     /// Fuse only inside the views' masks.
     #[arg(long)]
     pub masks: bool,
+    /// Refuse, before fusing, a mesh whose estimated memory exceeds this (e.g. 8GiB, 500MB;
+    /// default 60 % of the available memory, or of 4 GiB when /proc/meminfo is unreadable).
+    #[arg(long, value_parser = crate::memory::bytes_arg)]
+    pub max_memory: Option<u64>,
 }
 
 /// The depth map of view `name` in `dir` (see [`MeshArgs::depth_dir`]).
@@ -66,6 +70,7 @@ fn options(args: &MeshArgs) -> MeshOptions {
         max_normal_angle_deg: args.max_normal_angle,
         largest_component_only: args.largest,
         use_masks: args.masks,
+        max_memory: Some(crate::memory::limit(args.max_memory)),
         ..Default::default()
     }
 }
