@@ -40,3 +40,26 @@ fn mesh_memory_is_estimated_before_fusing() {
     let (ok, _, err) = vagsl(&["mesh", &run, "--max-memory", "3 parsecs"]);
     assert!(!ok && err.contains("unknown size unit"), "{err}");
 }
+
+#[test]
+fn bad_outputs_and_options_are_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("x");
+    let (ok, _, err) = vagsl(&["train", "-o", o.to_str().unwrap(), "--checkpoint-every", "0"]);
+    assert!(!ok && err.contains("--checkpoint-every") && err.contains("0 is not in 1.."), "{err}");
+    assert!(!o.exists(), "nothing trained");
+    let run = dir.path().join("run");
+    let r = run.to_str().unwrap();
+    let (ok, _, err) = vagsl(&["train", "-o", r, "--iterations", "4", "--backend", "cpu", "--quiet", "--eval"]);
+    assert!(ok, "{err}");
+    // mesh -o into a missing folder: refused before rendering or fusing.
+    let bad = dir.path().join("missing").join("m.ply");
+    let (ok, stdout, err) = vagsl(&["mesh", r, "--backend", "cpu", "-o", bad.to_str().unwrap()]);
+    assert!(!ok && err.contains("m.ply") && err.contains("does not exist"), "{err}");
+    assert!(!stdout.contains("triangles") && !err.contains("rasterizer"), "{stdout}{err}");
+    // eval-images whose result file cannot be written: the scores are printed, then the error.
+    std::fs::create_dir(run.join("eval_images.json")).unwrap();
+    let (ok, stdout, err) = vagsl(&["eval-images", r, "--backend", "cpu", "--no-lpips"]);
+    assert!(!ok && stdout.contains("mean over") && stdout.contains("PSNR"), "{stdout}");
+    assert!(err.contains("could not be saved") && err.contains("eval_images.json"), "{err}");
+}

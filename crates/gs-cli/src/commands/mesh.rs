@@ -80,6 +80,9 @@ fn options(args: &MeshArgs) -> MeshOptions {
 /// fusion path of [`fuse_mesh`].
 pub fn run(args: &MeshArgs) -> Result<()> {
     let opts = options(args);
+    if let Some(out) = &args.output {
+        check_writable(out)?;
+    }
     let (mesh, report, path) = match &args.depth_dir {
         Some(dir) => {
             let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
@@ -119,6 +122,26 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Fails, before any work, when `path`'s folder is missing or refuses a new file (probed with a
+/// hidden temporary file, removed again).
+fn check_writable(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!("{}: cannot write the mesh there: the folder {} does not exist", path.display(), dir.display());
+    }
+    let probe = dir.join(format!(".vagsl-write-test-{}", std::process::id()));
+    match std::fs::File::create(&probe) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => bail!("{}: cannot write the mesh there: {e}", path.display()),
+    }
 }
 
 fn report_path(mesh: &Path) -> PathBuf {
