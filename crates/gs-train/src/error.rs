@@ -29,6 +29,9 @@ pub enum TrainError {
         /// What became non-finite.
         problem: String,
     },
+    /// A job whose estimated memory exceeds the caller's limit (names both, and what to change).
+    #[error("{0}")]
+    MemoryLimit(String),
     /// Plain I/O on a named file.
     #[error("{path}: {source}")]
     Io {

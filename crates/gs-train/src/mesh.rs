@@ -10,7 +10,7 @@ use crate::error::{Result, TrainError};
 use crate::model::TrainedModel;
 use gs_core::{Image, Scene, TriangleMesh, View};
 use gs_raster::{Rasterizer, RenderRequest};
-use gs_tsdf::{ComponentFilter, TsdfConfig, TsdfVolume, clean_mesh};
+use gs_tsdf::{BlockCensus, ComponentFilter, MemoryEstimate, TsdfConfig, TsdfError, TsdfVolume, clean_mesh, format_bytes};
 use serde::Serialize;
 
 /// Options of [`fuse_mesh`] (Open3D's names).
@@ -33,6 +33,10 @@ pub struct MeshOptions {
     pub use_masks: bool,
     /// Block cap of the TSDF.
     pub max_blocks: usize,
+    /// Refuse a fusion whose estimated peak memory (bytes; see [`gs_tsdf::memory`]) exceeds
+    /// this, before allocating it; the block cap is lowered to what fits, so an estimate that
+    /// falls short still stops with an error. `None`: no estimate, only `max_blocks`.
+    pub max_memory: Option<u64>,
 }
 
 impl Default for MeshOptions {
@@ -46,6 +50,7 @@ impl Default for MeshOptions {
             largest_component_only: false,
             use_masks: false,
             max_blocks: TsdfConfig::default().max_blocks,
+            max_memory: None,
         }
     }
 }
@@ -159,7 +164,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     let (mut render_s, mut fuse_s) = (0.0, 0.0);
     // Without a given voxel, the first views' depth maps (kept for the fusion) measure the footprint.
     let mut probed: Vec<(usize, Image, Option<Image>)> = Vec::new();
-    if opts.voxel_size.is_none() {
+    if opts.voxel_size.is_none() || opts.max_memory.is_some() {
         let t0 = std::time::Instant::now();
         for k in 0..FOOTPRINT_PROBES.min(views.len()) {
             let i = views[k * views.len() / FOOTPRINT_PROBES.min(views.len())];
@@ -174,7 +179,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     );
     let voxel = opts.voxel_size.unwrap_or_else(|| default_voxel(scene, probe_footprint));
     let depth_trunc = opts.depth_trunc.unwrap_or(3.0 * scene.extent());
-    let config = TsdfConfig {
+    let mut config = TsdfConfig {
         voxel_size: voxel,
         sdf_trunc: opts.sdf_trunc,
         depth_trunc,
@@ -182,6 +187,10 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         max_normal_angle_deg: opts.max_normal_angle_deg,
         with_color: true,
     };
+    if let Some(limit) = opts.max_memory {
+        config.max_blocks = config.max_blocks.min((limit / MemoryEstimate::bytes_per_block(true)).max(1) as usize);
+        check_memory(scene, views.len(), &probed, &config, opts.use_masks, limit, probe_footprint)?;
+    }
     let mut volume = TsdfVolume::new(config)?;
     let mut footprints = Vec::with_capacity(views.len());
     for &i in views {
@@ -198,7 +207,17 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         let mask = if opts.use_masks { view.mask.as_ref() } else { None };
         let fused = volume
             .integrate_view(i, &view.camera, &depth, Some(color.as_ref().unwrap_or(&view.image)), mask)
-            .map_err(|e| TrainError::InvalidScene(format!("view '{}': {e}", view.name)))?;
+            .map_err(|e| match (e, opts.max_memory) {
+                (TsdfError::BlockCapExceeded { needed, .. }, Some(limit)) => TrainError::MemoryLimit(format!(
+                    "fusing view '{}' needs {needed} TSDF blocks, about {}, more than the memory limit of {}; \
+                     use a larger --voxel-size than {} or raise --max-memory",
+                    view.name,
+                    format_bytes(MemoryEstimate::for_blocks(needed as u64, true).peak_bytes()),
+                    format_bytes(limit),
+                    short(voxel)
+                )),
+                (e, _) => TrainError::InvalidScene(format!("view '{}': {e}", view.name)),
+            })?;
         footprints.extend(fused.median_depth.map(|z| z as f64 / view.camera.intrinsics.fx));
         render_s += (t1 - t0).as_secs_f64();
         fuse_s += t1.elapsed().as_secs_f64();
@@ -222,6 +241,56 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         pixel_footprint: median(footprints),
     };
     Ok((mesh, report))
+}
+
+/// A voxel size in few digits (`0.01293`, `1.000e-9`).
+fn short(v: f64) -> String {
+    if v.abs() >= 1e-3 { format!("{v:.5}") } else { format!("{v:.3e}") }
+}
+
+/// Refuses a fusion whose [`BlockCensus`] estimate over the `probed` depth maps exceeds `limit`
+/// bytes, naming the estimate, the limit and a voxel that would fit.
+fn check_memory(
+    scene: &Scene,
+    views: usize,
+    probed: &[(usize, Image, Option<Image>)],
+    config: &TsdfConfig,
+    use_masks: bool,
+    limit: u64,
+    footprint: Option<f64>,
+) -> Result<()> {
+    let voxel = config.voxel_size;
+    let refuse = |what: String, blocks: u64| {
+        let bytes = MemoryEstimate::for_blocks(blocks, true).peak_bytes();
+        // Blocks scale as 1/voxel² on a surface sheet; never suggest finer than a pixel.
+        let fits = voxel * (1.1 * bytes as f64 / limit as f64).sqrt();
+        let fits = footprint.map_or(fits, |f| fits.max(f));
+        TrainError::MemoryLimit(format!(
+            "{what} at voxel size {} needs about {} ({blocks} TSDF blocks of {} each, with marching cubes), \
+             more than the memory limit of {}; use --voxel-size {fits:.3e} or larger, or raise --max-memory",
+            short(voxel),
+            format_bytes(bytes),
+            format_bytes(MemoryEstimate::bytes_per_block(true)),
+            format_bytes(limit)
+        ))
+    };
+    let mut census = BlockCensus::new(config.clone())?;
+    for (i, depth, _) in probed {
+        let view = &scene.views[*i];
+        let mask = if use_masks { view.mask.as_ref() } else { None };
+        match census.add(&view.camera, depth, mask) {
+            Err(TsdfError::BlockCapExceeded { needed, .. }) => {
+                let n = census.probes() + 1;
+                return Err(refuse(format!("fusing {n} of the {views} views alone"), needed as u64));
+            }
+            r => r?,
+        }
+    }
+    let est = census.estimate(views);
+    if est.peak_bytes() > limit {
+        return Err(refuse(format!("fusing {views} views"), est.blocks));
+    }
+    Ok(())
 }
 
 /// The mesh of a trained model fused from its training views' rendered plane depths.

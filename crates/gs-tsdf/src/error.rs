@@ -29,6 +29,17 @@ pub enum TsdfError {
         /// The voxel size in use.
         voxel_size: f64,
     },
+    /// The operating system refused the memory for the blocks of a view.
+    #[error(
+        "out of memory: {blocks} TSDF blocks need {} of block storage; use a larger voxel size",
+        crate::memory::format_bytes(*bytes)
+    )]
+    OutOfMemory {
+        /// Blocks that would exist after this view.
+        blocks: usize,
+        /// Bytes of block storage requested.
+        bytes: u64,
+    },
     /// A point lies so far from the origin that its block index does not fit in 32 bits.
     #[error("point {point:?} is too far from the origin for voxel size {voxel_size} (block index overflow)")]
     OutOfRange {

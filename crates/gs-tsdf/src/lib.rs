@@ -26,11 +26,13 @@
 //!   observed depth; [`TsdfVolume::integrate`] follows Open3D's `ScalableTSDFVolume`.
 //! * [`TsdfVolume::extract_mesh`]: marching cubes across block borders with shared vertices.
 //! * [`clean`]: connected components, degenerate / unreferenced elements, mask culling.
+//! * [`memory`]: the peak-memory estimate of a fusion, made before allocating it.
 //! * [`metrics`]: area-weighted sampling, accuracy / completeness / Chamfer / F1.
 
 pub mod clean;
 pub mod error;
 pub mod extract;
+pub mod memory;
 mod mc_table;
 pub mod metrics;
 pub mod synthetic;
@@ -39,5 +41,6 @@ pub mod volume;
 pub use clean::{ComponentFilter, clean_mesh, cull_by_masks, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
 pub use error::{Result, TsdfError};
 pub use extract::ExtractOptions;
+pub use memory::{BlockCensus, MemoryEstimate, format_bytes};
 pub use metrics::{Aabb, EvalOptions, EvalReport, PointMetrics, evaluate_meshes, point_metrics, sample_surface};
 pub use volume::{IntegrateStats, TsdfConfig, TsdfVolume};

@@ -259,7 +259,11 @@ impl TsdfVolume {
             });
         }
         stats.new_blocks = new.len();
-        self.blocks.reserve(new.len());
+        // Exact growth (no doubling) and a clean error instead of an abort when memory is short.
+        self.blocks.try_reserve_exact(new.len()).map_err(|_| TsdfError::OutOfMemory {
+            blocks: self.blocks.len() + new.len(),
+            bytes: ((self.blocks.len() + new.len()) * std::mem::size_of::<Block>()) as u64,
+        })?;
         for k in new {
             self.index.insert(k, self.blocks.len() as u32);
             self.blocks.push(Block::new(k, self.config.with_color));
@@ -274,6 +278,28 @@ impl TsdfVolume {
         let ctx = ViewContext::new(camera, &filtered, color, &self.config);
         work.par_iter_mut().with_min_len(16).for_each(|b| ctx.update_block(b));
         Ok(stats)
+    }
+
+    /// Sorted keys of the blocks [`TsdfVolume::integrate`] would touch for this view (after the
+    /// same depth filters), without allocating anything: what [`crate::BlockCensus`] counts.
+    pub fn probe_blocks(&self, camera: &Camera, depth: &Image, mask: Option<&Image>) -> Result<Vec<[i32; 3]>> {
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        if depth.width() != w || depth.height() != h || depth.channels() != 1 {
+            return Err(TsdfError::InvalidInput {
+                view: 0,
+                problem: format!("depth map is {}x{}x{} but the camera is {w}x{h}", depth.width(), depth.height(), depth.channels()),
+            });
+        }
+        if let Some(m) = mask
+            && (m.width() != w || m.height() != h || m.channels() != 1)
+        {
+            return Err(TsdfError::InvalidInput { view: 0, problem: format!("mask is {}x{}x{}, expected {w}x{h}x1", m.width(), m.height(), m.channels()) });
+        }
+        let filtered = self.filter_depth(camera, depth, mask);
+        if filtered.iter().all(|&d| d <= 0.0) {
+            return Ok(Vec::new());
+        }
+        self.touched_blocks(camera, &filtered)
     }
 
     /// The depth map after the validity, `depth_trunc`, mask and normal-angle filters
@@ -397,7 +423,7 @@ impl TsdfVolume {
 }
 
 /// Union of two sorted, duplicate-free key lists (sorted, duplicate-free).
-fn merge_sorted_unique(a: Vec<[i32; 3]>, b: Vec<[i32; 3]>) -> Vec<[i32; 3]> {
+pub(crate) fn merge_sorted_unique(a: Vec<[i32; 3]>, b: Vec<[i32; 3]>) -> Vec<[i32; 3]> {
     if a.is_empty() {
         return b;
     }

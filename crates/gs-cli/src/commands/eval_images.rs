@@ -38,7 +38,7 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
     let mut rasterizer = super::rasterizer(args.backend)?;
     let metrics = gs_train::evaluate_images(&model, &mut rasterizer, views, lpips.as_ref(), args.masked)?;
     let file = format!("eval_images{}{}.json", if args.train { "_train" } else { "" }, if args.masked { "_masked" } else { "" });
-    write_json(&run.dir.join(file), &metrics)?;
+    // Scores first: a read-only run folder must not cost the numbers just computed.
     if args.json {
         println!("{}", serde_json::to_string_pretty(&metrics)?);
     } else {
@@ -60,5 +60,6 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
             metrics.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
         );
     }
-    Ok(())
+    write_json(&run.dir.join(file), &metrics)
+        .map_err(|e| e.context("the scores above were computed but could not be saved"))
 }

@@ -39,6 +39,10 @@ pub struct MeshArgs {
     /// Fuse only inside the views' masks.
     #[arg(long)]
     pub masks: bool,
+    /// Refuse, before fusing, a mesh whose estimated memory exceeds this (e.g. 8GiB, 500MB;
+    /// default 60 % of the available memory, or of 4 GiB when /proc/meminfo is unreadable).
+    #[arg(long, value_parser = crate::memory::bytes_arg)]
+    pub max_memory: Option<u64>,
 }
 
 /// The depth map of view `name` in `dir` (see [`MeshArgs::depth_dir`]).
@@ -66,6 +70,7 @@ fn options(args: &MeshArgs) -> MeshOptions {
         max_normal_angle_deg: args.max_normal_angle,
         largest_component_only: args.largest,
         use_masks: args.masks,
+        max_memory: Some(crate::memory::limit(args.max_memory)),
         ..Default::default()
     }
 }
@@ -75,6 +80,9 @@ fn options(args: &MeshArgs) -> MeshOptions {
 /// fusion path of [`fuse_mesh`].
 pub fn run(args: &MeshArgs) -> Result<()> {
     let opts = options(args);
+    if let Some(out) = &args.output {
+        check_writable(out)?;
+    }
     let (mesh, report, path) = match &args.depth_dir {
         Some(dir) => {
             let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
@@ -114,6 +122,26 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Fails, before any work, when `path`'s folder is missing or refuses a new file (probed with a
+/// hidden temporary file, removed again).
+fn check_writable(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!("{}: cannot write the mesh there: the folder {} does not exist", path.display(), dir.display());
+    }
+    let probe = dir.join(format!(".vagsl-write-test-{}", std::process::id()));
+    match std::fs::File::create(&probe) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => bail!("{}: cannot write the mesh there: {e}", path.display()),
+    }
 }
 
 fn report_path(mesh: &Path) -> PathBuf {

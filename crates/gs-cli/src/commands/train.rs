@@ -114,7 +114,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub sh_min_gain: Option<f32>,
     /// Write OUT/checkpoint.bin every this many iterations.
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub checkpoint_every: Option<u64>,
     /// Continue from a checkpoint (its configuration is used; the scene options must match).
     #[arg(long)]
