@@ -4,6 +4,7 @@
 //! a report. Errors are reported with their full cause chain and a non-zero exit status.
 
 mod commands;
+mod out_folder;
 mod run_dir;
 mod scene_path;
 

@@ -21,8 +21,14 @@ pub struct TrainArgs {
     #[arg(long, default_value = "auto")]
     pub backend: gs_raster::Backend,
     /// Output folder (created): config.json, point_cloud.ply, report.json, checkpoint.bin.
+    /// A folder that already holds a run is refused unless --force or --resume.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Replace the run in the output folder: its config.json, point_cloud.ply, report.json,
+    /// checkpoint.bin, exposure.json, mesh.ply, mesh.json, eval_images*.json and renders/ are
+    /// removed when training starts (other files are left alone).
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
     /// Settings preset: standard (the default), fast, or the paper's dtu, tnt and mip360.
     #[arg(long)]
     pub preset: Option<Preset>,
@@ -299,8 +305,8 @@ fn start(args: &TrainArgs) -> Result<Start> {
 /// Runs `vagsl train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
     let out = &args.output;
+    crate::out_folder::check(out, args.force, args.resume.is_some())?;
     let Start { config, resumed, earlier, from_run, source } = start(args)?;
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))?;
     let resumed_from = resumed.as_ref().map(|s| s.iteration);
     let t_load = Instant::now();
     let scene = load_scene(&source)?;
@@ -327,7 +333,6 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         );
     }
     view_indices(&scene, &run_config.train_views)?;
-    write_json(&out.join("config.json"), &run_config)?;
     eprintln!(
         "scene: {} views ({} train, {} test), {} points, loaded in {:.1}s",
         scene.views.len(),
@@ -346,6 +351,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         trainer.set_grey_images(crate::run_dir::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
+    // Everything that can refuse the run has run: only now is the folder touched.
+    crate::out_folder::prepare(out, args.force)?;
+    write_json(&out.join("config.json"), &run_config)?;
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
     let b = *trainer.budget();
     if b.active {

@@ -1,0 +1,86 @@
+//! A run folder is never silently wrong (issue #21): an existing run is not overwritten without
+//! `--force`, a run reopens only with its own scene and its own model, and `--resume` refuses
+//! options it would ignore or that would change the run.
+
+use std::path::Path;
+use std::process::Command;
+
+fn vagsl(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_vagsl")).args(args).env("RAYON_NUM_THREADS", "2").output().expect("run vagsl");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+/// A 4-iteration CPU run of the built-in scene into `out`, with `extra` arguments.
+fn train(out: &Path, extra: &[&str]) -> (bool, String) {
+    let mut a = vec!["train", "-o", out.to_str().unwrap(), "--iterations", "4", "--backend", "cpu", "--quiet"];
+    a.extend_from_slice(extra);
+    let (ok, _, err) = vagsl(&a);
+    (ok, err)
+}
+
+fn read(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+#[test]
+fn an_existing_run_is_replaced_only_with_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let (ok, err) = train(&out, &[]);
+    assert!(ok, "{err}");
+    // Outputs of later commands, and a file of the user's.
+    std::fs::write(out.join("mesh.ply"), b"old mesh").unwrap();
+    std::fs::write(out.join("eval_images.json"), b"{}").unwrap();
+    std::fs::create_dir_all(out.join("renders/test")).unwrap();
+    std::fs::write(out.join("renders/test/0000.png"), b"old").unwrap();
+    std::fs::write(out.join("notes.txt"), b"mine").unwrap();
+    let (config, model) = (read(&out.join("config.json")), read(&out.join("point_cloud.ply")));
+
+    // Refused before any work, naming the folder and the ways out; nothing changed.
+    let (ok, err) = train(&out, &["--seed", "5"]);
+    assert!(!ok, "re-training into a used folder was accepted");
+    assert!(err.contains(out.to_str().unwrap()) && err.contains("already holds a vagsl run"), "{err}");
+    assert!(err.contains("-o") && err.contains("--force"), "{err}");
+    assert!(!err.contains("scene:"), "work started before the refusal: {err}");
+    assert_eq!(read(&out.join("config.json")), config);
+    assert_eq!(read(&out.join("point_cloud.ply")), model);
+
+    // --force with a start that fails keeps the old run.
+    let (ok, _) = train(&out, &["--force", "--patch-size", "4"]);
+    assert!(!ok);
+    assert_eq!(read(&out.join("point_cloud.ply")), model);
+    assert!(out.join("mesh.ply").is_file());
+
+    // --force replaces the run: its known outputs go, the user's file stays.
+    let (ok, err) = train(&out, &["--force", "--seed", "5"]);
+    assert!(ok, "{err}");
+    assert!(err.contains("removed the previous run's"), "{err}");
+    for gone in ["mesh.ply", "eval_images.json", "renders"] {
+        assert!(!out.join(gone).exists(), "{gone} of the old run is still there");
+    }
+    assert_eq!(read(&out.join("notes.txt")), b"mine");
+    let cfg: serde_json::Value = serde_json::from_slice(&read(&out.join("config.json"))).unwrap();
+    assert_eq!(cfg["train"]["seed"], 5);
+
+    // --force and --resume contradict each other.
+    let ck = out.join("checkpoint.bin");
+    let (ok, err) = train(&out, &["--force", "--resume", ck.to_str().unwrap()]);
+    assert!(!ok && err.contains("--force") && err.contains("--resume"), "{err}");
+}
+
+#[test]
+fn a_failed_start_leaves_no_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("new");
+    let (ok, err) = train(&out, &["--patch-size", "4"]);
+    assert!(!ok, "an even patch size was accepted");
+    assert!(!out.exists(), "a refused configuration left {}: {err}", out.display());
+    let (ok, _, err) = vagsl(&["train", "/nonexistent/scene", "-o", out.to_str().unwrap(), "--backend", "cpu"]);
+    assert!(!ok && err.contains("/nonexistent/scene"), "{err}");
+    assert!(!out.exists(), "a missing scene left {}", out.display());
+    // An output path that is a file is refused.
+    let file = dir.path().join("file");
+    std::fs::write(&file, b"x").unwrap();
+    let (ok, err) = train(&file, &[]);
+    assert!(!ok && err.contains("not a folder"), "{err}");
+}
