@@ -84,3 +84,95 @@ fn a_failed_start_leaves_no_folder() {
     let (ok, err) = train(&file, &[]);
     assert!(!ok && err.contains("not a folder"), "{err}");
 }
+
+fn shared(rel: &str) -> std::path::PathBuf {
+    std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// `vagsl` started in `cwd`.
+fn vagsl_in(cwd: &Path, args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_vagsl")).args(args).current_dir(cwd).env("RAYON_NUM_THREADS", "2").output().expect("run vagsl");
+    (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+fn config_of(run: &Path) -> serde_json::Value {
+    serde_json::from_slice(&read(&run.join("config.json"))).unwrap()
+}
+
+#[test]
+fn a_run_keeps_its_scene_wherever_it_is_opened_from() {
+    let dir = tempfile::tempdir().unwrap();
+    let here = dir.path().join("here");
+    copy_dir(&shared("fox"), &here.join("fox"));
+    let run = dir.path().join("run");
+    let r = run.to_str().unwrap();
+    // The scene is typed relative to the working folder; config.json keeps it absolute.
+    let (ok, err) =
+        vagsl_in(&here, &["train", "fox", "-o", r, "--width", "40", "--eval", "--iterations", "4", "--backend", "cpu", "--quiet"]);
+    assert!(ok, "{err}");
+    let cfg = config_of(&run);
+    let stored = std::path::PathBuf::from(cfg["scene"]["path"].as_str().unwrap());
+    assert_eq!(stored, here.join("fox").canonicalize().unwrap());
+    assert_eq!(cfg["fingerprint"]["views"], 50);
+    // Reopened from another folder.
+    let renders = dir.path().join("renders");
+    let render = |extra: &[&str]| {
+        let mut a = vec!["render", r, "--backend", "cpu", "-o", renders.to_str().unwrap()];
+        a.extend_from_slice(extra);
+        vagsl_in(dir.path(), &a)
+    };
+    let (ok, err) = render(&[]);
+    assert!(ok, "{err}");
+
+    // The scene moved: the error says so and how to point at it; --scene does.
+    let moved = dir.path().join("elsewhere");
+    std::fs::rename(here.join("fox"), &moved).unwrap();
+    let (ok, err) = render(&[]);
+    assert!(!ok && err.contains(stored.to_str().unwrap()) && err.contains("--scene PATH"), "{err}");
+    let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
+    assert!(ok, "{err}");
+
+    // Another scene is refused, by its fingerprint.
+    let mut images = std::fs::read_to_string(moved.join("sparse/0/images.txt")).unwrap();
+    let pose = images.lines().find(|l| l.contains(".jpg")).unwrap().to_string();
+    let mut fields: Vec<String> = pose.split_whitespace().map(String::from).collect();
+    fields[5] = format!("{}", fields[5].parse::<f64>().unwrap() + 0.01);
+    images = images.replacen(&pose, &fields.join(" "), 1);
+    std::fs::write(moved.join("sparse/0/images.txt"), images).unwrap();
+    let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
+    assert!(!ok && err.contains("is not the scene the run in") && err.contains("differ in image names, sizes or cameras"), "{err}");
+    let (ok, err) = render(&["--scene", shared("synth-bunny").to_str().unwrap()]);
+    assert!(!ok && err.contains("it has 40 views, the run's scene had 50"), "{err}");
+
+    // A configuration from before fingerprints opens unchecked.
+    let mut cfg = config_of(&run);
+    cfg.as_object_mut().unwrap().remove("fingerprint");
+    std::fs::write(run.join("config.json"), serde_json::to_string_pretty(&cfg).unwrap()).unwrap();
+    let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
+    assert!(ok, "{err}");
+}
+
+#[test]
+fn the_builtin_scene_is_fingerprinted_and_needs_no_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let (ok, err) = train(&run, &["--eval"]);
+    assert!(ok, "{err}");
+    let cfg = config_of(&run);
+    assert_eq!(cfg["scene"]["path"], serde_json::Value::Null);
+    assert_eq!(cfg["fingerprint"]["views"], 32);
+    let (ok, _, err) = vagsl(&["render", run.to_str().unwrap(), "--backend", "cpu", "--scene", shared("fox").to_str().unwrap()]);
+    assert!(!ok && err.contains("built-in scene, which has no folder"), "{err}");
+}

@@ -1,6 +1,6 @@
 //! `vagsl train`: the VA-GS training run, with progress, checkpoints and a report.
 
-use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, view_indices, write_json};
+use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_path, load_scene, peak_memory_bytes, view_indices, write_json};
 use anyhow::{Context, Result, bail};
 use gs_train::{InitMode, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
 use gs_train::checkpoint::Elapsed;
@@ -297,7 +297,7 @@ fn start(args: &TrainArgs) -> Result<Start> {
     let cli_scene = args.scene.is_some() || args.resolution.is_some() || args.width.is_some() || args.eval;
     let source = match &from_run {
         Some(run) if !cli_scene => run.scene.clone(),
-        _ => SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: args.width, eval: args.eval },
+        _ => SceneSource { path: args.scene.as_deref().map(absolute_scene_path), resolution_factor: args.resolution, width: args.width, eval: args.eval },
     };
     Ok(Start { config, resumed, earlier, from_run, source })
 }
@@ -312,8 +312,13 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let scene = load_scene(&source)?;
     let (train_idx, test_idx) = scene.split(source.eval);
     let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
-    let run_config =
-        RunConfig { scene: source.clone(), train_views: names(&train_idx), test_views: names(&test_idx), train: config.clone() };
+    let run_config = RunConfig {
+        scene: source.clone(),
+        fingerprint: Some(SceneFingerprint::of(&scene)),
+        train_views: names(&train_idx),
+        test_views: names(&test_idx),
+        train: config.clone(),
+    };
     // A resumed run must continue on the same views.
     if resumed.is_some()
         && let Ok(text) = std::fs::read_to_string(out.join("config.json"))
@@ -321,6 +326,12 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         && prev.train_views != run_config.train_views
     {
         bail!("the scene options differ from the checkpointed run's (other training views); pass the same SCENE, -r/--width and --eval");
+    }
+    if let Some(run) = &from_run
+        && run.scene == source
+    {
+        let file = args.config.as_ref().expect("a run configuration comes from --config");
+        run.check_scene(&scene, &format!("the run of {}", file.display()), "give that scene as SCENE")?;
     }
     if let Some(run) = &from_run
         && run.train_views != run_config.train_views
