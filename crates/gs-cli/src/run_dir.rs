@@ -85,6 +85,11 @@ pub struct RunConfig {
     /// existed, whose scene then goes unchecked.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fingerprint: Option<SceneFingerprint>,
+    /// The run's id, written again into report.json with the model at the end, so a folder
+    /// pairing this configuration with another run's model is noticed. Absent in older
+    /// configurations (and `tradeoff`'s), whose pairing then goes unchecked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub run_id: Option<String>,
     /// Names of the training views.
     pub train_views: Vec<String>,
     /// Names of the held-out views.
@@ -194,6 +199,36 @@ impl RunConfig {
     }
 }
 
+/// Refuses a run folder whose model is missing or is not the model of its config.json's run
+/// `run_id` (report.json, written after point_cloud.ply, carries the id of the model's run).
+fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<()> {
+    if !dir.join("point_cloud.ply").is_file() {
+        bail!(
+            "{}: no point_cloud.ply: the training run has not written its model (still running, or stopped before it could); resume it with --resume {} if that exists, or train again",
+            dir.display(),
+            dir.join("checkpoint.bin").display()
+        );
+    }
+    let Some(id) = run_id else { return Ok(()) };
+    let report = dir.join("report.json");
+    let model_id = std::fs::read_to_string(&report)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v.get("run_id").and_then(|r| r.as_str()).map(String::from));
+    match model_id {
+        Some(m) if m == id => Ok(()),
+        Some(m) => bail!(
+            "{}: config.json is of run {id} but point_cloud.ply and report.json are of run {m}: the folder mixes two training runs (a re-train that did not finish?); train again into it with --force",
+            dir.display()
+        ),
+        None => bail!(
+            "{}: config.json is of run {id} but {} is missing or names no run, so point_cloud.ply may be another run's model (a training that did not finish?); train again into it with --force",
+            dir.display(),
+            report.display()
+        ),
+    }
+}
+
 /// Indices of the named views in `scene` (an error names a missing view).
 pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
     names
@@ -228,6 +263,7 @@ impl OpenRun {
             .with_context(|| format!("{}: cannot read the run's configuration (is this a `vagsl train` output folder?)", cfg_path.display()))?;
         let mut config: RunConfig =
             serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
+        check_pairing(dir, config.run_id.as_deref())?;
         let mut gaussians = gs_io::read_gaussian_ply(&dir.join("point_cloud.ply"))?;
         // Coefficients above the degree reached stay 0 during training, so the maximum degree
         // renders exactly what the trainer rendered last.

@@ -176,3 +176,104 @@ fn the_builtin_scene_is_fingerprinted_and_needs_no_folder() {
     let (ok, _, err) = vagsl(&["render", run.to_str().unwrap(), "--backend", "cpu", "--scene", shared("fox").to_str().unwrap()]);
     assert!(!ok && err.contains("built-in scene, which has no folder"), "{err}");
 }
+
+/// Renders the held-out views of `run`.
+fn render_test(run: &Path) -> (bool, String) {
+    let out = run.with_extension("renders");
+    let (ok, _, err) = vagsl(&["render", run.to_str().unwrap(), "--backend", "cpu", "-o", out.to_str().unwrap()]);
+    (ok, err)
+}
+
+#[test]
+fn a_folder_mixing_two_runs_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    for (run, seed) in [(&a, "1"), (&b, "2")] {
+        let (ok, err) = train(run, &["--eval", "--seed", seed]);
+        assert!(ok, "{err}");
+    }
+    let id = config_of(&a)["run_id"].as_str().unwrap().to_string();
+    let report: serde_json::Value = serde_json::from_slice(&read(&a.join("report.json"))).unwrap();
+    assert_eq!(report["run_id"], id.as_str());
+    assert_ne!(config_of(&b)["run_id"], id.as_str());
+    let (ok, err) = render_test(&a);
+    assert!(ok, "{err}");
+
+    // B's configuration beside A's model.
+    let own = read(&a.join("config.json"));
+    std::fs::copy(b.join("config.json"), a.join("config.json")).unwrap();
+    let (ok, err) = render_test(&a);
+    assert!(!ok && err.contains("the folder mixes two training runs") && err.contains(&id), "{err}");
+    std::fs::write(a.join("config.json"), &own).unwrap();
+    // A model without the report that names its run.
+    let report = read(&a.join("report.json"));
+    std::fs::remove_file(a.join("report.json")).unwrap();
+    let (ok, err) = render_test(&a);
+    assert!(!ok && err.contains("report.json is missing or names no run"), "{err}");
+    std::fs::write(a.join("report.json"), &report).unwrap();
+
+    // A re-train killed after it wrote its configuration: the folder does not reopen as a run.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vagsl"))
+        .args(["train", "-o", a.to_str().unwrap(), "--force", "--eval", "--iterations", "100000", "--backend", "cpu", "--quiet"])
+        .env("RAYON_NUM_THREADS", "2")
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while std::fs::read(a.join("config.json")).ok().and_then(|t| serde_json::from_slice::<serde_json::Value>(&t).ok()).is_none_or(|c| c["run_id"] == id.as_str()) {
+        assert!(t0.elapsed().as_secs() < 120, "the re-train never wrote its config.json");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let (ok, err) = render_test(&a);
+    assert!(!ok && err.contains("no point_cloud.ply") && err.contains("has not written its model"), "{err}");
+}
+
+#[test]
+fn resume_refuses_options_it_would_ignore_or_that_change_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let (ok, err) = train(&run, &["--eval", "--checkpoint-every", "2"]);
+    assert!(ok, "{err}");
+    let ck = run.join("checkpoint.bin");
+    let c = ck.to_str().unwrap();
+    let config = read(&run.join("config.json"));
+    let resume = |out: &Path, extra: &[&str]| {
+        let mut a = vec!["train", "-o", out.to_str().unwrap(), "--resume", c, "--backend", "cpu", "--quiet"];
+        a.extend_from_slice(extra);
+        let (ok, _, err) = vagsl(&a);
+        (ok, err)
+    };
+    let (ok, err) = resume(&run, &["--iterations", "8", "--seed", "3"]);
+    assert!(!ok && err.contains("--iterations, --seed would be ignored"), "{err}");
+    let (ok, err) = resume(&run, &["--width", "50"]);
+    assert!(!ok && err.contains("these options would change it: --width 50 (the run's: none)"), "{err}");
+    let fox = shared("fox");
+    let (ok, err) = resume(&run, &[fox.to_str().unwrap()]);
+    assert!(!ok && err.contains("(the run's: the built-in scene)") && err.contains("SCENE"), "{err}");
+    assert_eq!(read(&run.join("config.json")), config, "a refused resume rewrote config.json");
+
+    // The run's own options are accepted; the run keeps its id.
+    let (ok, err) = resume(&run, &["--eval"]);
+    assert!(ok, "{err}");
+    let id = config_of(&run)["run_id"].clone();
+    let report: serde_json::Value = serde_json::from_slice(&read(&run.join("report.json"))).unwrap();
+    assert_eq!(report["run_id"], id);
+    assert_eq!(read(&run.join("config.json")), config);
+    let (ok, err) = render_test(&run);
+    assert!(ok, "{err}");
+
+    // Into a new folder the run (scene, held-out views, id) comes from beside the checkpoint.
+    let moved = dir.path().join("moved");
+    let (ok, err) = resume(&moved, &[]);
+    assert!(ok, "{err}");
+    assert_eq!(config_of(&moved)["run_id"], id);
+    assert_eq!(config_of(&moved)["test_views"].as_array().unwrap().len(), 4);
+    // Into a folder holding another run: refused.
+    let other = dir.path().join("other");
+    let (ok, err) = train(&other, &["--seed", "9"]);
+    assert!(ok, "{err}");
+    let (ok, err) = resume(&other, &[]);
+    assert!(!ok && err.contains("so the folder holds another run"), "{err}");
+}

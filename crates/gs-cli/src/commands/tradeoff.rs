@@ -193,6 +193,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         let run_config = RunConfig {
             scene: source.clone(),
             fingerprint: Some(SceneFingerprint::of(&scene)),
+            run_id: None,
             train_views: names(&train), test_views: names(&test), train: config.clone(),
         };
         write_json(&dir.join("config.json"), &run_config)?;

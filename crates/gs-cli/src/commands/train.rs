@@ -215,6 +215,8 @@ pub fn build_config(args: &TrainArgs) -> Result<(TrainConfig, Option<RunConfig>)
 /// `OUT/report.json`.
 #[derive(Debug, Serialize)]
 pub struct TrainReport {
+    /// The run this model belongs to: the `run_id` of config.json (see `OpenRun::open`).
+    pub run_id: String,
     /// Iterations completed.
     pub iterations: u64,
     /// Whether the run was interrupted (Ctrl-C) before the last iteration.
@@ -268,45 +270,84 @@ fn describe(r: &StepReport) -> String {
 }
 
 /// Where a run starts: its configuration, a checkpointed state (with `--resume`), the time
-/// spent before, the run configuration of a `--config OUT/config.json`, and the scene source.
+/// spent before, the run it continues or reproduces, the scene source and the run id.
 struct Start {
     config: TrainConfig,
     resumed: Option<gs_train::TrainState>,
     earlier: Option<Elapsed>,
-    from_run: Option<RunConfig>,
+    base: Option<BaseRun>,
     source: SceneSource,
+    run_id: String,
+}
+
+/// The run whose `config.json` a start builds on: the run a `--resume` continues, or the run a
+/// `--config OUT/config.json` reproduces.
+struct BaseRun {
+    run: RunConfig,
+    file: PathBuf,
+    resuming: bool,
 }
 
 /// Reads `--resume` or builds the configuration, and picks the scene source (a run's own
-/// config.json brings its scene unless the command line names one).
+/// config.json brings its scene unless the command line names one; a resumed run keeps its
+/// scene and its run id).
 fn start(args: &TrainArgs) -> Result<Start> {
-    let (config, resumed, earlier, from_run) = match &args.resume {
+    let (config, resumed, earlier, base) = match &args.resume {
         Some(p) => {
             let ck = checkpoint::load(p)?;
+            let base = super::resume::run_of_checkpoint(args, p, &ck.config)?;
             eprintln!("resuming {} at iteration {} (its configuration is used)", p.display(), ck.state.iteration);
             if ck.elapsed.is_none() {
                 eprintln!("note: this checkpoint predates format 3 and does not carry the earlier training time; report.json counts from the resume");
             }
-            (ck.config, Some(ck.state), ck.elapsed, None)
+            (ck.config, Some(ck.state), ck.elapsed, base.map(|(run, file)| BaseRun { run, file, resuming: true }))
         }
         None => {
             let (config, run) = build_config(args)?;
-            (config, None, Some(Elapsed::default()), run)
+            let base = run.map(|run| BaseRun { run, file: args.config.clone().expect("a run configuration comes from --config"), resuming: false });
+            (config, None, Some(Elapsed::default()), base)
         }
     };
     let cli_scene = args.scene.is_some() || args.resolution.is_some() || args.width.is_some() || args.eval;
-    let source = match &from_run {
-        Some(run) if !cli_scene => run.scene.clone(),
+    let source = match &base {
+        Some(b) if b.resuming || !cli_scene => b.run.scene.clone(),
         _ => SceneSource { path: args.scene.as_deref().map(absolute_scene_path), resolution_factor: args.resolution, width: args.width, eval: args.eval },
     };
-    Ok(Start { config, resumed, earlier, from_run, source })
+    let run_id = match &base {
+        Some(BaseRun { run: RunConfig { run_id: Some(id), .. }, resuming: true, .. }) => id.clone(),
+        _ => super::resume::new_run_id(&config),
+    };
+    Ok(Start { config, resumed, earlier, base, source, run_id })
+}
+
+/// Refuses a scene that is not the one of the run a start builds on: another scene at its
+/// path (by fingerprint), or other training views.
+fn check_base_scene(base: &BaseRun, source: &SceneSource, scene: &gs_core::Scene, train_views: &[String]) -> Result<()> {
+    let remedy = if base.resuming {
+        "a resumed run needs its own scene; restore it, or start a new run without --resume"
+    } else {
+        "give that scene as SCENE"
+    };
+    if base.run.scene == *source {
+        base.run.check_scene(scene, &format!("the run of {}", base.file.display()), remedy)?;
+    }
+    if base.run.train_views != train_views {
+        bail!(
+            "{}: the run trained on {} views, this scene gives {} other training views; {}",
+            base.file.display(),
+            base.run.train_views.len(),
+            train_views.len(),
+            if base.resuming { remedy } else { "pass the run's SCENE, -r/--width and --eval (or none of them)" }
+        );
+    }
+    Ok(())
 }
 
 /// Runs `vagsl train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
     let out = &args.output;
     crate::out_folder::check(out, args.force, args.resume.is_some())?;
-    let Start { config, resumed, earlier, from_run, source } = start(args)?;
+    let Start { config, resumed, earlier, base, source, run_id } = start(args)?;
     let resumed_from = resumed.as_ref().map(|s| s.iteration);
     let t_load = Instant::now();
     let scene = load_scene(&source)?;
@@ -315,33 +356,13 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let run_config = RunConfig {
         scene: source.clone(),
         fingerprint: Some(SceneFingerprint::of(&scene)),
+        run_id: Some(run_id.clone()),
         train_views: names(&train_idx),
         test_views: names(&test_idx),
         train: config.clone(),
     };
-    // A resumed run must continue on the same views.
-    if resumed.is_some()
-        && let Ok(text) = std::fs::read_to_string(out.join("config.json"))
-        && let Ok(prev) = serde_json::from_str::<RunConfig>(&text)
-        && prev.train_views != run_config.train_views
-    {
-        bail!("the scene options differ from the checkpointed run's (other training views); pass the same SCENE, -r/--width and --eval");
-    }
-    if let Some(run) = &from_run
-        && run.scene == source
-    {
-        let file = args.config.as_ref().expect("a run configuration comes from --config");
-        run.check_scene(&scene, &format!("the run of {}", file.display()), "give that scene as SCENE")?;
-    }
-    if let Some(run) = &from_run
-        && run.train_views != run_config.train_views
-    {
-        bail!(
-            "{}: the run trained on {} views, this scene gives {} other training views; pass the run's SCENE, -r/--width and --eval (or none of them)",
-            args.config.as_ref().expect("a run configuration comes from --config").display(),
-            run.train_views.len(),
-            run_config.train_views.len()
-        );
+    if let Some(b) = &base {
+        check_base_scene(b, &source, &scene, &run_config.train_views)?;
     }
     view_indices(&scene, &run_config.train_views)?;
     eprintln!(
@@ -388,6 +409,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
     write_exposure(out, &run_config, &trainer)?;
     let report = TrainReport {
+        run_id,
         iterations: trainer.iteration(),
         interrupted,
         gaussians: trainer.gaussians().len(),
