@@ -122,7 +122,9 @@ pub struct TrainArgs {
     /// Write OUT/checkpoint.bin every this many iterations.
     #[arg(long)]
     pub checkpoint_every: Option<u64>,
-    /// Continue from a checkpoint (its configuration is used; the scene options must match).
+    /// Continue from a checkpoint: its settings, and the scene of its run's config.json (in
+    /// the output folder, else beside the checkpoint), are used; training options are refused
+    /// and scene options must match the run's.
     #[arg(long)]
     pub resume: Option<PathBuf>,
     /// No progress bar (log a line every 500 iterations instead; also the default when stderr
