@@ -5,6 +5,7 @@
 
 mod commands;
 mod memory;
+mod out_folder;
 mod run_dir;
 mod scene_path;
 

@@ -20,11 +20,76 @@ pub struct SceneSource {
     pub eval: bool,
 }
 
+/// The absolute, canonical form of a scene path as typed, so a run does not depend on the
+/// folder a command is started from (a path that cannot be resolved is kept, made absolute,
+/// for the loader to report).
+pub fn absolute_scene_path(p: &Path) -> PathBuf {
+    std::fs::canonicalize(p).unwrap_or_else(|_| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()))
+}
+
+/// A cheap identity of a loaded scene, so a run is not reopened on another scene: the number of
+/// views and sparse points, and SHA-256 over every view's name, image size, intrinsics and pose.
+/// The photos' pixels are not hashed (that would re-read every photo at each check), so photos
+/// replaced by others of the same names and sizes under the same cameras go unnoticed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneFingerprint {
+    /// Number of views.
+    pub views: usize,
+    /// Number of sparse points.
+    pub points: usize,
+    /// SHA-256 (hex) of the views' names, sizes, intrinsics and poses.
+    pub cameras_sha256: String,
+}
+
+impl SceneFingerprint {
+    /// The fingerprint of `scene` as loaded (after any `-r`/`--width`).
+    pub fn of(scene: &Scene) -> Self {
+        use sha2::{Digest, Sha256};
+        let mut h = Sha256::new();
+        for v in &scene.views {
+            let c = &v.camera;
+            h.update((v.name.len() as u64).to_le_bytes());
+            h.update(v.name.as_bytes());
+            h.update(c.width.to_le_bytes());
+            h.update(c.height.to_le_bytes());
+            let k = &c.intrinsics;
+            let pose = c.rotation.to_cols_array().into_iter().chain(c.translation.to_array());
+            for x in [k.fx, k.fy, k.cx, k.cy].into_iter().chain(pose) {
+                h.update(x.to_bits().to_le_bytes());
+            }
+        }
+        let cameras_sha256 = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        Self { views: scene.views.len(), points: scene.points.len(), cameras_sha256 }
+    }
+
+    /// How `now` differs from this fingerprint, in words (`None` when it does not).
+    pub fn difference(&self, now: &Self) -> Option<String> {
+        if self == now {
+            None
+        } else if self.views != now.views {
+            Some(format!("it has {} views, the run's scene had {}", now.views, self.views))
+        } else if self.points != now.points {
+            Some(format!("it has {} sparse points, the run's scene had {}", now.points, self.points))
+        } else {
+            Some(format!("its {} views differ in image names, sizes or cameras", now.views))
+        }
+    }
+}
+
 /// `OUT/config.json`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct RunConfig {
     /// The scene.
     pub scene: SceneSource,
+    /// The scene's fingerprint at training time; absent in configurations written before it
+    /// existed, whose scene then goes unchecked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fingerprint: Option<SceneFingerprint>,
+    /// The run's id, written again into report.json with the model at the end, so a folder
+    /// pairing this configuration with another run's model is noticed. Absent in older
+    /// configurations (and `tradeoff`'s), whose pairing then goes unchecked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub run_id: Option<String>,
     /// Names of the training views.
     pub train_views: Vec<String>,
     /// Names of the held-out views.
@@ -118,6 +183,52 @@ pub fn high_resolution_greys(src: &SceneSource, scene: &Scene, train: &[usize], 
         .collect()
 }
 
+impl RunConfig {
+    /// Refuses a `scene` that is not the one this run was trained on (by its fingerprint; a
+    /// configuration without one is not checked). `whose` names the run and `remedy` says
+    /// how to give the right scene, in the message.
+    pub fn check_scene(&self, scene: &Scene, whose: &str, remedy: &str) -> Result<()> {
+        let Some(then) = &self.fingerprint else { return Ok(()) };
+        if let Some(diff) = then.difference(&SceneFingerprint::of(scene)) {
+            let place = self.scene.path.as_ref().map_or("the built-in scene".to_string(), |p| p.display().to_string());
+            bail!(
+                "{place} is not the scene {whose} was trained on ({diff}); {remedy}"
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Refuses a run folder whose model is missing or is not the model of its config.json's run
+/// `run_id` (report.json, written after point_cloud.ply, carries the id of the model's run).
+fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<()> {
+    if !dir.join("point_cloud.ply").is_file() {
+        bail!(
+            "{}: no point_cloud.ply: the training run has not written its model (still running, or stopped before it could); resume it with --resume {} if that exists, or train again",
+            dir.display(),
+            dir.join("checkpoint.bin").display()
+        );
+    }
+    let Some(id) = run_id else { return Ok(()) };
+    let report = dir.join("report.json");
+    let model_id = std::fs::read_to_string(&report)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v.get("run_id").and_then(|r| r.as_str()).map(String::from));
+    match model_id {
+        Some(m) if m == id => Ok(()),
+        Some(m) => bail!(
+            "{}: config.json is of run {id} but point_cloud.ply and report.json are of run {m}: the folder mixes two training runs (a re-train that did not finish?); train again into it with --force",
+            dir.display()
+        ),
+        None => bail!(
+            "{}: config.json is of run {id} but {} is missing or names no run, so point_cloud.ply may be another run's model (a training that did not finish?); train again into it with --force",
+            dir.display(),
+            report.display()
+        ),
+    }
+}
+
 /// Indices of the named views in `scene` (an error names a missing view).
 pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
     names
@@ -143,18 +254,35 @@ pub struct OpenRun {
 }
 
 impl OpenRun {
-    /// Opens `dir`: reads `config.json` and `point_cloud.ply`, reloads the scene.
-    pub fn open(dir: &Path) -> Result<Self> {
+    /// Opens `dir`: reads `config.json` and `point_cloud.ply`, reloads the scene (from `scene`
+    /// when given: the run's scene folder, moved since training) and checks it is the scene the
+    /// run was trained on.
+    pub fn open(dir: &Path, scene: Option<&Path>) -> Result<Self> {
         let cfg_path = dir.join("config.json");
         let text = std::fs::read_to_string(&cfg_path)
             .with_context(|| format!("{}: cannot read the run's configuration (is this a `vagsl train` output folder?)", cfg_path.display()))?;
-        let config: RunConfig =
+        let mut config: RunConfig =
             serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
+        check_pairing(dir, config.run_id.as_deref())?;
         let mut gaussians = gs_io::read_gaussian_ply(&dir.join("point_cloud.ply"))?;
         // Coefficients above the degree reached stay 0 during training, so the maximum degree
         // renders exactly what the trainer rendered last.
         gaussians.sh_degree = config.train.sh_degree_max;
-        let scene = load_scene(&config.scene)?;
+        if let Some(p) = scene {
+            if config.scene.path.is_none() {
+                bail!("--scene {}: the run in {} was trained on the built-in scene, which has no folder", p.display(), dir.display());
+            }
+            config.scene.path = Some(absolute_scene_path(p));
+        }
+        let scene = load_scene(&config.scene).with_context(|| match (&config.scene.path, scene) {
+            (Some(p), None) => format!(
+                "the run in {} was trained on the scene {}; if the run or the scene has moved, give the scene's folder with --scene PATH",
+                dir.display(),
+                p.display()
+            ),
+            _ => format!("reopening the run in {}", dir.display()),
+        })?;
+        config.check_scene(&scene, &format!("the run in {}", dir.display()), "give the run's own scene folder with --scene PATH")?;
         let train = view_indices(&scene, &config.train_views)?;
         let test = view_indices(&scene, &config.test_views)?;
         let cams: Vec<&gs_core::Camera> = train.iter().map(|&i| &scene.views[i].camera).collect();

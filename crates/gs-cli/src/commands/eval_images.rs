@@ -9,6 +9,10 @@ use std::path::PathBuf;
 pub struct EvalImagesArgs {
     /// A `vagsl train --eval` output folder.
     pub run: PathBuf,
+    /// The run's scene folder, if it has moved since training (it must still be the scene the
+    /// run was trained on).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Also score the training views (to see over-fitting).
     #[arg(long)]
     pub train: bool,
@@ -31,7 +35,7 @@ pub struct EvalImagesArgs {
 
 /// Runs `vagsl eval-images`; writes RUN/eval_images.json.
 pub fn run(args: &EvalImagesArgs) -> Result<()> {
-    let run = OpenRun::open(&args.run)?;
+    let run = OpenRun::open(&args.run, args.scene.as_deref())?;
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
     let model = run.model();
     let views = if args.train { model.train } else { model.test };

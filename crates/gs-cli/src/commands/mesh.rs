@@ -11,6 +11,10 @@ pub struct MeshArgs {
     /// A `vagsl train` output folder (its rendered plane depths are fused), or with
     /// `--depth-dir` a scene folder whose depth maps are given.
     pub run: PathBuf,
+    /// The run's scene folder, if it has moved since training (it must still be the scene the
+    /// run was trained on).
+    #[arg(long, conflicts_with = "depth_dir")]
+    pub scene: Option<PathBuf>,
     /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
     #[arg(long, default_value = "auto")]
     pub backend: gs_raster::Backend,
@@ -92,7 +96,7 @@ pub fn run(args: &MeshArgs) -> Result<()> {
             (mesh, report, args.output.clone().unwrap_or_else(|| dir.join("mesh.ply")))
         }
         None => {
-            let run = OpenRun::open(&args.run)?;
+            let run = OpenRun::open(&args.run, args.scene.as_deref())?;
             let mut rasterizer = super::rasterizer(args.backend)?;
             let (mesh, report) = extract_mesh(&run.model(), &mut rasterizer, &opts)?;
             (mesh, report, args.output.clone().unwrap_or_else(|| run.dir.join("mesh.ply")))

@@ -6,6 +6,7 @@ pub mod eval_mesh;
 pub mod info;
 pub mod mesh;
 pub mod render;
+pub mod resume;
 pub mod tradeoff;
 pub mod train;
 

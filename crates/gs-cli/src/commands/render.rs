@@ -22,6 +22,10 @@ pub enum Split {
 pub struct RenderArgs {
     /// A `vagsl train` output folder.
     pub run: PathBuf,
+    /// The run's scene folder, if it has moved since training (it must still be the scene the
+    /// run was trained on).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
     #[arg(long, default_value = "auto")]
     pub backend: gs_raster::Backend,
@@ -79,7 +83,7 @@ fn world_normal_png(camera: &gs_core::Camera, normal: &Image) -> Result<Image> {
 
 /// Runs `vagsl render`.
 pub fn run(args: &RenderArgs) -> Result<()> {
-    let run = OpenRun::open(&args.run)?;
+    let run = OpenRun::open(&args.run, args.scene.as_deref())?;
     let model = run.model();
     let views: Vec<usize> = match args.split {
         Split::Train => model.train.to_vec(),

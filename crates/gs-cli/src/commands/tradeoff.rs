@@ -3,7 +3,7 @@
 //! table and an SVG plot of mesh error against wall time.
 
 use crate::commands::eval_mesh::{gt_crop, read_mesh};
-use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, write_json};
+use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_path, load_scene, peak_memory_bytes, write_json};
 use anyhow::{Context, Result, bail};
 use gs_core::TriangleMesh;
 use gs_train::{LossSwitches, MeshOptions, Preset, TrainConfig, Trainer};
@@ -158,7 +158,7 @@ fn markdown(rungs: &[Rung]) -> String {
 
 /// Runs `vagsl tradeoff`.
 pub fn run(args: &TradeoffArgs) -> Result<()> {
-    let source = SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: None, eval: args.eval };
+    let source = SceneSource { path: args.scene.as_deref().map(absolute_scene_path), resolution_factor: args.resolution, width: None, eval: args.eval };
     let (gt, min_z): (TriangleMesh, Option<f64>) = match (&args.gt, &args.scene) {
         (Some(p), _) => (read_mesh(p)?, args.min_z),
         (None, None) => (gs_synth::generate(&gs_synth::BuiltinOptions::default())?.object_mesh, Some(args.min_z.unwrap_or(0.005))),
@@ -190,7 +190,12 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         let (mesh, _) =
             trainer.extract_mesh(&MeshOptions::default())?;
         let mesh_seconds = t1.elapsed().as_secs_f64();
-        let run_config = RunConfig { scene: source.clone(), train_views: names(&train), test_views: names(&test), train: config.clone() };
+        let run_config = RunConfig {
+            scene: source.clone(),
+            fingerprint: Some(SceneFingerprint::of(&scene)),
+            run_id: None,
+            train_views: names(&train), test_views: names(&test), train: config.clone(),
+        };
         write_json(&dir.join("config.json"), &run_config)?;
         gs_io::write_gaussian_ply(&dir.join("point_cloud.ply"), trainer.gaussians())?;
         gs_io::write_mesh_ply(&dir.join("mesh.ply"), &mesh)?;

@@ -1,6 +1,6 @@
 //! `vagsl train`: the VA-GS training run, with progress, checkpoints and a report.
 
-use crate::run_dir::{RunConfig, SceneSource, load_scene, peak_memory_bytes, view_indices, write_json};
+use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_path, load_scene, peak_memory_bytes, view_indices, write_json};
 use anyhow::{Context, Result, bail};
 use gs_train::{InitMode, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
 use gs_train::checkpoint::Elapsed;
@@ -21,8 +21,14 @@ pub struct TrainArgs {
     #[arg(long, default_value = "auto")]
     pub backend: gs_raster::Backend,
     /// Output folder (created): config.json, point_cloud.ply, report.json, checkpoint.bin.
+    /// A folder that already holds a run is refused unless --force or --resume.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Replace the run in the output folder: its config.json, point_cloud.ply, report.json,
+    /// checkpoint.bin, exposure.json, mesh.ply, mesh.json, eval_images*.json and renders/ are
+    /// removed when training starts (other files are left alone).
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
     /// Settings preset: standard (the default), fast, or the paper's dtu, tnt and mip360.
     #[arg(long)]
     pub preset: Option<Preset>,
@@ -116,7 +122,9 @@ pub struct TrainArgs {
     /// Write OUT/checkpoint.bin every this many iterations.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub checkpoint_every: Option<u64>,
-    /// Continue from a checkpoint (its configuration is used; the scene options must match).
+    /// Continue from a checkpoint: its settings, and the scene of its run's config.json (in
+    /// the output folder, else beside the checkpoint), are used; training options are refused
+    /// and scene options must match the run's.
     #[arg(long)]
     pub resume: Option<PathBuf>,
     /// No progress bar (log a line every 500 iterations instead; also the default when stderr
@@ -209,6 +217,8 @@ pub fn build_config(args: &TrainArgs) -> Result<(TrainConfig, Option<RunConfig>)
 /// `OUT/report.json`.
 #[derive(Debug, Serialize)]
 pub struct TrainReport {
+    /// The run this model belongs to: the `run_id` of config.json (see `OpenRun::open`).
+    pub run_id: String,
     /// Iterations completed.
     pub iterations: u64,
     /// Whether the run was interrupted (Ctrl-C) before the last iteration.
@@ -262,72 +272,101 @@ fn describe(r: &StepReport) -> String {
 }
 
 /// Where a run starts: its configuration, a checkpointed state (with `--resume`), the time
-/// spent before, the run configuration of a `--config OUT/config.json`, and the scene source.
+/// spent before, the run it continues or reproduces, the scene source and the run id.
 struct Start {
     config: TrainConfig,
     resumed: Option<gs_train::TrainState>,
     earlier: Option<Elapsed>,
-    from_run: Option<RunConfig>,
+    base: Option<BaseRun>,
     source: SceneSource,
+    run_id: String,
+}
+
+/// The run whose `config.json` a start builds on: the run a `--resume` continues, or the run a
+/// `--config OUT/config.json` reproduces.
+struct BaseRun {
+    run: RunConfig,
+    file: PathBuf,
+    resuming: bool,
 }
 
 /// Reads `--resume` or builds the configuration, and picks the scene source (a run's own
-/// config.json brings its scene unless the command line names one).
+/// config.json brings its scene unless the command line names one; a resumed run keeps its
+/// scene and its run id).
 fn start(args: &TrainArgs) -> Result<Start> {
-    let (config, resumed, earlier, from_run) = match &args.resume {
+    let (config, resumed, earlier, base) = match &args.resume {
         Some(p) => {
             let ck = checkpoint::load(p)?;
+            let base = super::resume::run_of_checkpoint(args, p, &ck.config)?;
             eprintln!("resuming {} at iteration {} (its configuration is used)", p.display(), ck.state.iteration);
             if ck.elapsed.is_none() {
                 eprintln!("note: this checkpoint predates format 3 and does not carry the earlier training time; report.json counts from the resume");
             }
-            (ck.config, Some(ck.state), ck.elapsed, None)
+            (ck.config, Some(ck.state), ck.elapsed, base.map(|(run, file)| BaseRun { run, file, resuming: true }))
         }
         None => {
             let (config, run) = build_config(args)?;
-            (config, None, Some(Elapsed::default()), run)
+            let base = run.map(|run| BaseRun { run, file: args.config.clone().expect("a run configuration comes from --config"), resuming: false });
+            (config, None, Some(Elapsed::default()), base)
         }
     };
     let cli_scene = args.scene.is_some() || args.resolution.is_some() || args.width.is_some() || args.eval;
-    let source = match &from_run {
-        Some(run) if !cli_scene => run.scene.clone(),
-        _ => SceneSource { path: args.scene.clone(), resolution_factor: args.resolution, width: args.width, eval: args.eval },
+    let source = match &base {
+        Some(b) if b.resuming || !cli_scene => b.run.scene.clone(),
+        _ => SceneSource { path: args.scene.as_deref().map(absolute_scene_path), resolution_factor: args.resolution, width: args.width, eval: args.eval },
     };
-    Ok(Start { config, resumed, earlier, from_run, source })
+    let run_id = match &base {
+        Some(BaseRun { run: RunConfig { run_id: Some(id), .. }, resuming: true, .. }) => id.clone(),
+        _ => super::resume::new_run_id(&config),
+    };
+    Ok(Start { config, resumed, earlier, base, source, run_id })
+}
+
+/// Refuses a scene that is not the one of the run a start builds on: another scene at its
+/// path (by fingerprint), or other training views.
+fn check_base_scene(base: &BaseRun, source: &SceneSource, scene: &gs_core::Scene, train_views: &[String]) -> Result<()> {
+    let remedy = if base.resuming {
+        "a resumed run needs its own scene; restore it, or start a new run without --resume"
+    } else {
+        "give that scene as SCENE"
+    };
+    if base.run.scene == *source {
+        base.run.check_scene(scene, &format!("the run of {}", base.file.display()), remedy)?;
+    }
+    if base.run.train_views != train_views {
+        bail!(
+            "{}: the run trained on {} views, this scene gives {} other training views; {}",
+            base.file.display(),
+            base.run.train_views.len(),
+            train_views.len(),
+            if base.resuming { remedy } else { "pass the run's SCENE, -r/--width and --eval (or none of them)" }
+        );
+    }
+    Ok(())
 }
 
 /// Runs `vagsl train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
     let out = &args.output;
-    let Start { config, resumed, earlier, from_run, source } = start(args)?;
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))?;
+    crate::out_folder::check(out, args.force, args.resume.is_some())?;
+    let Start { config, resumed, earlier, base, source, run_id } = start(args)?;
     let resumed_from = resumed.as_ref().map(|s| s.iteration);
     let t_load = Instant::now();
     let scene = load_scene(&source)?;
     let (train_idx, test_idx) = scene.split(source.eval);
     let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
-    let run_config =
-        RunConfig { scene: source.clone(), train_views: names(&train_idx), test_views: names(&test_idx), train: config.clone() };
-    // A resumed run must continue on the same views.
-    if resumed.is_some()
-        && let Ok(text) = std::fs::read_to_string(out.join("config.json"))
-        && let Ok(prev) = serde_json::from_str::<RunConfig>(&text)
-        && prev.train_views != run_config.train_views
-    {
-        bail!("the scene options differ from the checkpointed run's (other training views); pass the same SCENE, -r/--width and --eval");
-    }
-    if let Some(run) = &from_run
-        && run.train_views != run_config.train_views
-    {
-        bail!(
-            "{}: the run trained on {} views, this scene gives {} other training views; pass the run's SCENE, -r/--width and --eval (or none of them)",
-            args.config.as_ref().expect("a run configuration comes from --config").display(),
-            run.train_views.len(),
-            run_config.train_views.len()
-        );
+    let run_config = RunConfig {
+        scene: source.clone(),
+        fingerprint: Some(SceneFingerprint::of(&scene)),
+        run_id: Some(run_id.clone()),
+        train_views: names(&train_idx),
+        test_views: names(&test_idx),
+        train: config.clone(),
+    };
+    if let Some(b) = &base {
+        check_base_scene(b, &source, &scene, &run_config.train_views)?;
     }
     view_indices(&scene, &run_config.train_views)?;
-    write_json(&out.join("config.json"), &run_config)?;
     eprintln!(
         "scene: {} views ({} train, {} test), {} points, loaded in {:.1}s",
         scene.views.len(),
@@ -346,6 +385,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         trainer.set_grey_images(crate::run_dir::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
+    // Everything that can refuse the run has run: only now is the folder touched.
+    crate::out_folder::prepare(out, args.force)?;
+    write_json(&out.join("config.json"), &run_config)?;
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
     let b = *trainer.budget();
     if b.active {
@@ -369,6 +411,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
     write_exposure(out, &run_config, &trainer)?;
     let report = TrainReport {
+        run_id,
         iterations: trainer.iteration(),
         interrupted,
         gaussians: trainer.gaussians().len(),

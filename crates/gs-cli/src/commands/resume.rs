@@ -1,0 +1,114 @@
+//! `vagsl train --resume`: the run a checkpoint continues (its `config.json` gives the scene and
+//! the run id), and the refusal of options that would be ignored or would change the run.
+
+use super::train::TrainArgs;
+use crate::run_dir::{RunConfig, SceneSource, absolute_scene_path};
+use anyhow::{Context, Result, bail};
+use gs_train::TrainConfig;
+use std::path::{Path, PathBuf};
+
+/// A new run id: 16 hex digits from the clock, the process id and the settings. It only labels
+/// the run's files (config.json, report.json) and never reaches the trainer.
+pub fn new_run_id(config: &TrainConfig) -> String {
+    use sha2::{Digest, Sha256};
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    let mut h = Sha256::new();
+    h.update(nanos.to_le_bytes());
+    h.update(std::process::id().to_le_bytes());
+    h.update(config.summary().as_bytes());
+    h.finalize()[..8].iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The training options of `args` that were given: on a resume the checkpoint's settings are
+/// used, so any of these would be ignored.
+fn given_training_options(a: &TrainArgs) -> Vec<&'static str> {
+    let given = [
+        (a.preset.is_some(), "--preset"),
+        (a.config.is_some(), "--config"),
+        (!a.set.is_empty(), "--set"),
+        (a.iterations.is_some(), "--iterations"),
+        (a.seed.is_some(), "--seed"),
+        (a.no_edge, "--no-edge"),
+        (a.no_nc, "--no-nc"),
+        (a.no_ns, "--no-ns"),
+        (a.no_photometric, "--no-photometric"),
+        (a.no_features, "--no-features"),
+        (a.no_delta, "--no-delta"),
+        (a.exposure, "--exposure"),
+        (a.source_views.is_some(), "--source-views"),
+        (a.patch_size.is_some(), "--patch-size"),
+        (a.ncc_scale.is_some(), "--ncc-scale"),
+        (a.tau.is_some(), "--tau"),
+        (a.ns_gate.is_some(), "--ns-gate"),
+        (a.ncc.is_some(), "--ncc"),
+        (a.overlap_mv, "--overlap-mv"),
+        (a.init.is_some(), "--init"),
+        (a.max_gaussians.is_some(), "--max-gaussians"),
+        (a.sh_degree.is_some(), "--sh-degree"),
+        (a.sh_policy.is_some(), "--sh-policy"),
+        (a.sh_min_gain.is_some(), "--sh-min-gain"),
+    ];
+    given.into_iter().filter(|(g, _)| *g).map(|(_, name)| name).collect()
+}
+
+/// The scene options of `args` that differ from the run's scene `run`, in words.
+fn scene_changes(a: &TrainArgs, run: &SceneSource) -> Vec<String> {
+    let show = |v: Option<u32>| v.map_or("none".to_string(), |v| v.to_string());
+    let mut changes = Vec::new();
+    if let Some(p) = &a.scene {
+        let p = absolute_scene_path(p);
+        if run.path.as_ref() != Some(&p) {
+            let theirs = run.path.as_ref().map_or("the built-in scene".to_string(), |q| q.display().to_string());
+            changes.push(format!("SCENE {} (the run's: {theirs})", p.display()));
+        }
+    }
+    if a.resolution.is_some() && a.resolution != run.resolution_factor {
+        changes.push(format!("-r {} (the run's: {})", show(a.resolution), show(run.resolution_factor)));
+    }
+    if a.width.is_some() && a.width != run.width {
+        changes.push(format!("--width {} (the run's: {})", show(a.width), show(run.width)));
+    }
+    if a.eval && !run.eval {
+        changes.push("--eval (the run held out no views)".to_string());
+    }
+    changes
+}
+
+/// The run a resume from `checkpoint` (with settings `ck_config`) continues: the `config.json`
+/// in the output folder, else the one beside the checkpoint; `None` when neither exists (a
+/// checkpoint copied on its own: the scene options on the command line then give the scene).
+/// Refuses options that would be ignored or change the run, and a folder holding another run.
+pub fn run_of_checkpoint(args: &TrainArgs, checkpoint: &Path, ck_config: &TrainConfig) -> Result<Option<(RunConfig, PathBuf)>> {
+    let ignored = given_training_options(args);
+    if !ignored.is_empty() {
+        bail!(
+            "--resume continues with the checkpoint's own settings, so {} would be ignored; leave {} out (to change the settings, start a new run without --resume)",
+            ignored.join(", "),
+            if ignored.len() == 1 { "it" } else { "them" }
+        );
+    }
+    let beside = checkpoint.parent().map(|d| d.join("config.json"));
+    let candidates = [Some(args.output.join("config.json")), beside];
+    let Some(file) = candidates.into_iter().flatten().find(|f| f.is_file()) else {
+        eprintln!("note: no config.json of the checkpoint's run in {} or beside the checkpoint; the scene options given here are used", args.output.display());
+        return Ok(None);
+    };
+    let text = std::fs::read_to_string(&file).with_context(|| format!("{}: cannot read the run's configuration", file.display()))?;
+    let run: RunConfig = serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", file.display()))?;
+    if run.train != *ck_config {
+        bail!(
+            "{}: this run's settings are not those of the checkpoint {}, so the folder holds another run; resume into the checkpoint's own folder or a new one",
+            file.display(),
+            checkpoint.display()
+        );
+    }
+    let changes = scene_changes(args, &run.scene);
+    if !changes.is_empty() {
+        bail!(
+            "--resume continues the run of {} on its own scene, and these options would change it: {}; leave them out",
+            file.display(),
+            changes.join(", ")
+        );
+    }
+    Ok(Some((run, file)))
+}
