@@ -33,7 +33,8 @@ pub enum Resolution {
 
 impl Resolution {
     /// Output size for an (undistorted) image of `width × height`; an error message for a
-    /// zero factor or width.
+    /// zero factor or width, and for a target width beyond the photo's: upscaling adds no
+    /// detail, only memory (3,000 px asked of 540-px photos once ran a training out of memory).
     pub fn output_size(self, width: u32, height: u32) -> std::result::Result<(u32, u32), String> {
         let scaled = |target_w: f64| {
             let s = target_w / width as f64;
@@ -48,6 +49,9 @@ impl Resolution {
                 ((height as f64 / n as f64).round() as u32).max(1),
             )),
             Resolution::Width(0) => Err("target width must be at least 1".into()),
+            Resolution::Width(w) if w > width => Err(format!(
+                "target width {w} px is wider than the photo ({width} × {height} px after undistortion); upscaling adds no detail, only memory: ask for at most {width} px"
+            )),
             Resolution::Width(w) => Ok(scaled(w as f64)),
         }
     }
@@ -405,5 +409,8 @@ mod tests {
         assert_eq!(Resolution::Width(240).output_size(480, 360).unwrap(), (240, 180));
         assert!(Resolution::Factor(0).output_size(10, 10).is_err());
         assert!(Resolution::Width(0).output_size(10, 10).is_err());
+        assert_eq!(Resolution::Width(480).output_size(480, 360).unwrap(), (480, 360));
+        let e = Resolution::Width(3000).output_size(540, 960).unwrap_err();
+        assert!(e.contains("3000 px is wider than the photo (540 × 960 px"), "{e}");
     }
 }

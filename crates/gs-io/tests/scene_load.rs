@@ -67,6 +67,16 @@ fn downscaling_factors_and_target_width() {
     assert_eq!(s.views[0].mask.as_ref().unwrap().width(), 120);
 }
 
+/// A target width beyond the photos is refused, naming the photo, before anything is upscaled.
+#[test]
+fn a_width_beyond_the_photos_is_refused() {
+    let opts = LoadOptions { resolution: Resolution::Width(3000), ..only(&["0000.png"]) };
+    let e = load_scene(&shared("synth-bunny"), &opts).unwrap_err().to_string();
+    assert!(e.contains("0000.png") && e.contains("3000 px is wider than the photo (480 × 360 px"), "{e}");
+    let opts = LoadOptions { resolution: Resolution::Width(480), ..only(&["0000.png"]) };
+    assert_eq!(load_scene(&shared("synth-bunny"), &opts).unwrap().views[0].camera.width, 480);
+}
+
 /// Fox: OPENCV → PINHOLE 533x948, fx 687.76, fy 687.245, cx 273.6846, cy 476.6011 (the values
 /// `pycolmap.undistort_camera` gives, see colmap_undistort.rs).
 #[test]
