@@ -8,6 +8,7 @@ mod memory;
 mod out_folder;
 mod run_dir;
 mod scene_path;
+mod signals;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -95,7 +96,10 @@ fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            match e.chain().find_map(|c| c.downcast_ref::<signals::Stopped>()) {
+                Some(stopped) => std::process::ExitCode::from(stopped.exit_status()),
+                None => std::process::ExitCode::FAILURE,
+            }
         }
     }
 }

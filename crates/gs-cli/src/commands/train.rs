@@ -8,8 +8,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Options of `vagsl train` (see `vagsl train --help`).
@@ -221,7 +219,7 @@ pub struct TrainReport {
     pub run_id: String,
     /// Iterations completed.
     pub iterations: u64,
-    /// Whether the run was interrupted (Ctrl-C) before the last iteration.
+    /// Whether the run was stopped (Ctrl-C, SIGTERM, SIGHUP) before the last iteration.
     pub interrupted: bool,
     /// Final number of Gaussians.
     pub gaussians: usize,
@@ -399,7 +397,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
 
     let mut elapsed = earlier.unwrap_or_default();
     let t0 = Instant::now();
-    let Looped { last, sh_bands, growth, floaters_removed } = train_loop(args, &config, &mut trainer, &mut elapsed)?;
+    let Looped { last, sh_bands, growth, floaters_removed, signal } = train_loop(args, &config, &mut trainer, &mut elapsed)?;
     let ckpt_path = out.join("checkpoint.bin");
     let segment_seconds = t0.elapsed().as_secs_f64();
     let train_seconds = elapsed.total();
@@ -447,7 +445,8 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         out.join("point_cloud.ply").display()
     );
     if interrupted {
-        bail!("interrupted at iteration {}; checkpoint in {}", report.iterations, ckpt_path.display());
+        let message = format!("interrupted at iteration {}; checkpoint in {}", report.iterations, ckpt_path.display());
+        return Err(crate::signals::Stopped { signal: signal.unwrap_or(2), message }.into());
     }
     Ok(())
 }
@@ -477,6 +476,8 @@ struct Looped {
     growth: Option<(u64, gs_train::GrowthLimit)>,
     /// Floaters removed.
     floaters_removed: usize,
+    /// The signal that stopped the loop early.
+    signal: Option<i32>,
 }
 
 /// Why the model stopped growing, from the last densification step of this process.
@@ -493,15 +494,11 @@ fn growth_stopped(last: Option<(u64, gs_train::GrowthLimit)>, b: &gs_train::Budg
 }
 
 /// The training loop with progress (a bar on a terminal, else a line every 500 iterations),
-/// notices, periodic checkpoints and Ctrl-C (stops after the current iteration). `elapsed`
+/// notices, periodic checkpoints and Ctrl-C / SIGTERM / SIGHUP (stop after the current
+/// iteration, [`crate::signals`]). `elapsed`
 /// gains this segment's time per phase.
 fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, elapsed: &mut Elapsed) -> Result<Looped> {
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        // A second Ctrl-C while the checkpoint is written is ignored; the write is atomic anyway.
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
+    let stop = crate::signals::StopRequest::install().context("installing the Ctrl-C / SIGTERM / SIGHUP handlers")?;
     // Without a terminal indicatif draws nothing, so a redirected run logs lines instead.
     let log_lines = args.quiet || !std::io::stderr().is_terminal();
     let bar = if log_lines {
@@ -579,11 +576,11 @@ fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, ela
             return false;
         }
         last = Some(r.clone());
-        !stop.load(Ordering::SeqCst)
+        stop.signal().is_none()
     })?;
     bar.finish_and_clear();
     if let Some(e) = checkpoint_error {
         return Err(e.context(format!("writing {}", ckpt_path.display())));
     }
-    Ok(Looped { last, sh_bands, growth, floaters_removed })
+    Ok(Looped { last, sh_bands, growth, floaters_removed, signal: stop.signal() })
 }
