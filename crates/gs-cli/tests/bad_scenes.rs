@@ -83,3 +83,25 @@ fn duplicate_names_and_truncated_photos_are_refused() {
     let (ok, err) = train(d.path());
     assert!(!ok && err.contains("images/03.png: truncated PNG"), "{err}");
 }
+
+/// Two photos with one stem (`00.png`, `00.jpg`) train, but `render` refuses to write both as
+/// `00.png` (it once said "rendered 13 views" and wrote 12 files).
+#[test]
+fn render_refuses_two_views_that_would_share_a_file() {
+    let mut images = ring();
+    images.push(("00.jpg".into(), [3.0, 0.5, 2.0]));
+    let d = scene(&images, POINTS);
+    let (ok, err) = train(d.path());
+    assert!(ok, "{err}");
+    let run = d.path().join("run");
+    let (ok, err) = vagsl(&["render", run.to_str().unwrap(), "--split", "all", "--backend", "cpu"]);
+    assert!(!ok && err.contains("views '00.jpg' and '00.png' would both be written as 00.png"), "{err}");
+    assert!(!run.join("renders/all").exists(), "the output folder was made before refusing");
+    // Distinct stems render one file each.
+    let d = scene(&ring(), POINTS);
+    assert!(train(d.path()).0);
+    let run = d.path().join("run");
+    let (ok, err) = vagsl(&["render", run.to_str().unwrap(), "--split", "all", "--backend", "cpu"]);
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read_dir(run.join("renders/all")).unwrap().filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "exr")).count(), 12);
+}

@@ -81,6 +81,28 @@ fn world_normal_png(camera: &gs_core::Camera, normal: &Image) -> Result<Image> {
     Ok(out)
 }
 
+/// The file stem each view is written under: its image name without the extension, folders
+/// joined with `_` (`cam1/0001.jpg` → `cam1_0001`). Two views that would share a stem (`a.jpg`
+/// and `a.png`) are refused before anything is rendered, naming both, rather than one
+/// silently overwriting the other.
+fn output_stems<'a>(names: impl Iterator<Item = &'a str>, dir: &std::path::Path) -> Result<Vec<String>> {
+    let mut seen = std::collections::HashMap::new();
+    let mut stems = Vec::new();
+    for name in names {
+        let p = std::path::Path::new(name);
+        let file = p.file_stem().map_or(name.into(), |s| s.to_string_lossy().into_owned());
+        let stem = match p.parent().map(|d| d.to_string_lossy().replace(['/', '\\'], "_")) {
+            Some(d) if !d.is_empty() => format!("{d}_{file}"),
+            _ => file,
+        };
+        if let Some(other) = seen.insert(stem.clone(), name) {
+            anyhow::bail!("views '{other}' and '{name}' would both be written as {stem}.png in {}; rename one of the photos", dir.display());
+        }
+        stems.push(stem);
+    }
+    Ok(stems)
+}
+
 /// Runs `vagsl render`.
 pub fn run(args: &RenderArgs) -> Result<()> {
     let run = OpenRun::open(&args.run, args.scene.as_deref())?;
@@ -95,6 +117,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     }
     let name = format!("{:?}", args.split).to_lowercase();
     let dir = args.output.clone().unwrap_or_else(|| run.dir.join("renders").join(name));
+    let stems = output_stems(views.iter().map(|&i| run.scene.views[i].name.as_str()), &dir)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
     let req = RenderRequest { color: true, alpha: true, normal: true, distance: true, plane_depth: true, ..Default::default() };
     let mut rasterizer = super::rasterizer(args.backend)?;
@@ -105,10 +128,9 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         }
         None => None,
     };
-    for &i in &views {
+    for (&i, stem) in views.iter().zip(&stems) {
         let view = &run.scene.views[i];
         let out = model.render(&mut rasterizer, i, &req)?;
-        let stem = std::path::Path::new(&view.name).file_stem().map_or(view.name.clone(), |s| s.to_string_lossy().into_owned());
         gs_io::write_png(&dir.join(format!("{stem}.png")), out.color.as_ref().expect("requested"))?;
         gs_io::write_depth_exr(&dir.join(format!("{stem}_depth.exr")), out.plane_depth.as_ref().expect("requested"))?;
         let normal = world_normal_png(&view.camera, out.normal.as_ref().expect("requested"))?;
