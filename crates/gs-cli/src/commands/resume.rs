@@ -22,33 +22,14 @@ pub fn new_run_id(config: &TrainConfig) -> String {
 /// The training options of `args` that were given: on a resume the checkpoint's settings are
 /// used, so any of these would be ignored.
 fn given_training_options(a: &TrainArgs) -> Vec<&'static str> {
-    let given = [
+    let schedule = [
         (a.preset.is_some(), "--preset"),
         (a.config.is_some(), "--config"),
         (!a.set.is_empty(), "--set"),
         (a.iterations.is_some(), "--iterations"),
-        (a.seed.is_some(), "--seed"),
-        (a.no_edge, "--no-edge"),
-        (a.no_nc, "--no-nc"),
-        (a.no_ns, "--no-ns"),
-        (a.no_photometric, "--no-photometric"),
-        (a.no_features, "--no-features"),
-        (a.no_delta, "--no-delta"),
-        (a.exposure, "--exposure"),
-        (a.source_views.is_some(), "--source-views"),
-        (a.patch_size.is_some(), "--patch-size"),
-        (a.ncc_scale.is_some(), "--ncc-scale"),
-        (a.tau.is_some(), "--tau"),
-        (a.ns_gate.is_some(), "--ns-gate"),
-        (a.ncc.is_some(), "--ncc"),
-        (a.overlap_mv, "--overlap-mv"),
-        (a.init.is_some(), "--init"),
-        (a.max_gaussians.is_some(), "--max-gaussians"),
-        (a.sh_degree.is_some(), "--sh-degree"),
-        (a.sh_policy.is_some(), "--sh-policy"),
-        (a.sh_min_gain.is_some(), "--sh-min-gain"),
     ];
-    given.into_iter().filter(|(g, _)| *g).map(|(_, name)| name).collect()
+    let schedule = schedule.into_iter().filter(|(g, _)| *g).map(|(_, name)| name);
+    schedule.chain(super::train::setting_flags(a).into_iter().map(|(flag, _, _)| flag)).collect()
 }
 
 /// The scene options of `args` that differ from the run's scene `run`, in words.

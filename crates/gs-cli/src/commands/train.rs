@@ -172,44 +172,45 @@ pub fn build_config(args: &TrainArgs) -> Result<(TrainConfig, Option<RunConfig>)
     if let Some(v) = &file {
         c = c.with_overlay(v).with_context(|| format!("{}", args.config.as_ref().expect("file given").display()))?;
     }
-    for (flag, key) in [
-        (args.no_edge, "losses.edge"),
-        (args.no_nc, "losses.normal_consistency"),
-        (args.no_ns, "losses.normal_smoothing"),
-        (args.no_photometric, "losses.photometric"),
-        (args.no_features, "losses.features"),
-        (args.no_delta, "losses.delta"),
-    ] {
-        if flag {
-            c = c.with_setting(key, false.into())?;
-        }
-    }
-    let flags: [(&str, Option<serde_json::Value>); 14] = [
-        ("exposure", args.exposure.then_some(true.into())),
-        ("overlap_mv", args.overlap_mv.then_some(true.into())),
-        ("seed", args.seed.map(Into::into)),
-        ("source_views", args.source_views.map(Into::into)),
-        ("ncc_scale", args.ncc_scale.map(Into::into)),
-        ("patch_size", args.patch_size.map(Into::into)),
-        ("weights.tau", args.tau.map(Into::into)),
-        ("ns_gate", args.ns_gate.map(|g| g.to_string().into())),
-        ("ncc", args.ncc.map(|n| n.to_string().into())),
-        ("init", args.init.map(|i| i.to_string().into())),
-        ("max_gaussians", args.max_gaussians.map(Into::into)),
-        ("sh_degree_max", args.sh_degree.map(Into::into)),
-        ("sh_policy", args.sh_policy.map(|p| p.to_string().into())),
-        ("sh_min_gain", args.sh_min_gain.map(Into::into)),
-    ];
-    for (key, value) in flags {
-        if let Some(v) = value {
-            c = c.with_setting(key, v)?;
-        }
+    for (_, key, value) in setting_flags(args) {
+        c = c.with_setting(key, value)?;
     }
     for a in &args.set {
         c = c.with_assignment(a).context("--set")?;
     }
     c.validate()?;
     Ok((c, run))
+}
+
+/// The setting flags given on the command line, as (flag, configuration key, value): one
+/// table that `build_config` applies and `--resume` refuses (`resume.rs`), so a new flag
+/// cannot be applied on a fresh run and silently dropped on a resumed one.
+pub fn setting_flags(args: &TrainArgs) -> Vec<(&'static str, &'static str, serde_json::Value)> {
+    let off = |flag: bool| flag.then_some(serde_json::Value::from(false));
+    let on = |flag: bool| flag.then_some(serde_json::Value::from(true));
+    let flags: [(&str, &str, Option<serde_json::Value>); 20] = [
+        ("--no-edge", "losses.edge", off(args.no_edge)),
+        ("--no-nc", "losses.normal_consistency", off(args.no_nc)),
+        ("--no-ns", "losses.normal_smoothing", off(args.no_ns)),
+        ("--no-photometric", "losses.photometric", off(args.no_photometric)),
+        ("--no-features", "losses.features", off(args.no_features)),
+        ("--no-delta", "losses.delta", off(args.no_delta)),
+        ("--exposure", "exposure", on(args.exposure)),
+        ("--overlap-mv", "overlap_mv", on(args.overlap_mv)),
+        ("--seed", "seed", args.seed.map(Into::into)),
+        ("--source-views", "source_views", args.source_views.map(Into::into)),
+        ("--ncc-scale", "ncc_scale", args.ncc_scale.map(Into::into)),
+        ("--patch-size", "patch_size", args.patch_size.map(Into::into)),
+        ("--tau", "weights.tau", args.tau.map(Into::into)),
+        ("--ns-gate", "ns_gate", args.ns_gate.map(|g| g.to_string().into())),
+        ("--ncc", "ncc", args.ncc.map(|n| n.to_string().into())),
+        ("--init", "init", args.init.map(|i| i.to_string().into())),
+        ("--max-gaussians", "max_gaussians", args.max_gaussians.map(Into::into)),
+        ("--sh-degree", "sh_degree_max", args.sh_degree.map(Into::into)),
+        ("--sh-policy", "sh_policy", args.sh_policy.map(|p| p.to_string().into())),
+        ("--sh-min-gain", "sh_min_gain", args.sh_min_gain.map(Into::into)),
+    ];
+    flags.into_iter().filter_map(|(flag, key, value)| value.map(|v| (flag, key, v))).collect()
 }
 
 /// `OUT/report.json`.
