@@ -20,6 +20,13 @@ pub struct SceneSource {
     pub eval: bool,
 }
 
+impl SceneSource {
+    /// The scene in words for messages: its folder, or "the built-in scene".
+    pub fn describe(&self) -> String {
+        self.path.as_ref().map_or("the built-in scene".to_string(), |p| p.display().to_string())
+    }
+}
+
 /// The absolute, canonical form of a scene path as typed, so a run does not depend on the
 /// folder a command is started from (a path that cannot be resolved is kept, made absolute,
 /// for the loader to report).
@@ -76,6 +83,18 @@ impl SceneFingerprint {
     }
 }
 
+/// A new run id: 16 hex digits from the clock, the process id and the settings. It only labels
+/// the run's files (config.json, report.json) and never reaches the trainer.
+pub fn new_run_id(config: &TrainConfig) -> String {
+    use sha2::{Digest, Sha256};
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    let mut h = Sha256::new();
+    h.update(nanos.to_le_bytes());
+    h.update(std::process::id().to_le_bytes());
+    h.update(config.summary().as_bytes());
+    h.finalize()[..8].iter().map(|b| format!("{b:02x}")).collect()
+}
+
 /// `OUT/config.json`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct RunConfig {
@@ -103,7 +122,7 @@ pub struct RunConfig {
 /// sparse points) and refusing a scene whose cameras coincide with nothing else to set its scale.
 pub fn load_scene(src: &SceneSource) -> Result<Scene> {
     let scene = load_scene_quietly(src)?;
-    let place = src.path.as_ref().map_or("the built-in scene".to_string(), |p| p.display().to_string());
+    let place = src.describe();
     for w in scene.check_extent().with_context(|| format!("loading scene {place}"))? {
         eprintln!("warning: {place}: {w}");
     }
@@ -190,7 +209,7 @@ impl RunConfig {
     pub fn check_scene(&self, scene: &Scene, whose: &str, remedy: &str) -> Result<()> {
         let Some(then) = &self.fingerprint else { return Ok(()) };
         if let Some(diff) = then.difference(&SceneFingerprint::of(scene)) {
-            let place = self.scene.path.as_ref().map_or("the built-in scene".to_string(), |p| p.display().to_string());
+            let place = self.scene.describe();
             bail!(
                 "{place} is not the scene {whose} was trained on ({diff}); {remedy}"
             );

@@ -50,10 +50,12 @@ pub struct Stopped {
 
 impl std::fmt::Display for Stopped {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use signal_hook::consts;
         let name = match self.signal {
-            2 => "SIGINT",
-            15 => "SIGTERM",
-            1 => "SIGHUP",
+            consts::SIGINT => "SIGINT",
+            consts::SIGTERM => "SIGTERM",
+            #[cfg(unix)]
+            consts::SIGHUP => "SIGHUP",
             _ => "a signal",
         };
         write!(f, "stopped by {name}: {}", self.message)

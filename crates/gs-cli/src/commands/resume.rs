@@ -7,18 +7,6 @@ use anyhow::{Context, Result, bail};
 use gs_train::TrainConfig;
 use std::path::{Path, PathBuf};
 
-/// A new run id: 16 hex digits from the clock, the process id and the settings. It only labels
-/// the run's files (config.json, report.json) and never reaches the trainer.
-pub fn new_run_id(config: &TrainConfig) -> String {
-    use sha2::{Digest, Sha256};
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
-    let mut h = Sha256::new();
-    h.update(nanos.to_le_bytes());
-    h.update(std::process::id().to_le_bytes());
-    h.update(config.summary().as_bytes());
-    h.finalize()[..8].iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// The training options of `args` that were given: on a resume the checkpoint's settings are
 /// used, so any of these would be ignored.
 fn given_training_options(a: &TrainArgs) -> Vec<&'static str> {
@@ -39,8 +27,7 @@ fn scene_changes(a: &TrainArgs, run: &SceneSource) -> Vec<String> {
     if let Some(p) = &a.scene {
         let p = absolute_scene_path(p);
         if run.path.as_ref() != Some(&p) {
-            let theirs = run.path.as_ref().map_or("the built-in scene".to_string(), |q| q.display().to_string());
-            changes.push(format!("SCENE {} (the run's: {theirs})", p.display()));
+            changes.push(format!("SCENE {} (the run's: {})", p.display(), run.describe()));
         }
     }
     if a.resolution.is_some() && a.resolution != run.resolution_factor {

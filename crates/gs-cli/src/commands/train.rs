@@ -316,7 +316,7 @@ fn start(args: &TrainArgs) -> Result<Start> {
     };
     let run_id = match &base {
         Some(BaseRun { run: RunConfig { run_id: Some(id), .. }, resuming: true, .. }) => id.clone(),
-        _ => super::resume::new_run_id(&config),
+        _ => crate::run_dir::new_run_id(&config),
     };
     Ok(Start { config, resumed, earlier, base, source, run_id })
 }
@@ -447,7 +447,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     );
     if interrupted {
         let message = format!("interrupted at iteration {}; checkpoint in {}", report.iterations, ckpt_path.display());
-        return Err(crate::signals::Stopped { signal: signal.unwrap_or(2), message }.into());
+        return Err(crate::signals::Stopped { signal: signal.unwrap_or(signal_hook::consts::SIGINT), message }.into());
     }
     Ok(())
 }
