@@ -304,8 +304,7 @@ impl OpenRun {
         config.check_scene(&scene, &format!("the run in {}", dir.display()), "give the run's own scene folder with --scene PATH")?;
         let train = view_indices(&scene, &config.train_views)?;
         let test = view_indices(&scene, &config.test_views)?;
-        let cams: Vec<&gs_core::Camera> = train.iter().map(|&i| &scene.views[i].camera).collect();
-        let extent = gs_core::extent_report(&cams, &scene.points).radius;
+        let extent = scene.extent_of(&train);
         let raster = config.train.raster_config();
         Ok(Self { dir: dir.to_path_buf(), scene, gaussians, train, test, raster, extent })
     }

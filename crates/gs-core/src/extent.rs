@@ -41,6 +41,12 @@ struct Spread {
     outliers: Vec<usize>,
 }
 
+/// r from a spread radius: 1.1 × the radius, or 1.1 × 1 when there is no spread (so
+/// thresholds stay usable).
+fn padded(radius: f64) -> f64 {
+    1.1 * if radius > 0.0 { radius } else { 1.0 }
+}
+
 /// The median of `v` (sorted in place); `v` must not be empty.
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -79,8 +85,7 @@ fn robust_spread(positions: &[DVec3], min_for_outliers: usize) -> Spread {
 /// [`extent_report`] to fall back to the sparse points instead.
 pub fn scene_extent(cameras: &[&Camera]) -> f64 {
     let centres: Vec<DVec3> = cameras.iter().map(|c| c.center()).collect();
-    let s = robust_spread(&centres, MIN_CAMERAS_FOR_OUTLIERS);
-    1.1 * if s.radius > 0.0 { s.radius } else { 1.0 }
+    padded(robust_spread(&centres, MIN_CAMERAS_FOR_OUTLIERS).radius)
 }
 
 /// What the scene extent was computed from.
@@ -114,17 +119,16 @@ pub fn extent_report(cameras: &[&Camera], points: &[ScenePoint]) -> ExtentReport
     let cams = robust_spread(&centres, MIN_CAMERAS_FOR_OUTLIERS);
     let inliers = centres.len() - cams.outliers.len();
     if inliers < 2 {
-        let radius = 1.1 * if cams.radius > 0.0 { cams.radius } else { 1.0 };
-        return ExtentReport { radius, basis: ExtentBasis::Cameras, outliers: cams.outliers };
+        return ExtentReport { radius: padded(cams.radius), basis: ExtentBasis::Cameras, outliers: cams.outliers };
     }
     let positions: Vec<DVec3> = points.iter().map(|p| p.position).collect();
     let pts = robust_spread(&positions, MIN_CAMERAS_FOR_OUTLIERS);
     let numerically_zero = cams.radius <= 1e-9 * cams.mean_norm.max(1.0);
     let coincident = numerically_zero || cams.radius <= COINCIDENT_FRACTION * pts.radius;
     let (radius, basis) = match coincident {
-        false => (1.1 * cams.radius, ExtentBasis::Cameras),
-        true if pts.radius > 1e-9 * pts.mean_norm.max(1.0) => (1.1 * pts.radius, ExtentBasis::SparsePoints),
-        true => (1.1, ExtentBasis::Unscaled),
+        false => (padded(cams.radius), ExtentBasis::Cameras),
+        true if pts.radius > 1e-9 * pts.mean_norm.max(1.0) => (padded(pts.radius), ExtentBasis::SparsePoints),
+        true => (padded(0.0), ExtentBasis::Unscaled),
     };
     ExtentReport { radius, basis, outliers: cams.outliers }
 }

@@ -100,6 +100,14 @@ impl Scene {
         self.extent_report().radius
     }
 
+    /// The extent r of a training run: the cameras of `views` (the training views) with the
+    /// scene's sparse points as fallback. The trainer and a reopened run both use it, so they
+    /// scale by the same r.
+    pub fn extent_of(&self, views: &[usize]) -> f64 {
+        let cams: Vec<&Camera> = views.iter().map(|&i| &self.views[i].camera).collect();
+        extent_report(&cams, &self.points).radius
+    }
+
     /// The scene extent with what it was computed from and the outlier cameras left out.
     pub fn extent_report(&self) -> ExtentReport {
         extent_report(&self.cameras(), &self.points)

@@ -165,7 +165,7 @@ impl<'s> Trainer<'s> {
     fn assemble(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, state: TrainState, budget: Budget) -> Result<Self> {
         check_state(&config, &state, train_views.len())?;
         let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
-        let extent = gs_core::extent_report(&cams, &scene.points).radius.max(1e-9);
+        let extent = scene.extent_of(&train_views).max(1e-9);
         let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), config.source_views, SourceSelection::RandomN)?;
         let test_views = (0..scene.views.len()).filter(|i| !train_views.contains(i)).collect();
         Ok(Self {
