@@ -165,6 +165,12 @@ fn finite_all(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
+/// The largest magnitude among `v`'s components (the distance from the origin to within √3),
+/// for the [`MAX_COORDINATE`] checks.
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().map(|x| x.abs()).fold(0.0, f64::max)
+}
+
 impl ColmapCamera {
     /// Checks the parameter count, finiteness, positive focal lengths and non-zero size;
     /// the message describes the problem (the caller adds file and record).
@@ -255,7 +261,7 @@ impl ColmapImage {
             return Err(format!("image {} ({}): quaternion has zero norm", self.id, self.name));
         }
         // The centre -Rᵀt lies |t| from the origin; beyond the limit distances overflow.
-        let far = self.tvec.iter().map(|t| t.abs()).fold(0.0, f64::max);
+        let far = max_abs(&self.tvec);
         if far > MAX_COORDINATE {
             return Err(format!(
                 "image {} ({}): camera centre lies about {far:e} from the origin, beyond the limit of \
@@ -279,7 +285,7 @@ impl ColmapPoint3D {
         if !finite_all(&self.xyz) {
             return Err(format!("point {}: position contains NaN or infinity", self.id));
         }
-        let far = self.xyz.iter().map(|x| x.abs()).fold(0.0, f64::max);
+        let far = max_abs(&self.xyz);
         if far > MAX_COORDINATE {
             return Err(format!(
                 "point {}: position lies about {far:e} from the origin, beyond the limit of {MAX_COORDINATE:e}",
