@@ -6,12 +6,14 @@ use anyhow::{Context, Result, bail};
 use std::path::Path;
 
 /// The files vagsl writes into a run folder: `train` (configuration, model, report,
-/// checkpoint, exposure), `mesh` (mesh and its report) and `eval-images` (its four score files).
+/// checkpoint, exposure, curves), `mesh` (mesh and its report), `eval-images` (its four score
+/// files), `eval-mesh` (its scores of the run's mesh) and `view` (the report page).
 pub const RUN_FILES: &[&str] = &[
     "config.json",
     "point_cloud.ply",
     "report.json",
     "checkpoint.bin",
+    "metrics.jsonl",
     "exposure.json",
     "mesh.ply",
     "mesh.json",
@@ -19,10 +21,13 @@ pub const RUN_FILES: &[&str] = &[
     "eval_images_train.json",
     "eval_images_masked.json",
     "eval_images_train_masked.json",
+    "eval_mesh.json",
+    "report.html",
 ];
 
-/// The folders vagsl writes into a run folder: `render`'s default output.
-pub const RUN_FOLDERS: &[&str] = &["renders"];
+/// The folders vagsl writes into a run folder: `render`'s default output and the report
+/// page's images and data.
+pub const RUN_FOLDERS: &[&str] = &["renders", "report"];
 
 /// Whether `dir` holds a training run (its configuration or its model).
 pub fn holds_run(dir: &Path) -> bool {
