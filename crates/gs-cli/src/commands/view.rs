@@ -39,7 +39,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     let splats = gs_report::SplatData::from_gaussians(model.gaussians)?;
     let mut writer = ReportWriter::new(&run.dir)?;
     let mut test_psnr = Vec::new();
-    let splits = [("train", model.train), ("test", model.test)];
+    let splits = [("test", model.test), ("train", model.train)];
     for (split, views) in splits {
         for &i in views {
             let view = &run.scene.views[i];
