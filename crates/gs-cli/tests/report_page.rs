@@ -1,6 +1,6 @@
 //! `vagsl view`: the report page in a real headless Chromium (Debian's `chromium`). The viewer
 //! at a scene camera must match `vagsl render` of that view (PSNR ≥ 20 dB at the same size),
-//! for a training and a held-out view, with no script error; the mesh toggle draws the mesh;
+//! — held here to 40 dB — for a training and a held-out view, with no script error; the mesh toggle draws the mesh;
 //! `--serve` serves the page and nothing else. Without a Chromium the browser checks are
 //! skipped with a line saying so (CI installs it).
 //!
@@ -147,7 +147,9 @@ fn the_viewer_at_a_scene_camera_matches_vagsl_render() {
         let shot = image::open(&shot_path).unwrap().to_rgb8();
         let p = psnr(&shot, &expected);
         eprintln!("viewer vs vagsl render at {split} view {name} ({w}×{h}): PSNR {p:.2} dB");
-        assert!(p >= 20.0, "{split} view {name}: the viewer differs from vagsl render (PSNR {p:.2} dB)");
+        // The issue asks for 20 dB; the viewer computes what the rasterizer computes, so it is
+        // held to 40 (measured: 60 dB; a depth-order bug gave 34).
+        assert!(p >= 40.0, "{split} view {name}: the viewer differs from vagsl render (PSNR {p:.2} dB)");
     }
     // The mesh toggle: the fused mesh, shaded, fills the view's object region.
     let url = format!("file://{}#view=0008.png&viewer&mode=mesh", page.display());

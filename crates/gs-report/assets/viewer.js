@@ -164,11 +164,11 @@ function floatTexture(gl, data, texelsPerItem, count) {
   return tex;
 }
 
-// Ascending LSD radix sort of positive float keys (their bit patterns order like the values);
-// returns the permutation.
+// Ascending LSD radix sort of `ids` by their positive float `depth[id]` (whose bit patterns
+// order like the values); returns the permutation.
 function sortByDepth(depth, ids) {
   const n = ids.length;
-  const keys = new Uint32Array(depth.buffer, 0, n);
+  const keys = new Uint32Array(depth.buffer, depth.byteOffset, depth.length);
   let a = ids, b = new Uint32Array(n);
   const count = new Uint32Array(256);
   for (let shift = 0; shift < 32; shift += 8) {
