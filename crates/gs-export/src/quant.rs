@@ -17,7 +17,7 @@ pub fn to_u8(x: f32) -> u8 {
 #[inline]
 pub fn unit_quaternion(q: [f32; 4]) -> [f32; 4] {
     let n = q.iter().map(|v| v * v).sum::<f32>().sqrt();
-    if !(n > 1e-20) || !n.is_finite() { [1.0, 0.0, 0.0, 0.0] } else { q.map(|v| v / n) }
+    if n > 1e-20 && n.is_finite() { q.map(|v| v / n) } else { [1.0, 0.0, 0.0, 0.0] }
 }
 
 /// Activated opacity of a logit.

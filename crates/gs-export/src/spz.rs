@@ -98,11 +98,9 @@ pub fn encode_spz(g: &Gaussians, path: &Path) -> Result<Vec<u8>> {
         raw.extend_from_slice(&pack_smallest_three(rub_quaternion(*q)).to_le_bytes());
     }
     for sh in &g.sh {
-        for k in 1..=dim {
+        for (k, coeff) in sh.iter().enumerate().take(dim + 1).skip(1) {
             let bits = if k <= 3 { SH1_BITS } else { SH_REST_BITS };
-            for c in 0..3 {
-                raw.push(quantize_sh(sh[k][c] * sh_flip(k), 1 << (8 - bits)));
-            }
+            raw.extend(coeff.iter().map(|&v| quantize_sh(v * sh_flip(k), 1 << (8 - bits))));
         }
     }
     let mut enc = GzEncoder::new(Vec::with_capacity(raw.len() / 2), Compression::default());

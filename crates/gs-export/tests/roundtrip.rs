@@ -107,8 +107,8 @@ fn splat_round_trip() {
         }
         check_opacity(&mut max, &g, &b, i);
         let u = gs_export::quant::unit_quaternion(g.rotations[i]);
-        for k in 0..4 {
-            max.check("quaternion component", i, (b.rotations[i][k] - u[k]).abs(), 1.0 / 128.0 + 1e-6);
+        for (r, v) in b.rotations[i].iter().zip(u) {
+            max.check("quaternion component", i, (r - v).abs(), 1.0 / 128.0 + 1e-6);
         }
         assert!(b.sh[i][1..].iter().flatten().all(|&v| v == 0.0));
     }
