@@ -60,6 +60,9 @@ enum Command {
     EvalImages(commands::eval_images::EvalImagesArgs),
     /// Accuracy / completeness / Chamfer / F1 of a mesh against a ground-truth mesh.
     EvalMesh(commands::eval_mesh::EvalMeshArgs),
+    /// Export a run's model (ply, splat, spz, compressed-ply) or mesh (mesh-ply, obj, glb) for
+    /// other viewers and tools.
+    Export(commands::export::ExportArgs),
     /// Run the ablation ladder (only L_I … full VA-GS, and the fast preset) and tabulate wall
     /// time, Gaussians, Chamfer / F1 and PSNR, with an SVG plot of accuracy against time.
     Tradeoff(commands::tradeoff::TradeoffArgs),
@@ -95,6 +98,7 @@ fn main() -> std::process::ExitCode {
         Command::Render(args) => commands::render::run(&args),
         Command::EvalImages(args) => commands::eval_images::run(&args),
         Command::EvalMesh(args) => commands::eval_mesh::run(&args),
+        Command::Export(args) => commands::export::run(&args),
         Command::Tradeoff(args) => commands::tradeoff::run(&args),
         Command::View(args) => commands::view::run(&args),
     };

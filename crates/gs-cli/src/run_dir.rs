@@ -248,6 +248,22 @@ fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<()> {
     }
 }
 
+/// Reads a run folder's `config.json` and its model `point_cloud.ply`, refusing a folder whose
+/// model is missing or belongs to another run; the scene is not loaded (`export` needs none).
+pub fn read_run_model(dir: &Path) -> Result<(RunConfig, Gaussians)> {
+    let cfg_path = dir.join("config.json");
+    let text = std::fs::read_to_string(&cfg_path)
+        .with_context(|| format!("{}: cannot read the run's configuration (is this a `vagsl train` output folder?)", cfg_path.display()))?;
+    let config: RunConfig =
+        serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
+    check_pairing(dir, config.run_id.as_deref())?;
+    let mut gaussians = gs_io::read_gaussian_ply(&dir.join("point_cloud.ply"))?;
+    // Coefficients above the degree reached stay 0 during training, so the maximum degree
+    // renders exactly what the trainer rendered last.
+    gaussians.sh_degree = config.train.sh_degree_max;
+    Ok((config, gaussians))
+}
+
 /// Indices of the named views in `scene` (an error names a missing view).
 pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
     names
@@ -277,16 +293,7 @@ impl OpenRun {
     /// when given: the run's scene folder, moved since training) and checks it is the scene the
     /// run was trained on.
     pub fn open(dir: &Path, scene: Option<&Path>) -> Result<Self> {
-        let cfg_path = dir.join("config.json");
-        let text = std::fs::read_to_string(&cfg_path)
-            .with_context(|| format!("{}: cannot read the run's configuration (is this a `vagsl train` output folder?)", cfg_path.display()))?;
-        let mut config: RunConfig =
-            serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
-        check_pairing(dir, config.run_id.as_deref())?;
-        let mut gaussians = gs_io::read_gaussian_ply(&dir.join("point_cloud.ply"))?;
-        // Coefficients above the degree reached stay 0 during training, so the maximum degree
-        // renders exactly what the trainer rendered last.
-        gaussians.sh_degree = config.train.sh_degree_max;
+        let (mut config, gaussians) = read_run_model(dir)?;
         if let Some(p) = scene {
             if config.scene.path.is_none() {
                 bail!("--scene {}: the run in {} was trained on the built-in scene, which has no folder", p.display(), dir.display());

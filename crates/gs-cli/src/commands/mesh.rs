@@ -85,7 +85,7 @@ fn options(args: &MeshArgs) -> MeshOptions {
 pub fn run(args: &MeshArgs) -> Result<()> {
     let opts = options(args);
     if let Some(out) = &args.output {
-        check_writable(out)?;
+        check_writable(out, "the mesh")?;
     }
     let (mesh, report, path) = match &args.depth_dir {
         Some(dir) => {
@@ -129,14 +129,14 @@ pub fn run(args: &MeshArgs) -> Result<()> {
 }
 
 /// Fails, before any work, when `path`'s folder is missing or refuses a new file (probed with a
-/// hidden temporary file, removed again).
-fn check_writable(path: &Path) -> Result<()> {
+/// hidden temporary file, removed again); `what` names the file in the message.
+pub fn check_writable(path: &Path, what: &str) -> Result<()> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        bail!("{}: cannot write the mesh there: the folder {} does not exist", path.display(), dir.display());
+        bail!("{}: cannot write {what} there: the folder {} does not exist", path.display(), dir.display());
     }
     let probe = dir.join(format!(".vagsl-write-test-{}", std::process::id()));
     match std::fs::File::create(&probe) {
@@ -144,7 +144,7 @@ fn check_writable(path: &Path) -> Result<()> {
             let _ = std::fs::remove_file(&probe);
             Ok(())
         }
-        Err(e) => bail!("{}: cannot write the mesh there: {e}", path.display()),
+        Err(e) => bail!("{}: cannot write {what} there: {e}", path.display()),
     }
 }
 

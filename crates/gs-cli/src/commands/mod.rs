@@ -3,6 +3,7 @@
 pub mod convert;
 pub mod eval_images;
 pub mod eval_mesh;
+pub mod export;
 pub mod info;
 pub mod mesh;
 pub mod render;

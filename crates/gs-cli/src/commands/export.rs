@@ -1,0 +1,69 @@
+//! `vagsl export`: a run's model or mesh in another format (gs-export does the encoding).
+
+use crate::run_dir::read_run_model;
+use anyhow::{Context, Result, bail};
+use gs_export::Format;
+use std::path::{Path, PathBuf};
+
+/// Options of `vagsl export`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ExportArgs {
+    /// A `vagsl train` output folder (RUN/point_cloud.ply; RUN/mesh.ply for the mesh formats).
+    pub run: PathBuf,
+    /// Output format: ply, splat, spz, compressed-ply (Gaussians) or mesh-ply, obj, glb (mesh).
+    /// Default: from the extension of -o (.splat, .spz, .obj, .glb; a .ply needs --format).
+    #[arg(long, value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// Output file.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// `--format` values, with the list of names in the error.
+fn parse_format(s: &str) -> std::result::Result<Format, String> {
+    Format::from_name(s).ok_or_else(|| format!("unknown format '{s}' (use one of {})", Format::ALL.map(Format::name).join(", ")))
+}
+
+/// Refuses an output that is one of the run's own files (a compressed copy must not replace the
+/// model or the mesh it was made from).
+fn check_not_run_file(run: &Path, out: &Path) -> Result<()> {
+    let canon = |p: &Path| std::fs::canonicalize(p).ok();
+    let Some(target) = canon(out) else { return Ok(()) };
+    for own in ["point_cloud.ply", "mesh.ply"] {
+        if canon(&run.join(own)).is_some_and(|p| p == target) {
+            bail!("{}: this is the run's own {own}; give another output file with -o", out.display());
+        }
+    }
+    Ok(())
+}
+
+/// Runs `vagsl export`.
+pub fn run(args: &ExportArgs) -> Result<()> {
+    let format = match args.format {
+        Some(f) => f,
+        None => Format::from_path(&args.output)?,
+    };
+    if !args.run.is_dir() {
+        bail!("{}: no such run folder (give a `vagsl train` output folder)", args.run.display());
+    }
+    super::mesh::check_writable(&args.output, &format!("the {format} file"))?;
+    check_not_run_file(&args.run, &args.output)?;
+    let summary = if format.is_mesh() {
+        let src = args.run.join("mesh.ply");
+        if !src.is_file() {
+            bail!("{}: the run has no mesh.ply; make it first with `vagsl mesh {}`", args.run.display(), args.run.display());
+        }
+        let mesh = gs_io::read_mesh_ply(&src)?;
+        gs_export::write_mesh(format, &args.output, &mesh)?;
+        let colours = if mesh.colors.is_some() { "with vertex colours" } else { "without colours" };
+        format!("{} vertices, {} triangles {colours}", mesh.positions.len(), mesh.triangles.len())
+    } else {
+        let (_, gaussians) = read_run_model(&args.run)?;
+        gs_export::write_gaussians(format, &args.output, &gaussians)?;
+        let degree = if matches!(format, Format::Splat) { 0 } else { gaussians.sh_degree };
+        format!("{} Gaussians, SH degree {degree}", gaussians.len())
+    };
+    let size = std::fs::metadata(&args.output).with_context(|| format!("{}: written but cannot be read back", args.output.display()))?.len();
+    println!("export: {format}: {summary} → {} ({size} bytes)", args.output.display());
+    Ok(())
+}
