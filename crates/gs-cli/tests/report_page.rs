@@ -87,7 +87,8 @@ fn chromium() -> Option<PathBuf> {
 }
 
 /// Runs headless Chromium on `url` at `w`×`h` with `what` (`--screenshot=…` or `--dump-dom`);
-/// returns stdout.
+/// returns stdout. Every console message of the page (which logs nothing when all is well:
+/// script errors, WebGL warnings, resources that failed to load) fails the test.
 fn browse(chrome: &Path, url: &str, w: u32, h: u32, what: &str) -> String {
     let profile = tempfile::tempdir().unwrap();
     let out = Command::new(chrome)
@@ -99,6 +100,8 @@ fn browse(chrome: &Path, url: &str, w: u32, h: u32, what: &str) -> String {
             "--hide-scrollbars",
             "--no-first-run",
             "--virtual-time-budget=30000",
+            "--enable-logging=stderr",
+            "--v=0",
         ])
         .arg(format!("--user-data-dir={}", profile.path().display()))
         .arg(format!("--window-size={w},{h}"))
@@ -106,7 +109,10 @@ fn browse(chrome: &Path, url: &str, w: u32, h: u32, what: &str) -> String {
         .arg(url)
         .output()
         .expect("run chromium");
-    assert!(out.status.success(), "chromium failed: {}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "chromium failed: {stderr}");
+    let console: Vec<&str> = stderr.lines().filter(|l| l.contains(":CONSOLE")).collect();
+    assert!(console.is_empty(), "console messages at {url}:\n{}", console.join("\n"));
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
