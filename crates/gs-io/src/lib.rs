@@ -51,15 +51,18 @@ pub mod colmap;
 pub mod error;
 pub mod exr;
 pub mod integrity;
+pub mod layout;
 pub mod npy;
 pub mod obj;
 pub mod ply;
 pub mod png;
 pub mod scene;
+pub mod transforms;
 pub mod undistort;
 
 pub use atomic::{remove_stale_temps, write_atomic};
 pub use colmap::{ColmapModel, read_model};
+pub use layout::{SceneLayout, SceneModel, detect_layout, read_scene_model};
 pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, model_summary};
 pub use error::{IoError, Result};
 pub use self::exr::{read_exr, write_depth_exr, write_exr, write_normal_exr};
