@@ -1,10 +1,10 @@
 //! # gs-io
 //!
 //! File formats of vagsl: COLMAP sparse models (text and binary, read and write, every
-//! non-fisheye camera model), undistortion to PINHOLE and downscaling, scene loading,
-//! the Inria 3DGS Gaussian PLY, mesh PLY and OBJ, and float EXR maps. Every reader returns a
-//! clear [`IoError`] naming the file and the problem; every writer is atomic (temporary file +
-//! rename).
+//! non-fisheye camera model), transforms.json scenes, undistortion to PINHOLE and
+//! downscaling, scene loading, the Inria 3DGS Gaussian PLY, mesh PLY and OBJ, and float EXR
+//! maps. Every reader returns a clear [`IoError`] naming the file and the problem; every
+//! writer is atomic (temporary file + rename).
 //!
 //! ## COLMAP models and scenes
 //!
@@ -29,6 +29,11 @@
 //! assert_eq!(view.image.width() as u32, view.camera.width);
 //! # Ok::<(), gs_io::IoError>(())
 //! ```
+//!
+//! A scene folder may instead hold a nerfstudio / instant-ngp `transforms.json` (or Blender's
+//! `transforms_train.json` + `transforms_test.json`): [`load_scene`] detects the layout
+//! ([`layout`]; COLMAP wins when both exist) and [`transforms`] reads it into the same COLMAP
+//! model types, converting the OpenGL camera→world poses to COLMAP's world→camera.
 //!
 //! Camera models with distortion project and undistort points like COLMAP:
 //!
