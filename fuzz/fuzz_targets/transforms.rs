@@ -33,7 +33,9 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = transforms_json(&model, "", false) else { return };
     let back = parse_transforms(text.as_bytes(), path).expect("our own output parses");
     assert_eq!(back.frames.len(), model.images.len());
-    for (frame, img) in back.frames.iter().zip(model.images.values()) {
+    for frame in &back.frames {
+        // Frames are written in name order; match them to the images by name.
+        let img = model.images.values().find(|i| i.name == frame.file_path).expect("every frame is an image");
         let cam = &model.cameras[&img.camera_id];
         let again = frame.lens.camera(cam.id, cam.width, cam.height).expect("our own camera is valid");
         let [a, b] = [cam.pinhole(), again.pinhole()];
