@@ -27,8 +27,10 @@ enum Command {
     /// Summarise a scene: cameras, images, points, resolutions, camera models, scene extent
     /// and source-view neighbour statistics.
     ///
-    /// SCENE is a folder with `images/` and `sparse/0` (COLMAP text or binary), or a model
-    /// folder itself. Without SCENE the built-in procedural scene is described.
+    /// SCENE is a folder with `images/` and `sparse/0` (COLMAP text or binary), a model folder
+    /// itself, or a folder with `transforms.json` (or `transforms_train.json` +
+    /// `transforms_test.json`); COLMAP wins when both are there. Without SCENE the built-in
+    /// procedural scene is described.
     Info {
         /// Scene folder (or COLMAP model folder). Omit for the built-in scene.
         scene: Option<PathBuf>,
@@ -36,14 +38,21 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Convert a COLMAP model between text and binary (lossless).
+    /// Convert a scene: COLMAP text ↔ binary (lossless), COLMAP → transforms.json, or
+    /// transforms.json → COLMAP.
+    ///
+    /// `--to transforms` writes OUT/transforms.json and OUT/sparse_pc.ply (default OUT: the
+    /// scene folder) naming the photos as `images/NAME` (OUT/images is linked to the scene's
+    /// photos when OUT is elsewhere). From a transforms.json scene, `--to text|bin` writes a
+    /// COLMAP model (default SCENE/sparse/0) without observations.
     Convert {
-        /// Model folder (e.g. `SCENE/sparse/0`) or scene folder.
+        /// Model folder (e.g. `SCENE/sparse/0`) or scene folder (COLMAP or transforms.json).
         model: PathBuf,
         /// Output format.
         #[arg(long, value_enum)]
         to: commands::convert::Format,
-        /// Output folder (created if missing). Defaults to the input model folder.
+        /// Output folder (created if missing). Defaults to the input model folder (text/bin
+        /// from COLMAP), the scene folder (transforms) or SCENE/sparse/0 (from transforms.json).
         #[arg(short, long)]
         output: Option<PathBuf>,
     },

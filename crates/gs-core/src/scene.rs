@@ -40,6 +40,10 @@ pub struct Scene {
     pub views: Vec<View>,
     /// Sparse points, possibly empty.
     pub points: Vec<ScenePoint>,
+    /// The views the scene's own files hold out for evaluation (the frames of a
+    /// `transforms_test.json`), by name; `None` when the files define no split, and then `--eval`
+    /// holds out every 8th view.
+    pub held_out: Option<Vec<String>>,
 }
 
 /// Parameters of the source-view candidate rule of method-spec §7.
@@ -121,14 +125,20 @@ impl Scene {
         self.extent_report().warnings(&names)
     }
 
-    /// Indices of `(train, test)` views: with `eval`, every 8th view (index % 8 == 0, views
-    /// sorted by name) is held out (3DGS protocol); without, all views train.
+    /// Indices of `(train, test)` views, each in name order: with `eval`, the scene's own
+    /// [`held_out`](Self::held_out) views when it has them (as 3DGS does for the Blender
+    /// `transforms_test.json`), else every 8th view (index % 8 == 0, views sorted by name; 3DGS
+    /// protocol); without `eval`, all views train.
     pub fn split(&self, eval: bool) -> (Vec<usize>, Vec<usize>) {
         let mut order: Vec<usize> = (0..self.views.len()).collect();
         order.sort_by(|&a, &b| self.views[a].name.cmp(&self.views[b].name));
         let (mut train, mut test) = (Vec::new(), Vec::new());
         for (k, &i) in order.iter().enumerate() {
-            if eval && k % 8 == 0 { test.push(i) } else { train.push(i) }
+            let held_out = match &self.held_out {
+                Some(names) => names.contains(&self.views[i].name),
+                None => k % 8 == 0,
+            };
+            if eval && held_out { test.push(i) } else { train.push(i) }
         }
         (train, test)
     }
@@ -172,5 +182,24 @@ mod tests {
         assert_eq!(nb[0].len(), 4);
         assert!(nb[0].contains(&1) && nb[0].contains(&23) && nb[0].contains(&2) && nb[0].contains(&22));
         assert_eq!(&nb[0][..2].iter().map(|&j| j.min(24 - j)).collect::<Vec<_>>(), &[1, 1]);
+    }
+
+    #[test]
+    fn split_uses_the_scenes_own_held_out_views() {
+        let views: Vec<View> = ring(10)
+            .into_iter()
+            .enumerate()
+            .map(|(i, camera)| View {
+                name: format!("{i:02}.png"),
+                camera,
+                image: Image::new(1, 1, 3).unwrap(),
+                mask: None,
+            })
+            .collect();
+        let mut scene = Scene { views, points: Vec::new(), held_out: None };
+        assert_eq!(scene.split(true), ((1..10).filter(|&i| i != 8).collect(), vec![0, 8]));
+        scene.held_out = Some(vec!["03.png".into(), "07.png".into()]);
+        assert_eq!(scene.split(true).1, vec![3, 7]);
+        assert_eq!(scene.split(false), ((0..10).collect(), vec![]));
     }
 }

@@ -1,10 +1,10 @@
 //! # gs-io
 //!
 //! File formats of vagsl: COLMAP sparse models (text and binary, read and write, every
-//! non-fisheye camera model), undistortion to PINHOLE and downscaling, scene loading,
-//! the Inria 3DGS Gaussian PLY, mesh PLY and OBJ, and float EXR maps. Every reader returns a
-//! clear [`IoError`] naming the file and the problem; every writer is atomic (temporary file +
-//! rename).
+//! non-fisheye camera model), transforms.json scenes, undistortion to PINHOLE and
+//! downscaling, scene loading, the Inria 3DGS Gaussian PLY, mesh PLY and OBJ, and float EXR
+//! maps. Every reader returns a clear [`IoError`] naming the file and the problem; every
+//! writer is atomic (temporary file + rename).
 //!
 //! ## COLMAP models and scenes
 //!
@@ -30,6 +30,11 @@
 //! # Ok::<(), gs_io::IoError>(())
 //! ```
 //!
+//! A scene folder may instead hold a nerfstudio / instant-ngp `transforms.json` (or Blender's
+//! `transforms_train.json` + `transforms_test.json`): [`load_scene`] detects the layout
+//! ([`layout`]; COLMAP wins when both exist) and [`transforms`] reads it into the same COLMAP
+//! model types, converting the OpenGL camera→world poses to COLMAP's world→camera.
+//!
 //! Camera models with distortion project and undistort points like COLMAP:
 //!
 //! ```
@@ -51,15 +56,18 @@ pub mod colmap;
 pub mod error;
 pub mod exr;
 pub mod integrity;
+pub mod layout;
 pub mod npy;
 pub mod obj;
 pub mod ply;
 pub mod png;
 pub mod scene;
+pub mod transforms;
 pub mod undistort;
 
 pub use atomic::{remove_stale_temps, write_atomic};
 pub use colmap::{ColmapModel, read_model};
+pub use layout::{SceneLayout, SceneModel, detect_layout, read_scene_model};
 pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, model_summary};
 pub use error::{IoError, Result};
 pub use self::exr::{read_exr, write_depth_exr, write_exr, write_normal_exr};

@@ -1,6 +1,9 @@
-//! Scene loading: a COLMAP scene folder → [`gs_core::Scene`] of undistorted PINHOLE views.
+//! Scene loading: a scene folder → [`gs_core::Scene`] of undistorted PINHOLE views.
 //!
-//! `SCENE/sparse/0` (text or binary; `SCENE/sparse` is accepted too), `SCENE/images/<name>`
+//! The folder holds a COLMAP model or a `transforms.json` ([`crate::layout`],
+//! [`crate::transforms`]); both become the same [`crate::layout::SceneModel`], so everything
+//! below applies to both. COLMAP: `SCENE/sparse/0` (text or binary; `SCENE/sparse` is accepted
+//! too), `SCENE/images/<name>`
 //! (PNG/JPEG, 8- or 16-bit, grey or RGB(A); values / 255 or / 65535, no gamma; alpha dropped)
 //! and optional `SCENE/masks/<stem>.png`. Every image is undistorted to PINHOLE like
 //! `colmap image_undistorter` ([`crate::undistort`]), then downscaled (method-spec §1:
@@ -8,6 +11,7 @@
 //! Images are decoded in parallel with rayon.
 
 use crate::colmap::{ColmapCamera, ColmapModel, ModelFormat, detect_format, read_model};
+use crate::layout::read_scene_model;
 use crate::error::{IoError, Result};
 use crate::undistort::{UndistortMap, UndistortOptions, undistort_camera};
 use gs_core::glam::DVec3;
@@ -126,7 +130,8 @@ fn is_16bit(img: &image::DynamicImage) -> bool {
     matches!(img, ImageLuma16(_) | ImageLumaA16(_) | ImageRgb16(_) | ImageRgba16(_))
 }
 
-fn image_size(path: &Path) -> Result<(u32, u32)> {
+/// The size of an image file from its header; an error naming a missing or unreadable file.
+pub(crate) fn image_size(path: &Path) -> Result<(u32, u32)> {
     if !path.is_file() {
         return Err(IoError::invalid(path, "missing image file"));
     }
@@ -168,14 +173,15 @@ struct CameraPlan {
     map: Option<UndistortMap>,
 }
 
-/// Loads a COLMAP scene folder (see the module docs) into a [`Scene`] with undistorted,
-/// downscaled PINHOLE views sorted by name and the sparse points (colours / 255).
+/// Loads a scene folder, COLMAP or transforms.json (see the module docs), into a [`Scene`]
+/// with undistorted, downscaled PINHOLE views sorted by name, the sparse points (colours / 255;
+/// none when a transforms scene names no `ply_file_path`, and training then starts from random
+/// points) and the scene's own held-out views.
 /// Errors name the file: bad models, missing or undecodable images, images whose size does not
 /// match their camera (other than a uniform rescale), masks of the wrong size.
 pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
-    let model_dir = find_model_dir(scene_dir)?;
-    let model = read_model(&model_dir)?;
-    let images_dir = scene_dir.join(opts.images_dir.as_deref().unwrap_or(Path::new("images")));
+    let sm = read_scene_model(scene_dir, opts.images_dir.as_deref())?;
+    let (model, model_dir) = (&sm.model, &sm.origin);
     let masks_dir = scene_dir.join("masks");
 
     let mut selected: Vec<&crate::colmap::ColmapImage> = match &opts.only_images {
@@ -184,21 +190,21 @@ pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
             .iter()
             .map(|n| {
                 model.images.values().find(|i| &i.name == n).ok_or_else(|| {
-                    IoError::invalid(&model_dir, format!("image '{n}' is not in the model"))
+                    IoError::invalid(model_dir, format!("image '{n}' is not in the model"))
                 })
             })
             .collect::<Result<_>>()?,
     };
     selected.sort_by(|a, b| a.name.cmp(&b.name));
     if let Some(w) = selected.windows(2).find(|w| w[0].name == w[1].name) {
-        return Err(IoError::invalid(&model_dir, format!("image '{}' is selected twice", w[0].name)));
+        return Err(IoError::invalid(model_dir, format!("image '{}' is selected twice", w[0].name)));
     }
 
     // Pass 1 (headers only): file sizes, so cameras can be matched to the files' resolution.
     let sizes: Vec<(PathBuf, (u32, u32))> = selected
         .iter()
         .map(|img| {
-            let p = images_dir.join(&img.name);
+            let p = sm.image_paths[&img.id].clone();
             image_size(&p).map(|s| (p, s))
         })
         .collect::<Result<_>>()?;
@@ -228,7 +234,7 @@ pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
             }
             cam.rescaled(*w, *h)
         };
-        let pinhole = undistort_camera(&cam, &opts.undistort).map_err(|m| IoError::invalid(&model_dir, m))?;
+        let pinhole = undistort_camera(&cam, &opts.undistort).map_err(|m| IoError::invalid(model_dir, m))?;
         let map = (!cam.is_undistorted()).then(|| UndistortMap::new(&cam, &pinhole));
         plans.insert(key, CameraPlan { pinhole, map });
     }
@@ -262,7 +268,7 @@ pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
             let image = prepare(decode_rgb(path)?, path)?;
             let mask = match opts.masks {
                 MaskPolicy::Ignore => None,
-                policy => match mask_path(&masks_dir, &img.name) {
+                policy => match sm.mask_paths.get(&img.id).cloned().or_else(|| mask_path(&masks_dir, &img.name)) {
                     Some(mp) => {
                         let m = decode_mask(&mp)?;
                         if (m.width(), m.height()) != (*w as usize, *h as usize) {
@@ -298,7 +304,7 @@ pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
             color: p.rgb.map(|c| c as f32 / 255.0),
         })
         .collect();
-    Ok(Scene { views, points })
+    Ok(Scene { views, points, held_out: sm.held_out.clone() })
 }
 
 /// Per-camera line of a [`ModelSummary`].

@@ -198,7 +198,7 @@ pub fn generate(opts: &BuiltinOptions) -> Result<BuiltinScene> {
         gt_depth.push(r.depth);
         gt_normals.push(r.normal);
     }
-    let scene = Scene { views, points };
+    let scene = Scene { views, points, held_out: None };
     let scene_mesh = renderer.geom.mesh.clone();
     let description = format!(
         "gs-synth built-in scene: textured sphere, box and torus on a checkered floor in an \

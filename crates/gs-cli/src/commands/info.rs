@@ -1,6 +1,8 @@
 //! `vagsl info`: what is in a scene.
 
-use crate::scene_path::{images_dir, model_dir};
+use crate::scene_path::images_dir;
+use gs_io::SceneLayout;
+use gs_io::colmap::ModelFormat;
 use anyhow::Result;
 use gs_core::{Camera, Intrinsics, NeighbourRule, scene_extent, source_view_candidates};
 use serde::Serialize;
@@ -38,8 +40,11 @@ pub struct NeighbourStats {
 pub struct Summary {
     /// The scene path, or `built-in`.
     pub source: String,
-    /// `text`, `binary` or `procedural`.
+    /// `text`, `binary`, `transforms.json (FILE)` or `procedural`.
     pub format: String,
+    /// How many views the scene's own files hold out for `--eval` (the frames of
+    /// `transforms_test.json`); `None` when `--eval` holds out every 8th view.
+    pub held_out_views: Option<usize>,
     /// Number of cameras.
     pub cameras: usize,
     /// Number of registered images.
@@ -82,11 +87,14 @@ fn neighbour_stats(cameras: &[Camera]) -> NeighbourStats {
     }
 }
 
-/// Summary of a COLMAP scene folder.
-pub fn summarize_colmap(scene: &Path) -> Result<Summary> {
-    let dir = model_dir(scene)?;
-    let format = gs_io::colmap::detect_format(&dir)?;
-    let model = gs_io::colmap::read_model(&dir)?;
+/// Summary of a scene folder in either layout (COLMAP, or transforms.json; see
+/// [`gs_io::layout`]), or of a COLMAP model folder.
+pub fn summarize_scene(scene: &Path) -> Result<Summary> {
+    if !scene.exists() {
+        anyhow::bail!("{}: no such file or folder", scene.display());
+    }
+    let sm = gs_io::read_scene_model(scene, None)?;
+    let (model, dir) = (&sm.model, &sm.origin);
     let mut cameras = Vec::with_capacity(model.images.len());
     for img in model.images.values() {
         let cam = &model.cameras[&img.camera_id];
@@ -111,10 +119,19 @@ pub fn summarize_colmap(scene: &Path) -> Result<Summary> {
         let cam = &model.cameras[&img.camera_id];
         *resolutions.entry(format!("{}x{}", cam.width, cam.height)).or_insert(0) += 1;
     }
-    let (image_files_found, missing_images) = match images_dir(scene, &dir) {
-        Some(images) => {
+    let images = match &sm.layout {
+        SceneLayout::Colmap { model_dir, .. } => images_dir(scene, model_dir),
+        // The reader found every file (a missing one is an error naming its frame).
+        SceneLayout::Transforms(_) => Some(scene.to_path_buf()),
+    };
+    let (image_files_found, missing_images) = match images {
+        Some(_) => {
+            let path = |i: &gs_io::colmap::ColmapImage| match (&sm.layout, &images) {
+                (SceneLayout::Colmap { .. }, Some(d)) => d.join(&i.name),
+                _ => sm.image_paths[&i.id].clone(),
+            };
             let missing: Vec<String> =
-                model.images.values().filter(|i| !images.join(&i.name).is_file()).map(|i| i.name.clone()).collect();
+                model.images.values().filter(|i| !path(i).is_file()).map(|i| i.name.clone()).collect();
             (Some(model.images.len() - missing.len()), missing.into_iter().take(5).collect())
         }
         None => (None, Vec::new()),
@@ -122,10 +139,12 @@ pub fn summarize_colmap(scene: &Path) -> Result<Summary> {
     let refs: Vec<&Camera> = cameras.iter().collect();
     Ok(Summary {
         source: scene.display().to_string(),
-        format: match format {
-            gs_io::colmap::ModelFormat::Text => "text".into(),
-            gs_io::colmap::ModelFormat::Binary => "binary".into(),
+        format: match &sm.layout {
+            SceneLayout::Colmap { format: ModelFormat::Text, .. } => "text".into(),
+            SceneLayout::Colmap { format: ModelFormat::Binary, .. } => "binary".into(),
+            SceneLayout::Transforms(_) => format!("transforms.json ({})", sm.origin.display()),
         },
+        held_out_views: sm.held_out.as_ref().map(Vec::len),
         cameras: model.cameras.len(),
         images: model.images.len(),
         image_files_found,
@@ -159,6 +178,7 @@ pub fn summarize_builtin() -> Result<Summary> {
     Ok(Summary {
         source: format!("built-in (seed {}, {} triangles of exact ground truth)", opts.seed, built.scene_mesh.triangles.len()),
         format: "procedural".into(),
+        held_out_views: None,
         cameras: cameras.len(),
         images: scene.views.len(),
         image_files_found: None,
@@ -196,6 +216,9 @@ pub fn print_text(s: &Summary) {
         None if s.format == "procedural" => println!("images           {} (generated in memory)", s.images),
         None => println!("images           {} (no images folder found)", s.images),
     }
+    if let Some(n) = s.held_out_views {
+        println!("held out         {n} views for --eval (the scene's own test split)");
+    }
     println!("points           {}", s.points);
     if s.observations > 0 {
         println!("observations     {} (mean track length {:.2})", s.observations, s.mean_track_length);
@@ -229,7 +252,7 @@ pub fn print_text(s: &Summary) {
 /// Runs `vagsl info`.
 pub fn run(scene: Option<&Path>, json: bool) -> Result<()> {
     let summary = match scene {
-        Some(path) => summarize_colmap(path)?,
+        Some(path) => summarize_scene(path)?,
         None => summarize_builtin()?,
     };
     if json {

@@ -13,7 +13,9 @@ use std::time::Instant;
 /// Options of `vagsl train` (see `vagsl train --help`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct TrainArgs {
-    /// Scene folder (`images/` + `sparse/0`). Omit for the built-in scene.
+    /// Scene folder: `images/` + `sparse/0` (COLMAP), or `transforms.json` (or
+    /// `transforms_train.json` + `transforms_test.json`, whose test frames `--eval` holds out).
+    /// Omit for the built-in scene.
     pub scene: Option<PathBuf>,
     /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
     #[arg(long, default_value = "auto")]
