@@ -42,8 +42,9 @@ pub fn write_exr(path: &Path, image: &Image) -> Result<()> {
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
-/// Encodes `image` as EXR bytes in memory.
-fn encode_exr(image: &Image) -> std::result::Result<Vec<u8>, String> {
+/// Encodes `image` as EXR bytes in memory (what [`write_exr`] writes; the error says why an
+/// image cannot be written, e.g. its channel count).
+pub fn encode_exr(image: &Image) -> std::result::Result<Vec<u8>, String> {
     let names: &[&str] = match image.channels() {
         1 => &["Z"],
         3 => &["R", "G", "B"],

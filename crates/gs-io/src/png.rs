@@ -8,6 +8,12 @@ use std::path::Path;
 /// Writes a 1- or 3-channel image in [0, 1] as an 8-bit PNG (values clamped, round to
 /// nearest, no gamma: the inverse of how images are read). NaN is written as 0.
 pub fn write_png(path: &Path, image: &Image) -> Result<()> {
+    let bytes = encode_png(image, path)?;
+    write_atomic(path, |out| out.write_all(&bytes))
+}
+
+/// The bytes [`write_png`] writes; `path` only names the file in errors.
+pub fn encode_png(image: &Image, path: &Path) -> Result<Vec<u8>> {
     let color = match image.channels() {
         1 => image::ExtendedColorType::L8,
         3 => image::ExtendedColorType::Rgb8,
@@ -16,11 +22,11 @@ pub fn write_png(path: &Path, image: &Image) -> Result<()> {
     let bytes: Vec<u8> =
         image.data().iter().map(|v| if v.is_nan() { 0 } else { (v.clamp(0.0, 1.0) * 255.0).round() as u8 }).collect();
     let (w, h) = (image.width() as u32, image.height() as u32);
-    write_atomic(path, |out| {
-        image::codecs::png::PngEncoder::new(out)
-            .write_image(&bytes, w, h, color)
-            .map_err(std::io::Error::other)
-    })
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(&bytes, w, h, color)
+        .map_err(|e| IoError::invalid(path, format!("cannot encode the PNG: {e}")))?;
+    Ok(out)
 }
 
 use image::ImageEncoder;
