@@ -183,6 +183,12 @@ impl<'s> Trainer<'s> {
         })
     }
 
+    /// The run's estimated peak memory ([`crate::memory`]), before training allocates its
+    /// caches and grows the model.
+    pub fn memory_estimate(&self) -> crate::memory::TrainMemoryEstimate {
+        crate::memory::estimate(self.scene, &self.train_views, &self.config, &self.budget, self.state.gaussians.len())
+    }
+
     /// The scene's Gaussian budget ([`crate::budget`]).
     pub fn budget(&self) -> &Budget {
         &self.budget
