@@ -220,6 +220,9 @@ pub fn setting_flags(args: &TrainArgs) -> Vec<(&'static str, &'static str, serde
 pub struct TrainReport {
     /// The run this model belongs to: the `run_id` of config.json (see `OpenRun::open`).
     pub run_id: String,
+    /// Fingerprint of the model this report describes (`run_dir::model_fingerprint`): the
+    /// report is written before point_cloud.ply, so a model that is not this one is noticed.
+    pub model_fingerprint: String,
     /// Iterations completed.
     pub iterations: u64,
     /// Whether the run was stopped (Ctrl-C, SIGTERM, SIGHUP) before the last iteration.
@@ -388,7 +391,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
     // Everything that can refuse the run has run: only now is the folder touched.
-    crate::out_folder::prepare(out, args.force)?;
+    crate::out_folder::prepare(out, args.force, args.resume.is_some())?;
     write_json(&out.join("config.json"), &run_config)?;
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
     let b = *trainer.budget();
@@ -410,10 +413,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         checkpoint::save(&ckpt_path, &config, trainer.state(), &elapsed)?;
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
-    gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
-    write_exposure(out, &run_config, &trainer)?;
     let report = TrainReport {
         run_id,
+        model_fingerprint: crate::run_dir::model_fingerprint(trainer.gaussians()),
         iterations: trainer.iteration(),
         interrupted,
         gaussians: trainer.gaussians().len(),
@@ -433,7 +435,11 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         floaters_removed,
         last,
     };
+    // The report first, then the model it describes: a run stopped between the two leaves a
+    // folder whose model is missing or older than its report, which `OpenRun::open` names.
     write_json(&out.join("report.json"), &report)?;
+    gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
+    write_exposure(out, &run_config, &trainer)?;
     let done_here = report.iterations - resumed_from.unwrap_or(0);
     println!(
         "trained {} iterations in {:.1}s ({:.1} it/s{}): {} Gaussians, peak memory {} → {}",
