@@ -53,3 +53,17 @@ fn wrong_channel_counts_and_bad_files() {
     std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
     assert!(read_exr(&p).unwrap_err().to_string().contains("x.exr"));
 }
+
+/// Found by the `exr` fuzz target: a B44 block whose deltas wrap around. The exr crate's B44
+/// decoder computes in u32 with wrap-around on purpose, as OpenEXR's C reference does, so an
+/// overflow-checked build panicked on it; a release build must read it (as the wrapped values)
+/// or refuse it with a message, and never panic.
+#[test]
+fn a_b44_block_with_wrapping_deltas_is_not_a_panic() {
+    let bytes = include_bytes!("fixtures/fuzz/exr_b44_wrapping.exr");
+    let path = std::path::Path::new("b44.exr");
+    match gs_io::exr::parse_exr(bytes, path) {
+        Ok(img) => assert!(img.width() * img.height() > 0),
+        Err(e) => assert!(e.to_string().contains("b44.exr"), "{e}"),
+    }
+}
