@@ -5,6 +5,7 @@
 
 mod commands;
 mod memory;
+mod metrics_log;
 mod out_folder;
 mod run_dir;
 mod scene_path;
@@ -62,6 +63,10 @@ enum Command {
     /// Run the ablation ladder (only L_I … full VA-GS, and the fast preset) and tabulate wall
     /// time, Gaussians, Chamfer / F1 and PSNR, with an SVG plot of accuracy against time.
     Tradeoff(commands::tradeoff::TradeoffArgs),
+    /// Write the run's report page, RUN/report.html: an interactive view of the splats and the
+    /// mesh, every view's photo, render, normal and depth maps with their scores, and the
+    /// training curves (works offline; `--serve` serves it on 127.0.0.1).
+    View(commands::view::ViewArgs),
 }
 
 /// On a headless machine (no Wayland or X display) Mesa's Vulkan device-select layer, loaded
@@ -91,6 +96,7 @@ fn main() -> std::process::ExitCode {
         Command::EvalImages(args) => commands::eval_images::run(&args),
         Command::EvalMesh(args) => commands::eval_mesh::run(&args),
         Command::Tradeoff(args) => commands::tradeoff::run(&args),
+        Command::View(args) => commands::view::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -6,12 +6,14 @@ use anyhow::{Context, Result, bail};
 use std::path::Path;
 
 /// The files vagsl writes into a run folder: `train` (configuration, model, report,
-/// checkpoint, exposure), `mesh` (mesh and its report) and `eval-images` (its four score files).
+/// checkpoint, exposure, curves), `mesh` (mesh and its report), `eval-images` (its four score
+/// files), `eval-mesh` (its scores of the run's mesh) and `view` (the report page).
 pub const RUN_FILES: &[&str] = &[
     "config.json",
     "point_cloud.ply",
     "report.json",
     "checkpoint.bin",
+    "metrics.jsonl",
     "exposure.json",
     "mesh.ply",
     "mesh.json",
@@ -19,10 +21,13 @@ pub const RUN_FILES: &[&str] = &[
     "eval_images_train.json",
     "eval_images_masked.json",
     "eval_images_train_masked.json",
+    "eval_mesh.json",
+    "report.html",
 ];
 
-/// The folders vagsl writes into a run folder: `render`'s default output.
-pub const RUN_FOLDERS: &[&str] = &["renders"];
+/// The folders vagsl writes into a run folder: `render`'s default output and the report
+/// page's images and data.
+pub const RUN_FOLDERS: &[&str] = &["renders", "report"];
 
 /// Whether `dir` holds a training run (its configuration or its model).
 pub fn holds_run(dir: &Path) -> bool {
@@ -44,21 +49,21 @@ pub fn check(out: &Path, force: bool, resume: bool) -> Result<()> {
     Ok(())
 }
 
-/// The outputs of later commands derived from a run's model (`mesh`, `eval-images`, `render`):
-/// a resumed run replaces the model, so these would describe an older one.
-pub const DERIVED_FILES: &[&str] = &[
-    "mesh.ply",
-    "mesh.json",
-    "eval_images.json",
-    "eval_images_train.json",
-    "eval_images_masked.json",
-    "eval_images_train_masked.json",
-];
+/// The files `train` itself writes or continues (configuration, model, report, checkpoint,
+/// curves, exposure); every other file of [`RUN_FILES`] is made by a later command from the
+/// model (`mesh`, `eval-images`, `eval-mesh`, `view`).
+pub const TRAIN_FILES: &[&str] = &["config.json", "point_cloud.ply", "report.json", "checkpoint.bin", "metrics.jsonl", "exposure.json"];
+
+/// The files of [`RUN_FILES`] derived from a run's model: a resumed run replaces the model, so
+/// these would describe an older one.
+pub fn derived_files() -> Vec<&'static str> {
+    RUN_FILES.iter().copied().filter(|f| !TRAIN_FILES.contains(f)).collect()
+}
 
 /// Makes `out` ready when training really starts: with `force` the previous run's files
 /// ([`RUN_FILES`], [`RUN_FOLDERS`]) are removed, so no stale mesh, checkpoint or renders stay
 /// beside the new model; with `resume` the outputs derived from the model being continued
-/// ([`DERIVED_FILES`], [`RUN_FOLDERS`]) are removed, for the same reason; then the folder is
+/// ([`derived_files`], [`RUN_FOLDERS`]) are removed, for the same reason; then the folder is
 /// created if missing.
 pub fn prepare(out: &Path, force: bool, resume: bool) -> Result<()> {
     if force {
@@ -67,7 +72,7 @@ pub fn prepare(out: &Path, force: bool, resume: bool) -> Result<()> {
             eprintln!("--force: removed the previous run's {} from {}", removed.join(", "), out.display());
         }
     } else if resume {
-        let removed = remove_listed(out, DERIVED_FILES)?;
+        let removed = remove_listed(out, &derived_files())?;
         if !removed.is_empty() {
             eprintln!(
                 "--resume: removed the previous model's {} from {} (made from the model this run replaces)",

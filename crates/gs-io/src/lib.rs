@@ -65,6 +65,6 @@ pub use error::{IoError, Result};
 pub use self::exr::{read_exr, write_depth_exr, write_exr, write_normal_exr};
 pub use npy::{NpyArray, read_npy, read_npy_array, read_npz, write_npy};
 pub use obj::read_obj;
-pub use png::write_png;
+pub use png::{write_jpeg, write_png};
 pub use ply::gaussian::{parse_gaussian_ply, read_gaussian_ply, write_gaussian_ply};
 pub use ply::mesh::{parse_mesh_ply, read_mesh_ply, write_mesh_ply};

@@ -58,34 +58,8 @@ pub fn evaluate_images(
     let mut out = Vec::with_capacity(views.len());
     for &i in views {
         let mut img: Image = model.render(rasterizer, i, &req)?.color.expect("requested");
-        let view = &model.scene.views[i];
         img.data_mut().iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
-        let metrics = if masked {
-            let mask = view.mask.as_ref().ok_or_else(|| {
-                TrainError::InvalidScene(format!("view {} has no mask (masked evaluation needs masks/<stem>.png for every view)", view.name))
-            })?;
-            let named = |e: gs_losses::LossError| TrainError::InvalidScene(format!("mask of view {}: {e}", view.name));
-            let (render_obj, photo_obj) = (
-                gs_losses::masked_on_black(&img, mask).map_err(named)?,
-                gs_losses::masked_on_black(&view.image, mask).map_err(named)?,
-            );
-            ViewMetrics {
-                name: view.name.clone(),
-                psnr: gs_losses::psnr_masked(&img, &view.image, mask).map_err(named)?,
-                ssim: ssim_metric(&render_obj, &photo_obj)?,
-                lpips: lpips.map(|l| l.distance(&render_obj, &photo_obj)).transpose()?,
-                mask_fraction: Some(mask.data().iter().filter(|m| **m >= 0.5).count() as f64 / mask.data().len() as f64),
-            }
-        } else {
-            ViewMetrics {
-                name: view.name.clone(),
-                psnr: psnr(&img, &view.image)?,
-                ssim: ssim_metric(&img, &view.image)?,
-                lpips: lpips.map(|l| l.distance(&img, &view.image)).transpose()?,
-                mask_fraction: None,
-            }
-        };
-        out.push(metrics);
+        out.push(score_view(&model.scene.views[i], &img, lpips, masked)?);
     }
     let k = out.len() as f64;
     Ok(ImageMetrics {
@@ -94,5 +68,34 @@ pub fn evaluate_images(
         lpips: lpips.map(|_| out.iter().filter_map(|v| v.lpips).sum::<f64>() / k),
         views: out,
         masked,
+    })
+}
+
+/// Scores one render (colours already clamped to [0, 1]) against its view's photo: PSNR, SSIM
+/// and, with `lpips`, LPIPS-alex; with `masked` only the object inside the view's mask (an
+/// error naming the view when it has none). [`evaluate_images`] calls this for every view; a
+/// caller that keeps its renders (the report page) calls it directly.
+pub fn score_view(view: &gs_core::View, img: &Image, lpips: Option<&Lpips>, masked: bool) -> Result<ViewMetrics> {
+    if !masked {
+        return Ok(ViewMetrics {
+            name: view.name.clone(),
+            psnr: psnr(img, &view.image)?,
+            ssim: ssim_metric(img, &view.image)?,
+            lpips: lpips.map(|l| l.distance(img, &view.image)).transpose()?,
+            mask_fraction: None,
+        });
+    }
+    let mask = view.mask.as_ref().ok_or_else(|| {
+        TrainError::InvalidScene(format!("view {} has no mask (masked evaluation needs masks/<stem>.png for every view)", view.name))
+    })?;
+    let named = |e: gs_losses::LossError| TrainError::InvalidScene(format!("mask of view {}: {e}", view.name));
+    let (render_obj, photo_obj) =
+        (gs_losses::masked_on_black(img, mask).map_err(named)?, gs_losses::masked_on_black(&view.image, mask).map_err(named)?);
+    Ok(ViewMetrics {
+        name: view.name.clone(),
+        psnr: gs_losses::psnr_masked(img, &view.image, mask).map_err(named)?,
+        ssim: ssim_metric(&render_obj, &photo_obj)?,
+        lpips: lpips.map(|l| l.distance(&render_obj, &photo_obj)).transpose()?,
+        mask_fraction: Some(mask.data().iter().filter(|m| **m >= 0.5).count() as f64 / mask.data().len() as f64),
     })
 }

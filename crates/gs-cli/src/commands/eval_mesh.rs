@@ -59,7 +59,8 @@ pub fn gt_crop(b: &Aabb, fraction: f64, min_z: Option<f64>) -> Aabb {
     Aabb { min, max: std::array::from_fn(|k| b.max[k] + fraction * (b.max[k] - b.min[k])) }
 }
 
-/// Runs `vagsl eval-mesh`.
+/// Runs `vagsl eval-mesh`; a mesh inside a run folder gets its scores saved there as
+/// `eval_mesh.json` (shown by `vagsl view`).
 pub fn run(args: &EvalMeshArgs) -> Result<()> {
     let pred = read_mesh(&args.pred)?;
     let gt = read_mesh(&args.gt)?;
@@ -84,6 +85,14 @@ pub fn run(args: &EvalMeshArgs) -> Result<()> {
         println!("completeness {:.6} (GT → pred, mean)", m.completeness);
         println!("chamfer      {:.6}", m.chamfer);
         println!("precision {:.4} recall {:.4} F1 {:.4} at τ = {:.6}", m.precision, m.recall, m.f1, m.tau);
+    }
+    // A run's own mesh keeps its scores beside it, for `vagsl view` (after printing them, so a
+    // read-only folder does not cost the numbers).
+    if let Some(run) = args.pred.parent().filter(|d| crate::out_folder::holds_run(d)) {
+        let mut saved = serde_json::to_value(&report.metrics)?;
+        saved["ground_truth"] = serde_json::Value::from(crate::run_dir::absolute_scene_path(&args.gt).display().to_string());
+        crate::run_dir::write_json(&run.join("eval_mesh.json"), &saved)
+            .map_err(|e| e.context("the scores above were computed but could not be saved"))?;
     }
     Ok(())
 }

@@ -9,6 +9,7 @@ pub mod render;
 pub mod resume;
 pub mod tradeoff;
 pub mod train;
+pub mod view;
 
 /// The rasterizer of `--backend` (cpu, wgpu, or auto = wgpu on a hardware GPU, else the CPU),
 /// announced on stderr so a user sees which one ran.

@@ -79,7 +79,7 @@ fn mesh_shaded(bvh: &gs_synth::Bvh, camera: &gs_core::Camera) -> Result<Image> {
 }
 
 /// World-space normal map encoded (n + 1)/2 (design.md §2), 0 where nothing was rendered.
-fn world_normal_png(camera: &gs_core::Camera, normal: &Image) -> Result<Image> {
+pub(crate) fn world_normal_png(camera: &gs_core::Camera, normal: &Image) -> Result<Image> {
     let r_t = camera.rotation.transpose();
     let mut out = Image::new(normal.width(), normal.height(), 3)?;
     for (o, n) in out.data_mut().chunks_exact_mut(3).zip(normal.data().chunks_exact(3)) {

@@ -403,8 +403,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     }
 
     let mut elapsed = earlier.unwrap_or_default();
+    let mut curves = crate::metrics_log::MetricsLog::open(out, resumed_from, config.iterations, !test_idx.is_empty())?;
     let t0 = Instant::now();
-    let Looped { last, sh_bands, growth, floaters_removed, signal } = train_loop(args, &config, &mut trainer, &mut elapsed)?;
+    let Looped { last, sh_bands, growth, floaters_removed, signal } =
+        train_loop(args, &config, &mut trainer, &mut elapsed, (&mut curves, &test_idx))?;
     let ckpt_path = out.join("checkpoint.bin");
     let segment_seconds = t0.elapsed().as_secs_f64();
     let train_seconds = elapsed.total();
@@ -442,7 +444,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     write_exposure(out, &run_config, &trainer)?;
     let done_here = report.iterations - resumed_from.unwrap_or(0);
     println!(
-        "trained {} iterations in {:.1}s ({:.1} it/s{}): {} Gaussians, peak memory {} → {}",
+        "trained {} iterations in {:.1}s ({:.1} it/s{}): {} Gaussians, peak memory {}; wrote point_cloud.ply, report.json and metrics.jsonl to {}",
         report.iterations,
         train_seconds,
         done_here as f64 / segment_seconds.max(1e-9),
@@ -452,12 +454,13 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         },
         report.gaussians,
         report.peak_memory_bytes.map_or("n/a".into(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64)),
-        out.join("point_cloud.ply").display()
+        out.display()
     );
     if interrupted {
         let message = format!("interrupted at iteration {}; checkpoint in {}", report.iterations, ckpt_path.display());
         return Err(crate::signals::Stopped { signal: signal.unwrap_or(signal_hook::consts::SIGINT), message }.into());
     }
+    println!("next: `vagsl mesh {o}` for the mesh, then `vagsl view {o}` for the report page", o = out.display());
     Ok(())
 }
 
@@ -507,7 +510,13 @@ fn growth_stopped(last: Option<(u64, gs_train::GrowthLimit)>, b: &gs_train::Budg
 /// notices, periodic checkpoints and Ctrl-C / SIGTERM / SIGHUP (stop after the current
 /// iteration, [`crate::signals`]). `elapsed`
 /// gains this segment's time per phase.
-fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, elapsed: &mut Elapsed) -> Result<Looped> {
+fn train_loop(
+    args: &TrainArgs,
+    config: &TrainConfig,
+    trainer: &mut Trainer,
+    elapsed: &mut Elapsed,
+    (curves, test): (&mut crate::metrics_log::MetricsLog, &[usize]),
+) -> Result<Looped> {
     let stop = crate::signals::StopRequest::install().context("installing the Ctrl-C / SIGTERM / SIGHUP handlers")?;
     // Without a terminal indicatif draws nothing, so a redirected run logs lines instead.
     let log_lines = args.quiet || !std::io::stderr().is_terminal();
@@ -525,6 +534,7 @@ fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, ela
     let ckpt_path = args.output.join("checkpoint.bin");
     let mut last: Option<StepReport> = None;
     let mut checkpoint_error: Option<anyhow::Error> = None;
+    let mut curve_error: Option<anyhow::Error> = None;
     let mut warned_cap = false;
     let mut sh_bands = Vec::new();
     let mut growth = None;
@@ -535,6 +545,14 @@ fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, ela
         let now = Instant::now();
         elapsed.add(config, r.iteration, (now - t_prev).as_secs_f64());
         t_prev = now;
+        // The held-out scoring of the curves is not training time.
+        match curves.record(tr, r, elapsed.total(), test, r.iteration == config.iterations) {
+            Ok(scoring) => t_prev += scoring,
+            Err(e) => {
+                curve_error = Some(e);
+                return false;
+            }
+        }
         if r.iteration % 10 == 0 || r.iteration == config.iterations {
             bar.set_position(r.iteration);
             bar.set_message(describe(r));
@@ -589,6 +607,9 @@ fn train_loop(args: &TrainArgs, config: &TrainConfig, trainer: &mut Trainer, ela
         stop.signal().is_none()
     })?;
     bar.finish_and_clear();
+    if let Some(e) = curve_error {
+        return Err(e);
+    }
     if let Some(e) = checkpoint_error {
         return Err(e.context(format!("writing {}", ckpt_path.display())));
     }

@@ -1,0 +1,210 @@
+//! `vagsl view`: the report page of a run, `RUN/report.html` (gs-report), and with `--serve` a
+//! local web server for it.
+
+use crate::run_dir::OpenRun;
+use anyhow::{Context, Result};
+use gs_raster::RenderRequest;
+use gs_report::{PageData, ReportWriter, ViewScores};
+use std::path::{Path, PathBuf};
+
+/// Options of `vagsl view`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ViewArgs {
+    /// A `vagsl train` output folder.
+    pub run: PathBuf,
+    /// The run's scene folder, if it has moved since training.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Rasterizer backend for the view renders: cpu, wgpu, or auto.
+    #[arg(long, default_value = "auto")]
+    pub backend: gs_raster::Backend,
+    /// Skip LPIPS in the per-view scores (about 1 s per 800×600 view on 2 cores).
+    #[arg(long)]
+    pub no_lpips: bool,
+    /// Serve the page on 127.0.0.1 and print its address (until Ctrl-C).
+    #[arg(long)]
+    pub serve: bool,
+    /// Port of `--serve` (0: any free port).
+    #[arg(long, default_value_t = 8765)]
+    pub port: u16,
+}
+
+/// Runs `vagsl view`.
+pub fn run(args: &ViewArgs) -> Result<()> {
+    let run = OpenRun::open(&args.run, args.scene.as_deref())?;
+    let model = run.model();
+    let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
+    let mut rasterizer = super::rasterizer(args.backend)?;
+    let req = RenderRequest { color: true, normal: true, plane_depth: true, ..Default::default() };
+    let splats = gs_report::SplatData::from_gaussians(model.gaussians)?;
+    let mut writer = ReportWriter::new(&run.dir)?;
+    let mut test_psnr = Vec::new();
+    let splits = [("test", model.test), ("train", model.train)];
+    for (split, views) in splits {
+        for &i in views {
+            let view = &run.scene.views[i];
+            let out = model.render(&mut rasterizer, i, &req)?;
+            let mut color = out.color.expect("requested");
+            color.data_mut().iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+            let m = gs_train::score_view(view, &color, lpips.as_ref(), false)?;
+            if split == "test" {
+                test_psnr.push(m.psnr);
+            }
+            let normal = super::render::world_normal_png(&view.camera, out.normal.as_ref().expect("requested"))?;
+            let scores = ViewScores { psnr: m.psnr, ssim: m.ssim, lpips: m.lpips };
+            let depth = out.plane_depth.as_ref().expect("requested");
+            writer.add_view(&view.name, split, &view.camera, &view.image, &color, &normal, depth, Some(scores))?;
+        }
+    }
+    let mesh_path = run.dir.join("mesh.ply");
+    let mesh = match mesh_path.exists() {
+        true => Some(gs_report::MeshData::from_mesh(&gs_io::read_mesh_ply(&mesh_path)?)?),
+        false => None,
+    };
+    let page = PageData {
+        title: String::new(),
+        facts: facts(&run, &test_psnr, mesh.as_ref()),
+        splats,
+        mesh,
+        background: model.raster.background,
+        curves: read_curves(&run.dir.join("metrics.jsonl"))?,
+        mesh_metrics: read_json_if_present(&run.dir.join("eval_mesh.json"))?,
+        tradeoff_svg: tradeoff_svg(&run.dir),
+    };
+    let path = writer.finish(page)?;
+    println!(
+        "wrote {} ({} views, {} Gaussians{}); open it in a browser{}",
+        path.display(),
+        model.train.len() + model.test.len(),
+        model.gaussians.len(),
+        if mesh_path.exists() { ", the mesh" } else { "" },
+        if args.serve { "" } else { ", or serve it with `vagsl view RUN --serve`" }
+    );
+    if args.serve {
+        serve(&run.dir, args.port)?;
+    }
+    Ok(())
+}
+
+/// The run's facts for the top of the page, in words and units.
+fn facts(run: &OpenRun, test_psnr: &[f64], mesh: Option<&gs_report::MeshData>) -> Vec<(String, String)> {
+    let model = run.model();
+    let report = read_json_if_present(&run.dir.join("report.json")).ok().flatten().unwrap_or_default();
+    let cam = &run.scene.views[model.train[0]].camera;
+    let mut f = vec![(
+        "Views".to_string(),
+        format!("{} training, {} held-out, {} × {} px", model.train.len(), model.test.len(), cam.width, cam.height),
+    )];
+    let num = |k: &str| report.get(k).and_then(|v| v.as_f64());
+    if let (Some(it), Some(s)) = (num("iterations"), num("train_seconds")) {
+        f.push(("Training".into(), format!("{it} iterations in {s:.1} s")));
+    }
+    let budget = report.pointer("/budget/gaussians").and_then(|v| v.as_u64());
+    f.push((
+        "Gaussians".into(),
+        format!("{}{}", model.gaussians.len(), budget.map_or(String::new(), |b| format!(" (budget {b})"))),
+    ));
+    if let Some(b) = num("peak_memory_bytes") {
+        f.push(("Peak memory in training".into(), format!("{:.0} MiB", b / (1u64 << 20) as f64)));
+    }
+    if !test_psnr.is_empty() {
+        f.push(("Held-out PSNR".into(), format!("{:.2} dB (mean of {} views)", test_psnr.iter().sum::<f64>() / test_psnr.len() as f64, test_psnr.len())));
+    }
+    if let Some(m) = mesh {
+        f.push(("Mesh".into(), format!("{} triangles (mesh.ply)", m.source_triangles)));
+    }
+    f
+}
+
+/// `metrics.jsonl`, one JSON object per line; a line cut short by a kill is skipped with a
+/// warning naming it.
+fn read_curves(path: &Path) -> Result<Vec<serde_json::Value>> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e).with_context(|| format!("{}: cannot read the training curves", path.display())),
+    };
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        match serde_json::from_str(line) {
+            Ok(v) => out.push(v),
+            Err(e) => eprintln!("warning: {}:{}: skipped a line that is not JSON ({e})", path.display(), n + 1),
+        }
+    }
+    Ok(out)
+}
+
+fn read_json_if_present(path: &Path) -> Result<Option<serde_json::Value>> {
+    match std::fs::read_to_string(path) {
+        Ok(t) => Ok(Some(serde_json::from_str(&t).with_context(|| format!("{}: not valid JSON", path.display()))?)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e).with_context(|| format!("{}: cannot read", path.display())),
+    }
+}
+
+/// The tradeoff plot of the run's folder, or of the `vagsl tradeoff` output it is a rung of.
+fn tradeoff_svg(run: &Path) -> Option<String> {
+    [run.join("tradeoff.svg"), run.join("..").join("tradeoff.svg")].iter().find_map(|p| std::fs::read_to_string(p).ok())
+}
+
+/// Serves the run folder's page on 127.0.0.1:`port` until the process is stopped. Only
+/// `report.html` and files under `report/` are served; anything else is 404.
+fn serve(dir: &Path, port: u16) -> Result<()> {
+    let server = tiny_http::Server::http(("127.0.0.1", port))
+        .map_err(|e| anyhow::anyhow!("cannot listen on 127.0.0.1:{port}: {e}; choose another port with --port"))?;
+    let addr = server.server_addr().to_ip().context("the server has no IP address")?;
+    println!("serving http://{addr}/report.html (Ctrl-C to stop)");
+    for request in server.incoming_requests() {
+        let response = match served_file(dir, request.url()) {
+            Some((path, kind)) => match std::fs::read(&path) {
+                Ok(bytes) => tiny_http::Response::from_data(bytes).with_header(
+                    tiny_http::Header::from_bytes("Content-Type", kind).expect("a valid header"),
+                ),
+                Err(_) => tiny_http::Response::from_string("not found").with_status_code(404),
+            },
+            None => tiny_http::Response::from_string("not found").with_status_code(404),
+        };
+        // A client that went away is not an error of ours.
+        let _ = request.respond(response);
+    }
+    Ok(())
+}
+
+/// The file and content type for a request path: `/` and `/report.html` are the page,
+/// `/report/...` its folder; paths with `..`, absolute parts or other files give `None`.
+fn served_file(dir: &Path, url: &str) -> Option<(PathBuf, &'static str)> {
+    let path = url.split(['?', '#']).next().unwrap_or("/");
+    let rel = match path {
+        "/" | "/report.html" => "report.html",
+        p if p.starts_with("/report/") => &p[1..],
+        _ => return None,
+    };
+    if rel.split('/').any(|c| c.is_empty() || c == "." || c == ".." || c.contains('\\')) {
+        return None;
+    }
+    let kind = match Path::new(rel).extension().and_then(|e| e.to_str()) {
+        Some("html") => "text/html; charset=utf-8",
+        Some("js") => "text/javascript; charset=utf-8",
+        Some("jpg") => "image/jpeg",
+        Some("png") => "image/png",
+        Some("svg") => "image/svg+xml",
+        _ => "application/octet-stream",
+    };
+    Some((dir.join(rel), kind))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_the_page_and_its_folder_are_served() {
+        let d = Path::new("/run");
+        assert_eq!(served_file(d, "/").unwrap().0, d.join("report.html"));
+        assert_eq!(served_file(d, "/report/data.js?x=1").unwrap(), (d.join("report/data.js"), "text/javascript; charset=utf-8"));
+        assert!(served_file(d, "/report/../config.json").is_none());
+        assert!(served_file(d, "/report//etc/passwd").is_none());
+        assert!(served_file(d, "/point_cloud.ply").is_none());
+        assert!(served_file(d, "/report/views/0000_photo.jpg").is_some());
+    }
+}

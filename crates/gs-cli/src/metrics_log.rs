@@ -1,0 +1,143 @@
+//! `OUT/metrics.jsonl`: the training curves of a run, one JSON object per line, written as
+//! training goes (so `tail -f` shows them), read by `vagsl view`.
+//!
+//! Every [`LOSS_EVERY`] iterations a line `{"iteration", "seconds", "gaussians", "loss": {…}}`
+//! gives the loss terms averaged over those iterations (one view per iteration makes single
+//! values noisy). With held-out views, [`HELDOUT_POINTS`] times per run (and at the end) a
+//! line `{"iteration", "seconds", "heldout_psnr", "heldout_ssim"}` scores them. `seconds` is
+//! training time (earlier segments of a resumed run included, the held-out scoring excluded),
+//! so curves of different runs share a time axis. A resumed run keeps the lines up to its
+//! checkpoint and appends.
+
+use anyhow::{Context, Result};
+use gs_train::{StepReport, Trainer};
+use serde_json::{Value, json};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Iterations per loss line.
+pub const LOSS_EVERY: u64 = 10;
+/// Held-out scorings per run (besides the last iteration's).
+pub const HELDOUT_POINTS: u64 = 10;
+
+/// The loss terms of one line, summed over its iterations.
+#[derive(Default)]
+struct Sums {
+    n: u32,
+    terms: [(f64, u32); 7],
+}
+
+const TERMS: [&str; 7] = ["total", "l1", "edge", "normal_consistency", "normal_smoothing", "photometric", "features"];
+
+impl Sums {
+    fn add(&mut self, r: &StepReport) {
+        let l = &r.losses;
+        let values = [Some(l.total), Some(l.l1), l.edge, l.normal_consistency, l.normal_smoothing, l.photometric, l.features];
+        for (slot, v) in self.terms.iter_mut().zip(values) {
+            if let Some(v) = v {
+                slot.0 += v;
+                slot.1 += 1;
+            }
+        }
+        self.n += 1;
+    }
+
+    fn means(&self) -> Value {
+        let mut m = serde_json::Map::new();
+        for (name, (sum, n)) in TERMS.iter().zip(self.terms) {
+            if n > 0 {
+                m.insert((*name).into(), json!(sum / n as f64));
+            }
+        }
+        Value::Object(m)
+    }
+}
+
+/// The open curve file of a training run.
+pub struct MetricsLog {
+    path: PathBuf,
+    file: BufWriter<File>,
+    sums: Sums,
+    heldout_every: u64,
+    rasterizer: Option<gs_raster::Rasterizer>,
+}
+
+impl MetricsLog {
+    /// Opens `OUT/metrics.jsonl`: a fresh run starts it empty; a run resumed at iteration
+    /// `resumed_from` keeps the lines up to it (a line cut short by a kill is dropped).
+    /// Held-out scoring renders on the CPU when `test` views exist.
+    pub fn open(out: &Path, resumed_from: Option<u64>, iterations: u64, has_test: bool) -> Result<Self> {
+        let path = out.join("metrics.jsonl");
+        let kept = match resumed_from {
+            Some(from) => kept_lines(&path, from),
+            None => String::new(),
+        };
+        gs_io::write_atomic(&path, |w| w.write_all(kept.as_bytes()))?;
+        let file = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .with_context(|| format!("{}: cannot open the training curves for writing", path.display()))?;
+        let rasterizer = if has_test { Some(gs_raster::Rasterizer::new(gs_raster::Backend::Cpu)?) } else { None };
+        Ok(Self {
+            path,
+            file: BufWriter::new(file),
+            sums: Sums::default(),
+            heldout_every: (iterations / HELDOUT_POINTS).max(1),
+            rasterizer,
+        })
+    }
+
+    /// Records iteration `r` at `seconds` of training; scores the held-out views `test` when
+    /// one is due. Returns the time the scoring took (to leave out of the training time).
+    pub fn record(&mut self, tr: &Trainer, r: &StepReport, seconds: f64, test: &[usize], last: bool) -> Result<Duration> {
+        self.sums.add(r);
+        if r.iteration % LOSS_EVERY == 0 || last {
+            let line = json!({ "iteration": r.iteration, "seconds": seconds, "gaussians": r.gaussians, "loss": self.sums.means() });
+            self.write(&line)?;
+            self.sums = Sums::default();
+        }
+        let t0 = Instant::now();
+        if let Some(rasterizer) = self.rasterizer.as_mut()
+            && (r.iteration % self.heldout_every == 0 || last)
+        {
+            let m = gs_train::evaluate_images(&tr.model(), rasterizer, test, None, false)?;
+            let line = json!({ "iteration": r.iteration, "seconds": seconds, "heldout_psnr": m.psnr, "heldout_ssim": m.ssim });
+            self.write(&line)?;
+        }
+        Ok(t0.elapsed())
+    }
+
+    fn write(&mut self, line: &Value) -> Result<()> {
+        writeln!(self.file, "{line}").and_then(|_| self.file.flush()).with_context(|| format!("{}: cannot write the training curves", self.path.display()))
+    }
+}
+
+/// The whole lines of `path` whose iteration is at most `from` (nothing if it is missing).
+fn kept_lines(path: &Path, from: u64) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let mut kept = String::new();
+    for line in text.lines() {
+        let it = serde_json::from_str::<Value>(line).ok().and_then(|v| v.get("iteration").and_then(Value::as_u64));
+        if it.is_some_and(|it| it <= from) {
+            kept.push_str(line);
+            kept.push('\n');
+        }
+    }
+    kept
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_resume_keeps_the_lines_up_to_its_checkpoint_and_drops_a_cut_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("metrics.jsonl");
+        std::fs::write(&p, "{\"iteration\":10}\n{\"iteration\":20}\n{\"iteration\":30}\n{\"itera").unwrap();
+        assert_eq!(kept_lines(&p, 20), "{\"iteration\":10}\n{\"iteration\":20}\n");
+        assert_eq!(kept_lines(&dir.path().join("missing"), 20), "");
+    }
+}
