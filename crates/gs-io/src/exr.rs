@@ -19,6 +19,10 @@ use gs_core::image::MAX_IMAGE_PIXELS;
 use std::io::Cursor;
 use std::path::Path;
 
+/// The most sample bytes of one layer the reader decodes: four f32 channels (RGBA, the largest
+/// map vagsl writes) at the pixel cap.
+const MAX_SAMPLE_BYTES: usize = MAX_IMAGE_PIXELS * 16;
+
 /// Writes a 1-channel depth map as an EXR with the single f32 channel `Z`.
 pub fn write_depth_exr(path: &Path, depth: &Image) -> Result<()> {
     if depth.channels() != 1 {
@@ -88,8 +92,22 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
     let first = meta.headers.first().ok_or_else(|| fmt("EXR file has no layer".into()))?;
     for h in meta.headers.iter() {
         let size = h.layer_size;
-        if size.width().checked_mul(size.height()).is_none_or(|p| p > MAX_IMAGE_PIXELS) {
+        let pixels = size.width().checked_mul(size.height());
+        if pixels.is_none_or(|p| p > MAX_IMAGE_PIXELS) {
             return Err(fmt(format!("EXR layer of {}x{} exceeds the cap of {MAX_IMAGE_PIXELS} pixels", size.width(), size.height())));
+        }
+        // Every channel of the layer is decoded: bound the samples too, or a small file naming
+        // many channels would have the decoder allocate gigabytes before its data runs out.
+        let per_pixel: usize = h.channels.list.iter().map(|c| c.sample_type.bytes_per_sample()).sum();
+        if pixels.and_then(|p| p.checked_mul(per_pixel)).is_none_or(|b| b > MAX_SAMPLE_BYTES) {
+            return Err(fmt(format!(
+                "EXR layer of {}x{} with {} channels needs {} MiB of samples, more than the cap of {} MiB (4 float channels at {MAX_IMAGE_PIXELS} pixels)",
+                size.width(),
+                size.height(),
+                h.channels.list.len(),
+                pixels.unwrap_or(usize::MAX).saturating_mul(per_pixel) >> 20,
+                MAX_SAMPLE_BYTES >> 20
+            )));
         }
     }
     if first.deep {

@@ -67,3 +67,26 @@ fn a_b44_block_with_wrapping_deltas_is_not_a_panic() {
         Err(e) => assert!(e.to_string().contains("b44.exr"), "{e}"),
     }
 }
+
+/// A small file whose header names a large layer with many channels is refused from the
+/// header, before the decoder allocates every channel's samples (the `exr` fuzz run peaked at
+/// 2 GiB on such inputs).
+#[test]
+fn a_header_naming_more_samples_than_the_cap_is_refused_before_decoding() {
+    use exr::prelude::*;
+    let channels: SmallVec<[AnyChannel<FlatSamples>; 4]> =
+        ["A", "B", "G", "R", "Z"].iter().map(|n| AnyChannel::new(*n, FlatSamples::F32(vec![0.5; 4]))).collect();
+    let layer = Layer::new((2, 2), LayerAttributes::default(), Encoding::UNCOMPRESSED, AnyChannels::sort(channels));
+    let mut out = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer).write().to_buffered(&mut out).unwrap();
+    let mut bytes = out.into_inner();
+    let path = std::path::Path::new("wide.exr");
+    assert!(gs_io::exr::parse_exr(&bytes, path).is_ok());
+    // dataWindow (box2i: xmin, ymin, xmax, ymax) → 8192 × 8192, the pixel cap, × 5 channels.
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at + 8..at + 12].copy_from_slice(&8191i32.to_le_bytes());
+    bytes[at + 12..at + 16].copy_from_slice(&8191i32.to_le_bytes());
+    let e = gs_io::exr::parse_exr(&bytes, path).unwrap_err().to_string();
+    assert!(e.contains("wide.exr") && e.contains("8192x8192 with 5 channels") && e.contains("more than the cap of 1024 MiB"), "{e}");
+}
