@@ -64,6 +64,16 @@ fn training_memory_is_estimated_before_training() {
 }
 
 #[test]
+fn tradeoff_meshes_go_through_the_mesh_memory_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ladder");
+    let o = out.to_str().unwrap();
+    let (ok, _, err) = vagsl(&["tradeoff", "-o", o, "--iterations", "2", "--backend", "cpu", "--max-memory", "1MB"]);
+    assert!(!ok, "{err}");
+    assert!(err.contains("meshing the '") && err.contains("more than the memory limit of") && err.contains("--max-memory"), "{err}");
+}
+
+#[test]
 fn bad_outputs_and_options_are_refused_before_the_work() {
     let dir = tempfile::tempdir().unwrap();
     let o = dir.path().join("x");
