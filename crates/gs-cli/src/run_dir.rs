@@ -229,9 +229,13 @@ fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<Option<String>> {
     let field = |k: &str| fields.as_ref().and_then(|v| v.get(k)?.as_str().map(String::from));
     let (model_id, fingerprint) = (field("run_id"), field("model_fingerprint"));
     if !dir.join("point_cloud.ply").is_file() {
-        let stopped = if model_id.is_some() && model_id.as_deref() == run_id { " (it stopped after its report, while writing the model)" } else { "" };
+        let why = if model_id.is_some() && model_id.as_deref() == run_id {
+            "the training run stopped after its report, while writing its model"
+        } else {
+            "the training run has not written its model (still running, or stopped before it could)"
+        };
         bail!(
-            "{}: no point_cloud.ply: the training run has not written its model (still running, or stopped before it could{stopped}); resume it with --resume {} if that exists, or train again",
+            "{}: no point_cloud.ply: {why}; resume it with --resume {} if that exists, or train again",
             dir.display(),
             dir.join("checkpoint.bin").display()
         );

@@ -222,7 +222,7 @@ fn a_folder_mixing_two_runs_is_refused() {
     assert!(!ok && err.contains("point_cloud.ply is not the model report.json describes") && err.contains("--resume"), "{err}");
     std::fs::remove_file(a.join("point_cloud.ply")).unwrap();
     let (ok, err) = render_test(&a);
-    assert!(!ok && err.contains("no point_cloud.ply") && err.contains("stopped after its report, while writing the model"), "{err}");
+    assert!(!ok && err.contains("no point_cloud.ply") && err.contains("stopped after its report, while writing its model"), "{err}");
     std::fs::write(a.join("point_cloud.ply"), &model).unwrap();
     let (ok, err) = render_test(&a);
     assert!(ok, "{err}");
