@@ -68,6 +68,19 @@ fn a_b44_block_with_wrapping_deltas_is_not_a_panic() {
     }
 }
 
+/// Found by the `exr` fuzz target: a tiled, single-level file whose tile names level (1, 0).
+/// The exr crate's debug assertion on its own line indexing fired; a release build must read
+/// the file or refuse it with a message, and never panic.
+#[test]
+fn a_tile_of_a_level_the_file_does_not_have_is_not_a_panic() {
+    let bytes = include_bytes!("fixtures/fuzz/exr_tile_level_mismatch.exr");
+    let path = std::path::Path::new("tiles.exr");
+    match gs_io::exr::parse_exr(bytes, path) {
+        Ok(img) => assert_eq!((img.width(), img.height(), img.channels()), (5, 3, 4)),
+        Err(e) => assert!(e.to_string().contains("tiles.exr"), "{e}"),
+    }
+}
+
 /// A small file whose header names a large layer with many channels is refused from the
 /// header, before the decoder allocates every channel's samples (the `exr` fuzz run peaked at
 /// 2 GiB on such inputs).
