@@ -23,6 +23,13 @@ use std::path::Path;
 /// map vagsl writes) at the pixel cap.
 const MAX_SAMPLE_BYTES: usize = MAX_IMAGE_PIXELS * 16;
 
+/// Sample bytes any EXR may name regardless of its size.
+const PLAUSIBLE_FLOOR: usize = 256 << 20;
+
+/// Decoded bytes per file byte no EXR compression exceeds (deflate's limit is 1032:1; this
+/// leaves room for PIZ and DWA on flat images).
+const MAX_RATIO: usize = 4096;
+
 /// Writes a 1-channel depth map as an EXR with the single f32 channel `Z`.
 pub fn write_depth_exr(path: &Path, depth: &Image) -> Result<()> {
     if depth.channels() != 1 {
@@ -107,6 +114,20 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
                 h.channels.list.len(),
                 pixels.unwrap_or(usize::MAX).saturating_mul(per_pixel) >> 20,
                 MAX_SAMPLE_BYTES >> 20
+            )));
+        }
+        // A layer the file's size cannot hold even at an extreme compression ratio is a cut or
+        // corrupt file: refuse it before its samples are allocated (any file may name up to
+        // 256 MiB, e.g. an 8192 × 8192 f32 depth map of a constant).
+        let needed = pixels.unwrap_or(0).saturating_mul(per_pixel);
+        if needed > PLAUSIBLE_FLOOR && needed / MAX_RATIO > bytes.len() {
+            return Err(fmt(format!(
+                "EXR layer of {}x{} with {} channels needs {} MiB of samples, more than a file of {} bytes can hold at any compression (cut short, or a corrupt header?)",
+                size.width(),
+                size.height(),
+                h.channels.list.len(),
+                needed >> 20,
+                bytes.len()
             )));
         }
     }

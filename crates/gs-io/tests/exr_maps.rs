@@ -102,4 +102,11 @@ fn a_header_naming_more_samples_than_the_cap_is_refused_before_decoding() {
     bytes[at + 12..at + 16].copy_from_slice(&8191i32.to_le_bytes());
     let e = gs_io::exr::parse_exr(&bytes, path).unwrap_err().to_string();
     assert!(e.contains("wide.exr") && e.contains("8192x8192 with 5 channels") && e.contains("more than the cap of 1024 MiB"), "{e}");
+    // Within the cap (8192 × 4096 × 5 f32 = 640 MiB) but far more than a file of a few hundred
+    // bytes can hold at any compression: refused too, before any sample is allocated.
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at + 12..at + 16].copy_from_slice(&4095i32.to_le_bytes());
+    let e = gs_io::exr::parse_exr(&bytes, path).unwrap_err().to_string();
+    assert!(e.contains("8192x4096 with 5 channels needs 640 MiB") && e.contains("at any compression"), "{e}");
 }
