@@ -134,12 +134,16 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
     if first.deep {
         return Err(IoError::Unsupported { path: path.into(), message: "deep EXR data".into() });
     }
+    // Sequential: the exr crate builds a new thread pool for every parallel read, which costs
+    // more than it gains on maps of this size and, over many reads, grew the process by
+    // gigabytes (found by the `exr` fuzz target).
     let image = x::read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
+        .non_parallel()
         .from_buffered(Cursor::new(bytes))
         .map_err(|e| fmt(format!("EXR decoding failed: {e}")))?;
     let layer = &image.layer_data;
