@@ -23,8 +23,8 @@ use std::path::Path;
 /// map vagsl writes) at the pixel cap.
 const MAX_SAMPLE_BYTES: usize = MAX_IMAGE_PIXELS * 16;
 
-/// Sample bytes any EXR may name regardless of its size.
-const PLAUSIBLE_FLOOR: usize = 256 << 20;
+/// Sample bytes any EXR may name regardless of its size (a 2048 × 1024 RGBA f32 map).
+const PLAUSIBLE_FLOOR: usize = 32 << 20;
 
 /// Decoded bytes per file byte no EXR compression exceeds (deflate's limit is 1032:1; this
 /// leaves room for PIZ and DWA on flat images).
@@ -118,7 +118,7 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
         }
         // A layer the file's size cannot hold even at an extreme compression ratio is a cut or
         // corrupt file: refuse it before its samples are allocated (any file may name up to
-        // 256 MiB, e.g. an 8192 × 8192 f32 depth map of a constant).
+        // 32 MiB; beyond that the file must hold the samples at 4096:1).
         let needed = pixels.unwrap_or(0).saturating_mul(per_pixel);
         if needed > PLAUSIBLE_FLOOR && needed / MAX_RATIO > bytes.len() {
             return Err(fmt(format!(
