@@ -120,6 +120,21 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
         // corrupt file: refuse it before its samples are allocated (any file may name up to
         // 32 MiB; beyond that the file must hold the samples at 4096:1).
         let needed = pixels.unwrap_or(0).saturating_mul(per_pixel);
+        // The exr crate sizes a chunk's buffer from the tile (not the layer), so a tile of
+        // absurd size is held to the same rule.
+        if let ::exr::meta::BlockDescription::Tiles(t) = h.blocks {
+            let tile = t.tile_size.width().saturating_mul(t.tile_size.height()).saturating_mul(per_pixel);
+            if tile > PLAUSIBLE_FLOOR && tile / MAX_RATIO > bytes.len() {
+                return Err(fmt(format!(
+                    "EXR tiles of {}x{} with {} channels need {} MiB each, more than a file of {} bytes can hold (a corrupt header?)",
+                    t.tile_size.width(),
+                    t.tile_size.height(),
+                    h.channels.list.len(),
+                    tile >> 20,
+                    bytes.len()
+                )));
+            }
+        }
         if needed > PLAUSIBLE_FLOOR && needed / MAX_RATIO > bytes.len() {
             return Err(fmt(format!(
                 "EXR layer of {}x{} with {} channels needs {} MiB of samples, more than a file of {} bytes can hold at any compression (cut short, or a corrupt header?)",

@@ -110,3 +110,12 @@ fn a_header_naming_more_samples_than_the_cap_is_refused_before_decoding() {
     let e = gs_io::exr::parse_exr(&bytes, path).unwrap_err().to_string();
     assert!(e.contains("8192x4096 with 5 channels needs 640 MiB") && e.contains("at any compression"), "{e}");
 }
+
+/// Found by the `exr` fuzz target: a 5×3 layer of 134225922×2 tiles, whose chunk buffer the
+/// exr crate sizes from the tile (1.8 GB for a 754-byte file). Refused from the header.
+#[test]
+fn a_tile_larger_than_the_file_can_hold_is_refused() {
+    let bytes = include_bytes!("fixtures/fuzz/exr_huge_tile.exr");
+    let e = gs_io::exr::parse_exr(bytes, std::path::Path::new("tile.exr")).unwrap_err().to_string();
+    assert!(e.contains("tile.exr") && e.contains("EXR tiles of 134225922x2 with 4 channels"), "{e}");
+}
