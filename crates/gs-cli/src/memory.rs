@@ -68,6 +68,21 @@ pub fn limit(given: Option<u64>) -> u64 {
     given.unwrap_or_else(|| (available_bytes().unwrap_or(FALLBACK_AVAILABLE) as f64 * DEFAULT_SHARE) as u64)
 }
 
+/// Refuses a training run whose estimated peak ([`gs_train::memory`]) exceeds the
+/// `--max-memory` limit, with the estimate in words; prints the estimate otherwise.
+pub fn check_train(trainer: &gs_train::Trainer, given: Option<u64>) -> Result<()> {
+    let estimate = trainer.memory_estimate();
+    let limit = limit(given);
+    estimate.check(limit)?;
+    eprintln!(
+        "memory estimate: about {} at the peak ({}); limit {}",
+        gs_tsdf::format_bytes(estimate.peak_bytes()),
+        estimate.describe(),
+        gs_tsdf::format_bytes(limit)
+    );
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

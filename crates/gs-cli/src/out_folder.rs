@@ -49,23 +49,45 @@ pub fn check(out: &Path, force: bool, resume: bool) -> Result<()> {
     Ok(())
 }
 
+/// The files `train` itself writes or continues (configuration, model, report, checkpoint,
+/// curves, exposure); every other file of [`RUN_FILES`] is made by a later command from the
+/// model (`mesh`, `eval-images`, `eval-mesh`, `view`).
+pub const TRAIN_FILES: &[&str] = &["config.json", "point_cloud.ply", "report.json", "checkpoint.bin", "metrics.jsonl", "exposure.json"];
+
+/// The files of [`RUN_FILES`] derived from a run's model: a resumed run replaces the model, so
+/// these would describe an older one.
+pub fn derived_files() -> Vec<&'static str> {
+    RUN_FILES.iter().copied().filter(|f| !TRAIN_FILES.contains(f)).collect()
+}
+
 /// Makes `out` ready when training really starts: with `force` the previous run's files
 /// ([`RUN_FILES`], [`RUN_FOLDERS`]) are removed, so no stale mesh, checkpoint or renders stay
-/// beside the new model; then the folder is created if missing.
-pub fn prepare(out: &Path, force: bool) -> Result<()> {
+/// beside the new model; with `resume` the outputs derived from the model being continued
+/// ([`derived_files`], [`RUN_FOLDERS`]) are removed, for the same reason; then the folder is
+/// created if missing.
+pub fn prepare(out: &Path, force: bool, resume: bool) -> Result<()> {
     if force {
-        let removed = remove_run(out)?;
+        let removed = remove_listed(out, RUN_FILES)?;
         if !removed.is_empty() {
             eprintln!("--force: removed the previous run's {} from {}", removed.join(", "), out.display());
+        }
+    } else if resume {
+        let removed = remove_listed(out, &derived_files())?;
+        if !removed.is_empty() {
+            eprintln!(
+                "--resume: removed the previous model's {} from {} (made from the model this run replaces)",
+                removed.join(", "),
+                out.display()
+            );
         }
     }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the output folder", out.display()))
 }
 
-/// Removes the run outputs found in `dir`; returns their names.
-fn remove_run(dir: &Path) -> Result<Vec<String>> {
+/// Removes the listed files and [`RUN_FOLDERS`] found in `dir`; returns their names.
+fn remove_listed(dir: &Path, files: &[&str]) -> Result<Vec<String>> {
     let mut removed = Vec::new();
-    for name in RUN_FILES {
+    for name in files {
         let p = dir.join(name);
         if p.is_file() {
             std::fs::remove_file(&p).with_context(|| format!("{}: cannot remove the previous run's file", p.display()))?;

@@ -195,7 +195,8 @@ pub fn high_resolution_greys(src: &SceneSource, scene: &Scene, train: &[usize], 
             let expect = lo.resized(v.camera.width, v.camera.height)?;
             let k = (&expect.intrinsics, &v.camera.intrinsics);
             if (k.0.fx - k.1.fx).abs() > 1e-6 * k.0.fx || (k.0.cx - k.1.cx).abs() > 1e-3 || (k.0.cy - k.1.cy).abs() > 1e-3 {
-                bail!("--ncc-scale {s}: view {n} at {s}x has intrinsics {:?}, expected {:?}", k.1, k.0);
+                let words = |k: &gs_core::Intrinsics| format!("fx {} fy {} cx {} cy {}", k.fx, k.fy, k.cx, k.cy);
+                bail!("--ncc-scale {s}: view {n} at {s}x has intrinsics {}, expected {}", words(k.1), words(k.0));
             }
             Ok(v.image.to_grey()?)
         })
@@ -219,25 +220,31 @@ impl RunConfig {
 }
 
 /// Refuses a run folder whose model is missing or is not the model of its config.json's run
-/// `run_id` (report.json, written after point_cloud.ply, carries the id of the model's run).
-fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<()> {
+/// `run_id`. report.json, written at the end before point_cloud.ply, carries the id of the
+/// run and the fingerprint of the model it describes; returns that fingerprint (absent in
+/// reports written before it existed) for [`check_model`].
+fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<Option<String>> {
+    let report = dir.join("report.json");
+    let fields = std::fs::read_to_string(&report).ok().and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+    let field = |k: &str| fields.as_ref().and_then(|v| v.get(k)?.as_str().map(String::from));
+    let (model_id, fingerprint) = (field("run_id"), field("model_fingerprint"));
     if !dir.join("point_cloud.ply").is_file() {
+        let why = if model_id.is_some() && model_id.as_deref() == run_id {
+            "the training run stopped after its report, while writing its model"
+        } else {
+            "the training run has not written its model (still running, or stopped before it could)"
+        };
         bail!(
-            "{}: no point_cloud.ply: the training run has not written its model (still running, or stopped before it could); resume it with --resume {} if that exists, or train again",
+            "{}: no point_cloud.ply: {why}; resume it with --resume {} if that exists, or train again",
             dir.display(),
             dir.join("checkpoint.bin").display()
         );
     }
-    let Some(id) = run_id else { return Ok(()) };
-    let report = dir.join("report.json");
-    let model_id = std::fs::read_to_string(&report)
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .and_then(|v| v.get("run_id").and_then(|r| r.as_str()).map(String::from));
+    let Some(id) = run_id else { return Ok(fingerprint) };
     match model_id {
-        Some(m) if m == id => Ok(()),
+        Some(m) if m == id => Ok(fingerprint),
         Some(m) => bail!(
-            "{}: config.json is of run {id} but point_cloud.ply and report.json are of run {m}: the folder mixes two training runs (a re-train that did not finish?); train again into it with --force",
+            "{}: config.json is of run {id} but report.json is of run {m}: the folder mixes two training runs (a re-train that did not finish?); train again into it with --force",
             dir.display()
         ),
         None => bail!(
@@ -256,12 +263,43 @@ pub fn read_run_model(dir: &Path) -> Result<(RunConfig, Gaussians)> {
         .with_context(|| format!("{}: cannot read the run's configuration (is this a `vagsl train` output folder?)", cfg_path.display()))?;
     let config: RunConfig =
         serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
-    check_pairing(dir, config.run_id.as_deref())?;
+    let fingerprint = check_pairing(dir, config.run_id.as_deref())?;
     let mut gaussians = gs_io::read_gaussian_ply(&dir.join("point_cloud.ply"))?;
+    check_model(dir, &gaussians, fingerprint.as_deref())?;
     // Coefficients above the degree reached stay 0 during training, so the maximum degree
     // renders exactly what the trainer rendered last.
     gaussians.sh_degree = config.train.sh_degree_max;
     Ok((config, gaussians))
+}
+
+/// Refuses a model that is not the one report.json describes (`fingerprint`): a run stopped
+/// after writing its report but before its model leaves the previous model of the folder.
+fn check_model(dir: &Path, gaussians: &Gaussians, fingerprint: Option<&str>) -> Result<()> {
+    match fingerprint {
+        Some(f) if f != model_fingerprint(gaussians) => bail!(
+            "{}: point_cloud.ply is not the model report.json describes (the run stopped while writing its model, leaving an older one); resume it with --resume {} if that exists, or train again",
+            dir.display(),
+            dir.join("checkpoint.bin").display()
+        ),
+        _ => Ok(()),
+    }
+}
+
+/// A fingerprint of a model, as written and read back through its PLY: FNV-1a (64 bits) of
+/// the count and of the f32 bits of the positions, scales, rotations and opacities.
+pub fn model_fingerprint(g: &Gaussians) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    eat(&(g.len() as u64).to_le_bytes());
+    let floats = g.means.iter().flatten().chain(g.log_scales.iter().flatten()).chain(g.rotations.iter().flatten()).chain(&g.opacity_logits);
+    for v in floats {
+        eat(&v.to_bits().to_le_bytes());
+    }
+    format!("{h:016x}")
 }
 
 /// Indices of the named views in `scene` (an error names a missing view).

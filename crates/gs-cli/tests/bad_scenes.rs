@@ -105,3 +105,18 @@ fn render_refuses_two_views_that_would_share_a_file() {
     assert!(ok, "{err}");
     assert_eq!(std::fs::read_dir(run.join("renders/all")).unwrap().filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "exr")).count(), 12);
 }
+
+#[test]
+fn info_takes_the_extent_of_coincident_cameras_from_the_sparse_points_as_training_does() {
+    let images: Vec<(String, [f64; 3])> = (0..5).map(|k| (format!("{k}.png"), [0.0, 0.0, 2.0])).collect();
+    let d = scene(&images, POINTS);
+    let info = Command::new(env!("CARGO_BIN_EXE_vagsl")).args(["info", d.path().to_str().unwrap()]).output().unwrap();
+    let text = String::from_utf8_lossy(&info.stdout).into_owned();
+    let line = text.lines().find(|l| l.starts_with("scene extent r")).unwrap_or_else(|| panic!("{text}"));
+    assert!(line.contains("(from the sparse points: the camera centres coincide)"), "{line}");
+    let r: f64 = line.split_whitespace().nth(3).unwrap().parse().unwrap();
+    let (ok, err) = train(d.path());
+    assert!(ok, "{err}");
+    let trained: f64 = err.split("scene extent r = ").nth(1).and_then(|t| t.split_whitespace().next()).unwrap().parse().unwrap();
+    assert!((trained - r).abs() < 1e-4, "info says r = {r}, training r = {trained}");
+}

@@ -42,6 +42,38 @@ fn mesh_memory_is_estimated_before_fusing() {
 }
 
 #[test]
+fn training_memory_is_estimated_before_training() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = out.to_str().unwrap();
+    // 10 MiB cannot hold even the photos: refused before any training, naming the estimate,
+    // its parts, the limit and the flags to change; no output folder is created.
+    let t = Instant::now();
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--backend", "cpu", "--quiet", "--max-memory", "10MiB"]);
+    assert!(!ok, "{err}");
+    assert!(t.elapsed() < Duration::from_secs(60), "took {:?}", t.elapsed());
+    assert!(err.contains("training needs about") && err.contains("more than the memory limit of 10.0 MiB"), "{err}");
+    assert!(err.contains("Gaussians (the scene's budget)") && err.contains("VGG feature maps of L_f"), "{err}");
+    assert!(err.contains("--max-memory") && err.contains("--no-features") && err.contains("-r 2"), "{err}");
+    assert!(!out.exists(), "a refused start created its output folder");
+    // Without L_f its maps leave the estimate; a roomy limit lets the run go on and print it.
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--backend", "cpu", "--quiet", "--max-memory", "10MiB", "--no-features"]);
+    assert!(!ok && !err.contains("VGG") && !err.contains("--no-features"), "{err}");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--iterations", "2", "--backend", "cpu", "--quiet", "--max-memory", "8GiB"]);
+    assert!(ok && err.contains("memory estimate: about") && err.contains("limit 8.0 GiB"), "{err}");
+}
+
+#[test]
+fn tradeoff_meshes_go_through_the_mesh_memory_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ladder");
+    let o = out.to_str().unwrap();
+    let (ok, _, err) = vagsl(&["tradeoff", "-o", o, "--iterations", "2", "--backend", "cpu", "--max-memory", "1MB"]);
+    assert!(!ok, "{err}");
+    assert!(err.contains("meshing the '") && err.contains("more than the memory limit of") && err.contains("--max-memory"), "{err}");
+}
+
+#[test]
 fn bad_outputs_and_options_are_refused_before_the_work() {
     let dir = tempfile::tempdir().unwrap();
     let o = dir.path().join("x");

@@ -212,6 +212,21 @@ fn a_folder_mixing_two_runs_is_refused() {
     assert!(!ok && err.contains("report.json is missing or names no run"), "{err}");
     std::fs::write(a.join("report.json"), &report).unwrap();
 
+    // The model is written after the report that describes it (D2): a run stopped between the
+    // two leaves no model, or an older one that the report's fingerprint does not match.
+    let fields: serde_json::Value = serde_json::from_slice(&report).unwrap();
+    assert_eq!(fields["model_fingerprint"].as_str().map(str::len), Some(16), "{fields}");
+    let model = read(&a.join("point_cloud.ply"));
+    std::fs::copy(b.join("point_cloud.ply"), a.join("point_cloud.ply")).unwrap();
+    let (ok, err) = render_test(&a);
+    assert!(!ok && err.contains("point_cloud.ply is not the model report.json describes") && err.contains("--resume"), "{err}");
+    std::fs::remove_file(a.join("point_cloud.ply")).unwrap();
+    let (ok, err) = render_test(&a);
+    assert!(!ok && err.contains("no point_cloud.ply") && err.contains("stopped after its report, while writing its model"), "{err}");
+    std::fs::write(a.join("point_cloud.ply"), &model).unwrap();
+    let (ok, err) = render_test(&a);
+    assert!(ok, "{err}");
+
     // A re-train killed after it wrote its configuration: the folder does not reopen as a run.
     let mut child = Command::new(env!("CARGO_BIN_EXE_vagsl"))
         .args(["train", "-o", a.to_str().unwrap(), "--force", "--eval", "--iterations", "100000", "--backend", "cpu", "--quiet"])
@@ -239,6 +254,12 @@ fn resume_refuses_options_it_would_ignore_or_that_change_the_run() {
     let ck = run.join("checkpoint.bin");
     let c = ck.to_str().unwrap();
     let config = read(&run.join("config.json"));
+    // Outputs made from the model the resume will replace, and a file of the user's.
+    std::fs::write(run.join("mesh.ply"), b"old mesh").unwrap();
+    std::fs::write(run.join("eval_images.json"), b"{}").unwrap();
+    std::fs::create_dir_all(run.join("renders/test")).unwrap();
+    std::fs::write(run.join("renders/test/0000.png"), b"old").unwrap();
+    std::fs::write(run.join("notes.txt"), b"mine").unwrap();
     let resume = |out: &Path, extra: &[&str]| {
         let mut a = vec!["train", "-o", out.to_str().unwrap(), "--resume", c, "--backend", "cpu", "--quiet"];
         a.extend_from_slice(extra);
@@ -254,9 +275,17 @@ fn resume_refuses_options_it_would_ignore_or_that_change_the_run() {
     assert!(!ok && err.contains("(the run's: the built-in scene)") && err.contains("SCENE"), "{err}");
     assert_eq!(read(&run.join("config.json")), config, "a refused resume rewrote config.json");
 
-    // The run's own options are accepted; the run keeps its id.
+    assert!(run.join("mesh.ply").is_file() && run.join("renders").is_dir(), "a refused resume removed outputs");
+
+    // The run's own options are accepted; the run keeps its id. The outputs made from the
+    // previous model go (they would describe an older model); the user's file stays.
     let (ok, err) = resume(&run, &["--eval"]);
     assert!(ok, "{err}");
+    assert!(err.contains("--resume: removed the previous model's mesh.ply, eval_images.json, renders/"), "{err}");
+    for gone in ["mesh.ply", "eval_images.json", "renders"] {
+        assert!(!run.join(gone).exists(), "{gone} of the previous model is still there");
+    }
+    assert_eq!(read(&run.join("notes.txt")), b"mine");
     let id = config_of(&run)["run_id"].clone();
     let report: serde_json::Value = serde_json::from_slice(&read(&run.join("report.json"))).unwrap();
     assert_eq!(report["run_id"], id);

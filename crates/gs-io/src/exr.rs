@@ -19,6 +19,17 @@ use gs_core::image::MAX_IMAGE_PIXELS;
 use std::io::Cursor;
 use std::path::Path;
 
+/// The most sample bytes of one layer the reader decodes: four f32 channels (RGBA, the largest
+/// map vagsl writes) at the pixel cap.
+const MAX_SAMPLE_BYTES: usize = MAX_IMAGE_PIXELS * 16;
+
+/// Sample bytes any EXR may name regardless of its size (a 2048 × 1024 RGBA f32 map).
+const PLAUSIBLE_FLOOR: usize = 32 << 20;
+
+/// Decoded bytes per file byte no EXR compression exceeds (deflate's limit is 1032:1; this
+/// leaves room for PIZ and DWA on flat images).
+const MAX_RATIO: usize = 4096;
+
 /// Writes a 1-channel depth map as an EXR with the single f32 channel `Z`.
 pub fn write_depth_exr(path: &Path, depth: &Image) -> Result<()> {
     if depth.channels() != 1 {
@@ -42,8 +53,9 @@ pub fn write_exr(path: &Path, image: &Image) -> Result<()> {
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
-/// Encodes `image` as EXR bytes in memory.
-fn encode_exr(image: &Image) -> std::result::Result<Vec<u8>, String> {
+/// Encodes `image` as EXR bytes in memory (what [`write_exr`] writes; the error says why an
+/// image cannot be written, e.g. its channel count).
+pub fn encode_exr(image: &Image) -> std::result::Result<Vec<u8>, String> {
     let names: &[&str] = match image.channels() {
         1 => &["Z"],
         3 => &["R", "G", "B"],
@@ -87,19 +99,66 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
     let first = meta.headers.first().ok_or_else(|| fmt("EXR file has no layer".into()))?;
     for h in meta.headers.iter() {
         let size = h.layer_size;
-        if size.width().checked_mul(size.height()).is_none_or(|p| p > MAX_IMAGE_PIXELS) {
+        let pixels = size.width().checked_mul(size.height());
+        if pixels.is_none_or(|p| p > MAX_IMAGE_PIXELS) {
             return Err(fmt(format!("EXR layer of {}x{} exceeds the cap of {MAX_IMAGE_PIXELS} pixels", size.width(), size.height())));
+        }
+        // Every channel of the layer is decoded: bound the samples too, or a small file naming
+        // many channels would have the decoder allocate gigabytes before its data runs out.
+        let per_pixel: usize = h.channels.list.iter().map(|c| c.sample_type.bytes_per_sample()).sum();
+        if pixels.and_then(|p| p.checked_mul(per_pixel)).is_none_or(|b| b > MAX_SAMPLE_BYTES) {
+            return Err(fmt(format!(
+                "EXR layer of {}x{} with {} channels needs {} MiB of samples, more than the cap of {} MiB (4 float channels at {MAX_IMAGE_PIXELS} pixels)",
+                size.width(),
+                size.height(),
+                h.channels.list.len(),
+                pixels.unwrap_or(usize::MAX).saturating_mul(per_pixel) >> 20,
+                MAX_SAMPLE_BYTES >> 20
+            )));
+        }
+        // A layer the file's size cannot hold even at an extreme compression ratio is a cut or
+        // corrupt file: refuse it before its samples are allocated (any file may name up to
+        // 32 MiB; beyond that the file must hold the samples at 4096:1).
+        let needed = pixels.unwrap_or(0).saturating_mul(per_pixel);
+        // The exr crate sizes a chunk's buffer from the tile (not the layer), so a tile of
+        // absurd size is held to the same rule.
+        if let ::exr::meta::BlockDescription::Tiles(t) = h.blocks {
+            let tile = t.tile_size.width().saturating_mul(t.tile_size.height()).saturating_mul(per_pixel);
+            if tile > PLAUSIBLE_FLOOR && tile / MAX_RATIO > bytes.len() {
+                return Err(fmt(format!(
+                    "EXR tiles of {}x{} with {} channels need {} MiB each, more than a file of {} bytes can hold (a corrupt header?)",
+                    t.tile_size.width(),
+                    t.tile_size.height(),
+                    h.channels.list.len(),
+                    tile >> 20,
+                    bytes.len()
+                )));
+            }
+        }
+        if needed > PLAUSIBLE_FLOOR && needed / MAX_RATIO > bytes.len() {
+            return Err(fmt(format!(
+                "EXR layer of {}x{} with {} channels needs {} MiB of samples, more than a file of {} bytes can hold at any compression (cut short, or a corrupt header?)",
+                size.width(),
+                size.height(),
+                h.channels.list.len(),
+                needed >> 20,
+                bytes.len()
+            )));
         }
     }
     if first.deep {
         return Err(IoError::Unsupported { path: path.into(), message: "deep EXR data".into() });
     }
+    // Sequential: the exr crate builds a new thread pool for every parallel read, which costs
+    // more than it gains on maps of this size and, over many reads, grew the process by
+    // gigabytes (found by the `exr` fuzz target).
     let image = x::read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
+        .non_parallel()
         .from_buffered(Cursor::new(bytes))
         .map_err(|e| fmt(format!("EXR decoding failed: {e}")))?;
     let layer = &image.layer_data;

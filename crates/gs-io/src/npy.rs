@@ -190,6 +190,12 @@ pub fn parse_npz(bytes: &[u8], path: &Path) -> Result<Vec<(String, NpyArray)>> {
 /// Writes `image` as a float32 `.npy` (shape `(H, W)` for one channel, `(H, W, C)` otherwise),
 /// atomically.
 pub fn write_npy(path: &Path, image: &Image) -> Result<()> {
+    let bytes = encode_npy(image);
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// The bytes [`write_npy`] writes: a version 1.0 float32 `.npy` of `image`.
+pub fn encode_npy(image: &Image) -> Vec<u8> {
     let shape = if image.channels() == 1 {
         format!("({}, {})", image.height(), image.width())
     } else {
@@ -201,17 +207,15 @@ pub fn write_npy(path: &Path, image: &Image) -> Result<()> {
         header.push(' ');
     }
     header.push('\n');
-    write_atomic(path, |w| {
-        w.write_all(MAGIC)?;
-        w.write_all(&[1, 0])?;
-        w.write_all(&(header.len() as u16).to_le_bytes())?;
-        w.write_all(header.as_bytes())?;
-        let mut buf = Vec::with_capacity(image.data().len() * 4);
-        for v in image.data() {
-            buf.extend_from_slice(&v.to_le_bytes());
-        }
-        w.write_all(&buf)
-    })
+    let mut out = Vec::with_capacity(10 + header.len() + image.data().len() * 4);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&[1, 0]);
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    for v in image.data() {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
 }
 
 /// The text of the value of `key` in a Python dict literal (up to the next top-level comma).

@@ -18,7 +18,8 @@ pub fn read_obj(path: &Path) -> Result<TriangleMesh> {
 /// Parses an OBJ held in memory; `path` only names the file in errors.
 pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<TriangleMesh> {
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true, ..Default::default() };
-    let mut reader = std::io::BufReader::new(bytes);
+    let kept = without_texcoords_and_normals(bytes);
+    let mut reader = std::io::BufReader::new(&kept[..]);
     let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
         .map_err(|e| IoError::format(path, format!("OBJ parse error: {e}")))?;
     let mut mesh = TriangleMesh::default();
@@ -54,6 +55,29 @@ pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<TriangleMesh> {
     }
     mesh.colors = colors.filter(|c| !c.is_empty() && c.len() == mesh.positions.len());
     Ok(mesh)
+}
+
+/// The OBJ without its `vt` and `vn` records. Texture coordinates and normals are ignored
+/// (module docs), and tobj 4.0.5 indexes them with unchecked arithmetic: a face naming an
+/// absurd normal index (`f 1/1/-3` with one normal, or `f 1//6148914691236517206`) overflows
+/// inside it and, in a release build, panics on an index out of bounds (found by the `obj`
+/// fuzz target). Without those records tobj never reads the indices. Lines split on `\n` and
+/// are tokenised as tobj does; a line that is not UTF-8 is kept (tobj refuses it).
+fn without_texcoords_and_normals(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+    let skipped = |line: &[u8]| {
+        std::str::from_utf8(line).is_ok_and(|l| matches!(l.split_whitespace().next(), Some("vt" | "vn")))
+    };
+    if !bytes.split(|&b| b == b'\n').any(skipped) {
+        return std::borrow::Cow::Borrowed(bytes);
+    }
+    let mut out = Vec::with_capacity(bytes.len());
+    for line in bytes.split_inclusive(|&b| b == b'\n') {
+        let body = line.strip_suffix(b"\n").unwrap_or(line);
+        if !skipped(body) {
+            out.extend_from_slice(line);
+        }
+    }
+    std::borrow::Cow::Owned(out)
 }
 
 /// Converts one `[0, 1]` float colour to bytes (non-finite components become 0).

@@ -9,13 +9,19 @@ use std::path::Path;
 /// Writes a 1- or 3-channel image in [0, 1] as an 8-bit PNG (values clamped, round to
 /// nearest, no gamma: the inverse of how images are read). NaN is written as 0.
 pub fn write_png(path: &Path, image: &Image) -> Result<()> {
+    let bytes = encode_png(image, path)?;
+    write_atomic(path, |out| out.write_all(&bytes))
+}
+
+/// The bytes [`write_png`] writes; `path` only names the file in errors.
+pub fn encode_png(image: &Image, path: &Path) -> Result<Vec<u8>> {
     let (bytes, color) = to_8bit(path, image, "PNG")?;
     let (w, h) = (image.width() as u32, image.height() as u32);
-    write_atomic(path, |out| {
-        image::codecs::png::PngEncoder::new(out)
-            .write_image(&bytes, w, h, color)
-            .map_err(std::io::Error::other)
-    })
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(&bytes, w, h, color)
+        .map_err(|e| IoError::invalid(path, format!("cannot encode the PNG: {e}")))?;
+    Ok(out)
 }
 
 /// Writes a 1- or 3-channel image in [0, 1] as a baseline JPEG of `quality` (1–100; values

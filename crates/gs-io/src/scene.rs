@@ -103,7 +103,26 @@ pub fn find_model_dir(dir: &Path) -> Result<PathBuf> {
 /// alpha dropped). A truncated or structurally broken file is an error naming it
 /// ([`crate::integrity`]), never a partial image.
 pub fn decode_rgb(path: &Path) -> Result<Image> {
-    let img = open_checked(path)?;
+    rgb_of(open_checked(path)?, path)
+}
+
+/// [`decode_rgb`] of a file's bytes held in memory; `path` names the file in errors and its
+/// extension gives the format, as for a file on disk.
+pub fn decode_rgb_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
+    rgb_of(decode_checked(bytes, path)?, path)
+}
+
+/// Decodes a mask as one channel in `[0, 1]` (grey, or the luma of a colour file).
+pub fn decode_mask(path: &Path) -> Result<Image> {
+    mask_of(open_checked(path)?, path)
+}
+
+/// [`decode_mask`] of a file's bytes held in memory (see [`decode_rgb_bytes`]).
+pub fn decode_mask_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
+    mask_of(decode_checked(bytes, path)?, path)
+}
+
+fn rgb_of(img: image::DynamicImage, path: &Path) -> Result<Image> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let data: Vec<f32> = if is_16bit(&img) {
         img.to_rgb16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
@@ -113,9 +132,7 @@ pub fn decode_rgb(path: &Path) -> Result<Image> {
     Image::from_vec(w, h, 3, data).map_err(|e| IoError::Core { path: path.to_path_buf(), source: e })
 }
 
-/// Decodes a mask as one channel in `[0, 1]` (grey, or the luma of a colour file).
-pub fn decode_mask(path: &Path) -> Result<Image> {
-    let img = open_checked(path)?;
+fn mask_of(img: image::DynamicImage, path: &Path) -> Result<Image> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let data: Vec<f32> = if is_16bit(&img) {
         img.to_luma16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
@@ -139,22 +156,33 @@ pub(crate) fn image_size(path: &Path) -> Result<(u32, u32)> {
 }
 
 fn open_checked(path: &Path) -> Result<image::DynamicImage> {
-    let (w, h) = image_size(path)?;
+    check_pixel_cap(image_size(path)?, path)?;
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    decode_checked(&bytes, path)
+}
+
+/// Refuses an image larger than [`gs_core::image::MAX_IMAGE_PIXELS`] before it is decoded.
+fn check_pixel_cap((w, h): (u32, u32), path: &Path) -> Result<()> {
     if (w as usize).saturating_mul(h as usize) > gs_core::image::MAX_IMAGE_PIXELS {
         return Err(IoError::invalid(
             path,
             format!("image {w}x{h} exceeds the cap of {} pixels", gs_core::image::MAX_IMAGE_PIXELS),
         ));
     }
-    // Read once, check the container is complete (a cut JPEG would otherwise decode with grey
-    // rows), then decode the same bytes as `image::open` would (format from the extension).
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
-    crate::integrity::check_complete(path, &bytes)?;
-    let decode = || -> image::ImageResult<image::DynamicImage> {
-        let format = image::ImageFormat::from_path(path)?;
-        image::ImageReader::with_format(std::io::Cursor::new(&bytes), format).decode()
+    Ok(())
+}
+
+/// Checks the size cap (from the header) and that the container is complete (a cut JPEG would
+/// otherwise decode with grey rows), then decodes the bytes as `image::open` would (format
+/// from the extension of `path`).
+fn decode_checked(bytes: &[u8], path: &Path) -> Result<image::DynamicImage> {
+    let reader = || -> image::ImageResult<image::ImageReader<std::io::Cursor<&[u8]>>> {
+        Ok(image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::from_path(path)?))
     };
-    decode().map_err(|e| IoError::format(path, format!("cannot decode image: {e}")))
+    let size = reader().and_then(|r| r.into_dimensions());
+    check_pixel_cap(size.map_err(|e| IoError::format(path, format!("cannot read image header: {e}")))?, path)?;
+    crate::integrity::check_complete(path, bytes)?;
+    reader().and_then(|r| r.decode()).map_err(|e| IoError::format(path, format!("cannot decode image: {e}")))
 }
 
 /// The mask file of an image name, if one exists: `masks/<stem>.png`, then `masks/<name>.png`.

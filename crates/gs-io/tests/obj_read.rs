@@ -39,3 +39,18 @@ fn bad_obj_files_name_the_file() {
     assert!(e.contains("bad.obj") && e.contains("not finite"), "{e}");
     assert!(read_obj(&dir.path().join("none.obj")).unwrap_err().to_string().contains("none.obj"));
 }
+
+/// Found by the `obj` fuzz target: tobj indexed normals (and texture coordinates) with
+/// unchecked arithmetic, so an out-of-range relative normal index overflowed inside it, and a
+/// huge one (`3 × index + 2` wrapping to 1) panicked in release builds. Normals and texture
+/// coordinates are ignored, so these faces read as their positions.
+#[test]
+fn absurd_normal_and_texture_indices_are_ignored_not_a_panic() {
+    let crash = b"# c\no a\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvn 0 0 1 0 v 0 1 0 0 n 0 0 1\nvt 0 0\nf 1/1/1 2/1/1 3/1/1\ng b\nv 5 5 50\nf 1/1/1 2/1/1 3/1/1\nvt 0 0\nf 1/1/1 2/1/1 3/1/-3\nl 1 2\np";
+    let m = gs_io::obj::parse_obj(crash, std::path::Path::new("crash.obj")).unwrap();
+    m.validate().unwrap();
+    assert_eq!(m.triangles.len(), 3);
+    let wrap = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvt 0 0\nf 1/1/{i} 2/1/1 3/1/1\n", i = 6148914691236517206u64);
+    let m = gs_io::obj::parse_obj(wrap.as_bytes(), std::path::Path::new("wrap.obj")).unwrap();
+    assert_eq!(m.triangles, vec![[0, 1, 2]]);
+}

@@ -256,7 +256,8 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Checkpoint> {
             let step = r.u64()?;
             let m = r.f32s("moments")?;
             let v = r.f32s("moments")?;
-            if lr.len() != 1 || row_width == 0 || m.len() != n * row_width || v.len() != m.len() {
+            // checked: a row width from the file times the count must not wrap to the moments' length.
+            if lr.len() != 1 || row_width == 0 || n.checked_mul(row_width) != Some(m.len()) || v.len() != m.len() {
                 return Err(format!("optimiser group '{name}' does not match {n} Gaussians"));
             }
             adam.groups.push(ParamGroup { name, lr: lr[0], row_width, step, m, v });

@@ -7,6 +7,14 @@ use thiserror::Error;
 /// crates it composes (each names its file or map).
 #[derive(Debug, Error)]
 pub enum TrainError {
+    /// A configuration file (`--config FILE`) that cannot be read as settings.
+    #[error("{path}: {problem}")]
+    ConfigFile {
+        /// The configuration file.
+        path: PathBuf,
+        /// What is wrong with it.
+        problem: String,
+    },
     /// A configuration value outside its documented range.
     #[error("invalid training configuration: {0}")]
     InvalidConfig(String),

@@ -115,7 +115,7 @@ fn budget_of(scene: &Scene, train_views: &[usize], config: &TrainConfig, init: &
 fn check_state(config: &TrainConfig, state: &TrainState, views: usize) -> Result<()> {
     state.gaussians.validate()?;
     let n = state.gaussians.len();
-    if state.stats.len() != n || state.adam.groups.iter().any(|g| g.m.len() != n * g.row_width) {
+    if state.stats.len() != n || state.adam.groups.iter().any(|g| n.checked_mul(g.row_width) != Some(g.m.len())) {
         return Err(TrainError::InvalidConfig("state: statistics or optimiser rows do not match the Gaussians".into()));
     }
     match &state.exposure {
@@ -181,6 +181,12 @@ impl<'s> Trainer<'s> {
             state,
             budget,
         })
+    }
+
+    /// The run's estimated peak memory ([`crate::memory`]), before training allocates its
+    /// caches and grows the model.
+    pub fn memory_estimate(&self) -> crate::memory::TrainMemoryEstimate {
+        crate::memory::estimate(self.scene, &self.train_views, &self.config, &self.budget, self.state.gaussians.len())
     }
 
     /// The scene's Gaussian budget ([`crate::budget`]).

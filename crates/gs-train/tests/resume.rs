@@ -100,3 +100,16 @@ fn version_2_checkpoints_still_load_without_elapsed_time() {
     assert_eq!(ck.elapsed, None);
     assert_eq!(&ck.state, t.state());
 }
+
+/// Found by the `checkpoint` fuzz target: an optimiser group's row width (a u64 of the file)
+/// times the Gaussian count overflowed; with 2 Gaussians, a row width of 2^63 wrapped to 0 and
+/// matched empty moments, so the group was accepted. The checkpoint is a real one cut to 2
+/// Gaussians with its first group's row width set to 2^63 and its moments emptied.
+#[test]
+fn an_optimiser_row_width_that_overflows_is_refused() {
+    let body = include_bytes!("fixtures/checkpoint_row_width_overflow.body");
+    let mut bytes = body.to_vec();
+    bytes.extend_from_slice(&gs_features::weights::crc32(body).to_le_bytes());
+    let e = checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).err().expect("the row width is refused").to_string();
+    assert!(e.contains("ck.bin") && e.contains("optimiser group") && e.contains("does not match 2 Gaussians"), "{e}");
+}

@@ -4,7 +4,7 @@ use crate::scene_path::images_dir;
 use gs_io::SceneLayout;
 use gs_io::colmap::ModelFormat;
 use anyhow::Result;
-use gs_core::{Camera, Intrinsics, NeighbourRule, scene_extent, source_view_candidates};
+use gs_core::{Camera, ExtentBasis, Intrinsics, NeighbourRule, ScenePoint, extent_report, source_view_candidates};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -69,8 +69,12 @@ pub struct Summary {
     pub camera_models: Vec<ModelCount>,
     /// Image resolutions `WxH` → count.
     pub resolutions: BTreeMap<String, usize>,
-    /// Scene extent r (1.1 × largest camera-centre distance from the mean centre).
+    /// Scene extent r, as training computes it (`gs_core::extent_report`): 1.1 × the robust
+    /// spread of the camera centres, or of the sparse points when the centres coincide.
     pub scene_extent: f64,
+    /// What r comes from: "cameras", "sparse points" (coincident cameras) or "nothing" (no
+    /// spread at all; training refuses such a scene).
+    pub scene_extent_basis: String,
     /// Source-view candidates per view.
     pub neighbours: NeighbourStats,
 }
@@ -137,6 +141,12 @@ pub fn summarize_scene(scene: &Path) -> Result<Summary> {
         None => (None, Vec::new()),
     };
     let refs: Vec<&Camera> = cameras.iter().collect();
+    let points: Vec<ScenePoint> = model
+        .points3d
+        .values()
+        .map(|p| ScenePoint { position: gs_core::glam::DVec3::from_array(p.xyz), color: p.rgb.map(|c| c as f32 / 255.0) })
+        .collect();
+    let extent = extent_report(&refs, &points);
     Ok(Summary {
         source: scene.display().to_string(),
         format: match &sm.layout {
@@ -159,7 +169,8 @@ pub fn summarize_scene(scene: &Path) -> Result<Summary> {
         },
         camera_models: models.into_values().collect(),
         resolutions,
-        scene_extent: scene_extent(&refs),
+        scene_extent: extent.radius,
+        scene_extent_basis: basis_words(extent.basis).into(),
         neighbours: neighbour_stats(&cameras),
     })
 }
@@ -196,8 +207,18 @@ pub fn summarize_builtin() -> Result<Summary> {
         }],
         resolutions,
         scene_extent: scene.extent(),
+        scene_extent_basis: basis_words(scene.extent_report().basis).into(),
         neighbours: neighbour_stats(&cameras),
     })
+}
+
+/// What an extent was computed from, in words.
+fn basis_words(basis: ExtentBasis) -> &'static str {
+    match basis {
+        ExtentBasis::Cameras => "cameras",
+        ExtentBasis::SparsePoints => "sparse points",
+        ExtentBasis::Unscaled => "nothing",
+    }
 }
 
 /// Prints a summary as aligned text.
@@ -232,17 +253,21 @@ pub fn print_text(s: &Summary) {
     }
     for m in &s.camera_models {
         println!(
-            "camera model     {} × {}{}  params {:?}",
+            "camera model     {} × {}{}  params {}",
             m.model,
             m.cameras,
             if m.distorted { " (distorted: undistorted to PINHOLE on load)" } else { "" },
-            m.example_params
+            m.example_params.iter().map(|p| p.to_string()).collect::<Vec<_>>().join(", ")
         );
     }
     for (res, n) in &s.resolutions {
         println!("resolution       {res} × {n}");
     }
-    println!("scene extent r   {:.6}", s.scene_extent);
+    match s.scene_extent_basis.as_str() {
+        "cameras" => println!("scene extent r   {:.6}", s.scene_extent),
+        "sparse points" => println!("scene extent r   {:.6} (from the sparse points: the camera centres coincide)", s.scene_extent),
+        _ => println!("scene extent r   {:.6} (nothing sets the scale: the camera centres coincide and the sparse points have no spread)", s.scene_extent),
+    }
     println!(
         "neighbours       min {} / mean {:.2} / max {} source-view candidates; {} views without",
         s.neighbours.min, s.neighbours.mean, s.neighbours.max, s.neighbours.views_without

@@ -17,6 +17,17 @@ pub enum Split {
     All,
 }
 
+impl Split {
+    /// The split's name, as given to `--split` and used as the folder name under `renders/`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Split::Train => "train",
+            Split::Test => "test",
+            Split::All => "all",
+        }
+    }
+}
+
 /// Options of `vagsl render`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RenderArgs {
@@ -112,10 +123,10 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         Split::Test => model.test.to_vec(),
         Split::All => (0..run.scene.views.len()).collect(),
     };
+    let name = args.split.name();
     if views.is_empty() {
-        anyhow::bail!("no views in split {:?} (held-out views exist only for runs trained with --eval)", args.split);
+        anyhow::bail!("no views in the {name} split (held-out views exist only for runs trained with --eval)");
     }
-    let name = format!("{:?}", args.split).to_lowercase();
     let dir = args.output.clone().unwrap_or_else(|| run.dir.join("renders").join(name));
     let stems = output_stems(views.iter().map(|&i| run.scene.views[i].name.as_str()), &dir)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;

@@ -49,6 +49,14 @@ pub struct TradeoffArgs {
     /// Seed of every run.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Voxel size of the rungs' meshes (default: as `vagsl mesh`).
+    #[arg(long)]
+    pub voxel_size: Option<f64>,
+    /// Refuse, before fusing, a rung's mesh whose estimated memory exceeds this (as `vagsl mesh
+    /// --max-memory`: e.g. 8GiB, 500MB; default 60 % of the available memory, or of 4 GiB
+    /// when /proc/meminfo is unreadable).
+    #[arg(long, value_parser = crate::memory::bytes_arg)]
+    pub max_memory: Option<u64>,
 }
 
 /// One rung of the ladder.
@@ -187,8 +195,10 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         trainer.run(|_, _| true)?;
         let train_seconds = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let (mesh, _) =
-            trainer.extract_mesh(&MeshOptions::default())?;
+        // The same memory check as `vagsl mesh`: refused before any volume is allocated.
+        let mesh_options =
+            MeshOptions { voxel_size: args.voxel_size, max_memory: Some(crate::memory::limit(args.max_memory)), ..MeshOptions::default() };
+        let (mesh, _) = trainer.extract_mesh(&mesh_options).with_context(|| format!("meshing the '{name}' run"))?;
         let mesh_seconds = t1.elapsed().as_secs_f64();
         let run_config = RunConfig {
             scene: source.clone(),

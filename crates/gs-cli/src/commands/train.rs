@@ -4,6 +4,7 @@ use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_pa
 use anyhow::{Context, Result, bail};
 use gs_train::{InitMode, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
 use gs_train::checkpoint::Elapsed;
+use gs_train::config::SettingsFile;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -122,6 +123,11 @@ pub struct TrainArgs {
     /// Write OUT/checkpoint.bin every this many iterations.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub checkpoint_every: Option<u64>,
+    /// Refuse, before training, a run whose estimated peak memory exceeds this (e.g. 8GiB,
+    /// 500MB; default 60 % of the available memory, or of 4 GiB when /proc/meminfo is
+    /// unreadable), as `vagsl mesh --max-memory`.
+    #[arg(long, value_parser = crate::memory::bytes_arg)]
+    pub max_memory: Option<u64>,
     /// Continue from a checkpoint: its settings, and the scene of its run's config.json (in
     /// the output folder, else beside the checkpoint), are used; training options are refused
     /// and scene options must match the run's.
@@ -135,17 +141,14 @@ pub struct TrainArgs {
 
 /// A configuration file's settings as JSON: a run's `config.json` gives its "train" table and
 /// scene, anything else is a partial configuration.
-fn read_config_file(path: &Path) -> Result<(serde_json::Value, Option<RunConfig>)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read the configuration file", path.display()))?;
-    let value: serde_json::Value = match path.extension().and_then(|e| e.to_str()) {
-        Some("toml") => toml::from_str(&text).with_context(|| format!("{}: not valid TOML", path.display()))?,
-        _ => serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON (use .toml for TOML)", path.display()))?,
+fn read_config_file(path: &Path) -> Result<(SettingsFile, Option<RunConfig>)> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the configuration file", path.display()))?;
+    let file = gs_train::config::parse_settings_file(&bytes, path)?;
+    let run = match &file.run {
+        Some(doc) => Some(serde_json::from_value(doc.clone()).with_context(|| format!("{}: not a vagsl run configuration", path.display()))?),
+        None => None,
     };
-    if value.get("train").is_some() && value.get("scene").is_some() {
-        let run: RunConfig = serde_json::from_value(value.clone()).with_context(|| format!("{}: not a vagsl run configuration", path.display()))?;
-        return Ok((value["train"].clone(), Some(run)));
-    }
-    Ok((value, None))
+    Ok((file, run))
 }
 
 /// The effective configuration of `args` (and the run configuration of a `--config` file that
@@ -153,15 +156,14 @@ fn read_config_file(path: &Path) -> Result<(serde_json::Value, Option<RunConfig>
 pub fn build_config(args: &TrainArgs) -> Result<(TrainConfig, Option<RunConfig>)> {
     let (file, run) = match &args.config {
         Some(p) => {
-            let (v, run) = read_config_file(p)?;
-            (Some(v), run)
+            let (f, run) = read_config_file(p)?;
+            (Some((f, p)), run)
         }
         None => (None, None),
     };
-    let file_preset = file.as_ref().and_then(|v| v.get("preset")).and_then(|p| p.as_str()).map(str::parse::<Preset>);
-    let preset = match (args.preset, file_preset) {
+    let preset = match (args.preset, &file) {
         (Some(p), _) => p,
-        (None, Some(p)) => p.map_err(anyhow::Error::msg).context("the configuration file's preset")?,
+        (None, Some((f, p))) => f.preset(p)?.unwrap_or_default(),
         (None, None) => Preset::default(),
     };
     let mut c = TrainConfig::preset(preset);
@@ -171,8 +173,8 @@ pub fn build_config(args: &TrainArgs) -> Result<(TrainConfig, Option<RunConfig>)
         }
         c = c.scaled(n);
     }
-    if let Some(v) = &file {
-        c = c.with_overlay(v).with_context(|| format!("{}", args.config.as_ref().expect("file given").display()))?;
+    if let Some((f, p)) = &file {
+        c = c.with_overlay(&f.settings).with_context(|| format!("{}", p.display()))?;
     }
     for (_, key, value) in setting_flags(args) {
         c = c.with_setting(key, value)?;
@@ -220,6 +222,9 @@ pub fn setting_flags(args: &TrainArgs) -> Vec<(&'static str, &'static str, serde
 pub struct TrainReport {
     /// The run this model belongs to: the `run_id` of config.json (see `OpenRun::open`).
     pub run_id: String,
+    /// Fingerprint of the model this report describes (`run_dir::model_fingerprint`): the
+    /// report is written before point_cloud.ply, so a model that is not this one is noticed.
+    pub model_fingerprint: String,
     /// Iterations completed.
     pub iterations: u64,
     /// Whether the run was stopped (Ctrl-C, SIGTERM, SIGHUP) before the last iteration.
@@ -382,12 +387,13 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
     trainer.set_rasterizer(super::rasterizer(args.backend)?);
+    crate::memory::check_train(&trainer, args.max_memory)?;
     if config.ncc_scale > 1 {
         trainer.set_grey_images(crate::run_dir::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
     // Everything that can refuse the run has run: only now is the folder touched.
-    crate::out_folder::prepare(out, args.force)?;
+    crate::out_folder::prepare(out, args.force, args.resume.is_some())?;
     write_json(&out.join("config.json"), &run_config)?;
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
     let b = *trainer.budget();
@@ -411,10 +417,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         checkpoint::save(&ckpt_path, &config, trainer.state(), &elapsed)?;
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
-    gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
-    write_exposure(out, &run_config, &trainer)?;
     let report = TrainReport {
         run_id,
+        model_fingerprint: crate::run_dir::model_fingerprint(trainer.gaussians()),
         iterations: trainer.iteration(),
         interrupted,
         gaussians: trainer.gaussians().len(),
@@ -434,7 +439,11 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         floaters_removed,
         last,
     };
+    // The report first, then the model it describes: a run stopped between the two leaves a
+    // folder whose model is missing or older than its report, which `OpenRun::open` names.
     write_json(&out.join("report.json"), &report)?;
+    gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
+    write_exposure(out, &run_config, &trainer)?;
     let done_here = report.iterations - resumed_from.unwrap_or(0);
     println!(
         "trained {} iterations in {:.1}s ({:.1} it/s{}): {} Gaussians, peak memory {}; wrote point_cloud.ply, report.json and metrics.jsonl to {}",

@@ -15,7 +15,7 @@ pub use binary::{
     write_cameras_bin, write_images_bin, write_points3d_bin,
 };
 pub use camera_model::{CameraModel, ModelLookup};
-pub use text::{read_text, write_text};
+pub use text::{format_text, parse_text, read_text, write_text};
 
 use crate::error::{IoError, Result};
 use std::collections::BTreeMap;

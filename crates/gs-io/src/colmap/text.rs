@@ -18,6 +18,11 @@ use std::str::FromStr;
 /// Reads the whole file as UTF-8, naming the first invalid byte's line on failure.
 fn read_utf8(path: &Path) -> Result<String> {
     let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    utf8(bytes, path)
+}
+
+/// The bytes of `path` as UTF-8 text, naming the first invalid byte's line on failure.
+fn utf8(bytes: Vec<u8>, path: &Path) -> Result<String> {
     String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
         let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
@@ -193,6 +198,27 @@ pub fn read_text(dir: &Path) -> Result<ColmapModel> {
     let model = ColmapModel { cameras, images, points3d };
     model.validate(&paths)?;
     Ok(model)
+}
+
+/// [`read_text`] of the three files' contents held in memory (`cameras.txt`, `images.txt`,
+/// `points3D.txt`); `dir` only names the files in errors. Same checks, same errors.
+pub fn parse_text(cameras: &[u8], images: &[u8], points3d: &[u8], dir: &Path) -> Result<ColmapModel> {
+    let paths = ModelPaths::new(dir, ModelFormat::Text);
+    let cameras = parse_cameras_txt(&utf8(cameras.to_vec(), &paths.cameras)?, &paths.cameras)?;
+    let images = parse_images_txt(&utf8(images.to_vec(), &paths.images)?, &paths.images)?;
+    let points3d = parse_points3d_txt(&utf8(points3d.to_vec(), &paths.points3d)?, &paths.points3d)?;
+    let model = ColmapModel { cameras, images, points3d };
+    model.validate(&paths)?;
+    Ok(model)
+}
+
+/// The contents [`write_text`] writes: `cameras.txt`, `images.txt`, `points3D.txt`.
+pub fn format_text(model: &ColmapModel) -> [Vec<u8>; 3] {
+    let mut images = Vec::new();
+    let mut points = Vec::new();
+    write_images_txt(model, &mut images).expect("writing to memory cannot fail");
+    write_points3d_txt(model, &mut points).expect("writing to memory cannot fail");
+    [format_cameras_txt(model).into_bytes(), images, points]
 }
 
 /// Formats a model's `cameras.txt`.

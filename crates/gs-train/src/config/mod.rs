@@ -3,11 +3,13 @@
 
 use serde::{Deserialize, Serialize};
 
+mod file;
 mod overrides;
 mod resolution;
 mod summary;
 mod validate;
 
+pub use file::{SettingsFile, parse_settings_file};
 pub use resolution::CoarseToFine;
 
 
