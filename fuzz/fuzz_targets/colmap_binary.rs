@@ -7,19 +7,16 @@
 //! panic, abort, overflow or huge allocation is a bug: every malformed input must give an error.
 #![no_main]
 
+mod three_files;
+
 use gs_io::colmap::{ColmapModel, ModelFormat, ModelPaths, parse_cameras_bin, parse_images_bin, parse_points3d_bin};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {
-    if data.len() < 4 {
+    let Some((cams, imgs, pts)) = three_files::split(data) else {
         return;
-    }
-    let (head, rest) = data.split_at(4);
-    let a = (u16::from_le_bytes([head[0], head[1]]) as usize).min(rest.len());
-    let (cams, tail) = rest.split_at(a);
-    let b = (u16::from_le_bytes([head[2], head[3]]) as usize).min(tail.len());
-    let (imgs, pts) = tail.split_at(b);
+    };
     let paths = ModelPaths::new(Path::new("fuzz"), ModelFormat::Binary);
     let cameras = parse_cameras_bin(cams, &paths.cameras);
     let images = parse_images_bin(imgs, &paths.images);

@@ -8,19 +8,16 @@
 //! reprojection error and undistorted cameras are computed as the binary target does.
 #![no_main]
 
+mod three_files;
+
 use gs_io::colmap::{format_text, parse_text};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {
-    if data.len() < 4 {
+    let Some((cams, imgs, pts)) = three_files::split(data) else {
         return;
-    }
-    let (head, rest) = data.split_at(4);
-    let a = (u16::from_le_bytes([head[0], head[1]]) as usize).min(rest.len());
-    let (cams, tail) = rest.split_at(a);
-    let b = (u16::from_le_bytes([head[2], head[3]]) as usize).min(tail.len());
-    let (imgs, pts) = tail.split_at(b);
+    };
     let dir = Path::new("fuzz");
     if let Ok(model) = parse_text(cams, imgs, pts, dir) {
         let [c, i, p] = format_text(&model);
