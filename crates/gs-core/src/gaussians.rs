@@ -53,14 +53,23 @@ pub fn rgb_to_sh_dc(rgb: f32) -> f32 {
     (rgb - 0.5) / SH_C0
 }
 
-/// Rotation matrix of quaternion `(w, x, y, z)` after normalisation; a quaternion whose norm is
-/// zero or not finite gives the identity (a deterministic choice for a degenerate input).
-pub fn rotation_matrix(q: [f32; 4]) -> Mat3 {
+/// The quaternion `(w, x, y, z)` normalised; one whose norm is zero or not finite gives the
+/// identity `(1, 0, 0, 0)` (a deterministic choice for a degenerate input). Every use of a
+/// Gaussian's rotation (rendering, exports) goes through this one rule.
+#[inline]
+pub fn unit_quaternion(q: [f32; 4]) -> [f32; 4] {
     let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
     if !(n > 1e-20) || !n.is_finite() {
-        return Mat3::IDENTITY;
+        return [1.0, 0.0, 0.0, 0.0];
     }
-    Mat3::from_quat(Quat::from_xyzw(q[1] / n, q[2] / n, q[3] / n, q[0] / n))
+    [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
+}
+
+/// Rotation matrix of quaternion `(w, x, y, z)` after normalisation ([`unit_quaternion`]; a
+/// degenerate quaternion gives the identity).
+pub fn rotation_matrix(q: [f32; 4]) -> Mat3 {
+    let [w, x, y, z] = unit_quaternion(q);
+    Mat3::from_quat(Quat::from_xyzw(x, y, z, w))
 }
 
 /// Backward of [`rotation_matrix`]: `∂L/∂q` (through the normalisation) given `∂L/∂R`.

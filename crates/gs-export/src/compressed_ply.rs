@@ -19,9 +19,9 @@
 //! The reader also accepts the older 12-float chunks without colour bounds.
 
 use crate::error::{ExportError, Result};
-use crate::quant::{f32_at, opacity, u32_at, unit_quaternion};
+use crate::quant::{f32_at, u32_at};
 use gs_core::Gaussians;
-use gs_core::gaussians::{MAX_GAUSSIANS, inverse_sigmoid};
+use gs_core::gaussians::{MAX_GAUSSIANS, inverse_sigmoid, unit_quaternion};
 use gs_core::sh::{MAX_SH_DEGREE, SH_C0, SH_COEFFS};
 use gs_io::ply::{PlyEncoding, PlyHeader, PropertyKind, ScalarType, parse_header};
 use std::path::Path;
@@ -156,7 +156,7 @@ pub fn encode_compressed_ply(g: &Gaussians) -> Vec<u8> {
                 pack_unorm(c[0], 8) << 24
                     | pack_unorm(c[1], 8) << 16
                     | pack_unorm(c[2], 8) << 8
-                    | pack_unorm(opacity(g.opacity_logits[i]) as f64, 8),
+                    | pack_unorm(g.opacity(i) as f64, 8),
             ];
             words.iter().for_each(|w| packed.extend_from_slice(&w.to_le_bytes()));
         }

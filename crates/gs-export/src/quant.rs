@@ -1,6 +1,5 @@
 //! Small quantisation helpers shared by the codecs.
 
-use gs_core::gaussians::sigmoid;
 use std::path::Path;
 
 use crate::error::{ExportError, Result};
@@ -10,20 +9,6 @@ use crate::error::{ExportError, Result};
 #[inline]
 pub fn to_u8(x: f32) -> u8 {
     if x.is_nan() { 0 } else { x.round().clamp(0.0, 255.0) as u8 }
-}
-
-/// The quaternion `q` normalised; a zero or non-finite one gives the identity `(1, 0, 0, 0)`
-/// (as [`gs_core::gaussians::rotation_matrix`] renders it).
-#[inline]
-pub fn unit_quaternion(q: [f32; 4]) -> [f32; 4] {
-    let n = q.iter().map(|v| v * v).sum::<f32>().sqrt();
-    if n > 1e-20 && n.is_finite() { q.map(|v| v / n) } else { [1.0, 0.0, 0.0, 0.0] }
-}
-
-/// Activated opacity of a logit.
-#[inline]
-pub fn opacity(logit: f32) -> f32 {
-    sigmoid(logit)
 }
 
 /// sRGB-encoded byte → linear value in `[0, 1]` (the glTF vertex colour space).
@@ -105,6 +90,7 @@ mod tests {
         assert_eq!(to_u8(254.6), 255);
         assert_eq!(to_u8(300.0), 255);
         assert_eq!(to_u8(f32::NAN), 0);
-        assert_eq!(unit_quaternion([0.0; 4]), [1.0, 0.0, 0.0, 0.0]);
+        // The shared rule the codecs quantise through: a degenerate rotation is the identity.
+        assert_eq!(gs_core::gaussians::unit_quaternion([0.0; 4]), [1.0, 0.0, 0.0, 0.0]);
     }
 }

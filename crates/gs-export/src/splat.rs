@@ -14,9 +14,9 @@
 //! (0.5/128 from rounding, 1/128 at +1, which clamps to 255).
 
 use crate::error::{ExportError, Result};
-use crate::quant::{f32_at, opacity, to_u8, unit_quaternion};
+use crate::quant::{f32_at, to_u8};
 use gs_core::Gaussians;
-use gs_core::gaussians::{MAX_GAUSSIANS, inverse_sigmoid};
+use gs_core::gaussians::{MAX_GAUSSIANS, inverse_sigmoid, unit_quaternion};
 use gs_core::sh::{SH_C0, SH_COEFFS};
 use std::path::Path;
 
@@ -29,7 +29,7 @@ pub fn splat_order(g: &Gaussians) -> Vec<usize> {
     let key: Vec<f64> = (0..g.len())
         .map(|i| {
             let s: f64 = g.log_scales[i].iter().map(|&v| v as f64).sum();
-            s.exp() * opacity(g.opacity_logits[i]) as f64
+            s.exp() * g.opacity(i) as f64
         })
         .collect();
     let mut order: Vec<usize> = (0..g.len()).collect();
@@ -56,7 +56,7 @@ pub fn encode_splat(g: &Gaussians, path: &Path) -> Result<Vec<u8>> {
         for c in 0..3 {
             out.push(to_u8((0.5 + SH_C0 * g.sh[i][0][c]).clamp(0.0, 1.0) * 255.0));
         }
-        out.push(to_u8(opacity(g.opacity_logits[i]) * 255.0));
+        out.push(to_u8(g.opacity(i) * 255.0));
         for q in unit_quaternion(g.rotations[i]) {
             out.push(to_u8(q * 128.0 + 128.0));
         }

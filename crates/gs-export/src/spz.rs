@@ -25,12 +25,12 @@
 //! clamped beyond.
 
 use crate::error::{ExportError, Result};
-use crate::quant::{Cursor, opacity, to_u8, unit_quaternion};
+use crate::quant::{Cursor, to_u8};
 use flate2::Compression;
 use flate2::read::GzDecoder;
 use flate2::write::GzEncoder;
 use gs_core::Gaussians;
-use gs_core::gaussians::{MAX_GAUSSIANS, inverse_sigmoid};
+use gs_core::gaussians::{MAX_GAUSSIANS, inverse_sigmoid, sigmoid, unit_quaternion};
 use gs_core::sh::{MAX_SH_DEGREE, SH_COEFFS};
 use std::io::{Read, Write};
 use std::path::Path;
@@ -87,7 +87,7 @@ pub fn encode_spz(g: &Gaussians, path: &Path) -> Result<Vec<u8>> {
             raw.extend_from_slice(&fixed.to_le_bytes()[..3]);
         }
     }
-    raw.extend(g.opacity_logits.iter().map(|&o| to_u8(opacity(o) * 255.0)));
+    raw.extend(g.opacity_logits.iter().map(|&o| to_u8(sigmoid(o) * 255.0)));
     for sh in &g.sh {
         raw.extend(sh[0].iter().map(|&c| to_u8(c * (COLOR_SCALE * 255.0) + 127.5)));
     }

@@ -43,7 +43,7 @@ fn fox_gaussians() -> Gaussians {
 
 /// The unit quaternion (identity for a zero one), sign-aligned with `to`.
 fn unit_aligned(q: [f32; 4], to: [f32; 4]) -> [f32; 4] {
-    let u = gs_export::quant::unit_quaternion(q);
+    let u = gs_core::gaussians::unit_quaternion(q);
     let dot: f32 = u.iter().zip(to).map(|(a, b)| a * b).sum();
     if dot < 0.0 { u.map(|v| -v) } else { u }
 }
@@ -106,7 +106,7 @@ fn splat_round_trip() {
             max.check("colour", i, (0.5 + SH_C0 * b.sh[i][0][k] - c).abs(), 0.5 / 255.0 + 1e-6);
         }
         check_opacity(&mut max, &g, &b, i);
-        let u = gs_export::quant::unit_quaternion(g.rotations[i]);
+        let u = gs_core::gaussians::unit_quaternion(g.rotations[i]);
         for (r, v) in b.rotations[i].iter().zip(u) {
             max.check("quaternion component", i, (r - v).abs(), 1.0 / 128.0 + 1e-6);
         }
@@ -136,7 +136,7 @@ fn spz_round_trip() {
             }
         }
         check_opacity(&mut max, &g, &b, i);
-        let u = gs_export::quant::unit_quaternion(g.rotations[i]);
+        let u = gs_core::gaussians::unit_quaternion(g.rotations[i]);
         let v = unit_aligned(b.rotations[i], u);
         for k in 0..4 {
             max.check("quaternion component", i, (v[k] - u[k]).abs(), 2e-3);
@@ -174,7 +174,7 @@ fn compressed_ply_round_trip() {
         }
         for &i in members {
             check_opacity(&mut max, &g, &b, i);
-            let u = gs_export::quant::unit_quaternion(g.rotations[i]);
+            let u = gs_core::gaussians::unit_quaternion(g.rotations[i]);
             let v = unit_aligned(b.rotations[i], u);
             for k in 0..4 {
                 max.check("quaternion component", i, (v[k] - u[k]).abs(), 2e-3);

@@ -10,12 +10,11 @@
 //! `-r 1|2|4|8`, a target width, or by default to at most 1600 px wide) with an area filter.
 //! Images are decoded in parallel with rayon.
 
-use crate::colmap::{ColmapCamera, ColmapModel, ModelFormat, detect_format, read_model};
+use crate::colmap::{ColmapCamera, ColmapModel, ColmapPoint3D, ModelFormat, detect_format, read_model};
 use crate::layout::read_scene_model;
 use crate::error::{IoError, Result};
 use crate::undistort::{UndistortMap, UndistortOptions, undistort_camera};
-use gs_core::glam::DVec3;
-use gs_core::{Camera, Image, Intrinsics, Scene, ScenePoint, View};
+use gs_core::{Camera, Image, Intrinsics, Scene, View};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -324,14 +323,7 @@ pub fn load_scene(scene_dir: &Path, opts: &LoadOptions) -> Result<Scene> {
         })
         .collect::<Result<_>>()?;
 
-    let points = model
-        .points3d
-        .values()
-        .map(|p| ScenePoint {
-            position: DVec3::from_array(p.xyz),
-            color: p.rgb.map(|c| c as f32 / 255.0),
-        })
-        .collect();
+    let points = model.points3d.values().map(ColmapPoint3D::scene_point).collect();
     Ok(Scene { views, points, held_out: sm.held_out.clone() })
 }
 

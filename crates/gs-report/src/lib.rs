@@ -24,4 +24,4 @@ mod writer;
 pub use colormap::depth_colormap;
 pub use data::{CameraData, MeshData, SplatData};
 pub use error::{ReportError, Result};
-pub use writer::{Curves, PageData, ReportWriter, ViewScores};
+pub use writer::{Curves, PageData, ReportWriter, ViewScores, escape_html};

@@ -165,7 +165,8 @@ fn page_title(run: &Path) -> String {
     format!("vagsl report: {}", name.unwrap_or_else(|| run.display().to_string()))
 }
 
-fn escape_html(s: &str) -> String {
+/// `s` as HTML/SVG text: `&`, `<` and `>` escaped.
+pub fn escape_html(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 

@@ -141,11 +141,7 @@ pub fn summarize_scene(scene: &Path) -> Result<Summary> {
         None => (None, Vec::new()),
     };
     let refs: Vec<&Camera> = cameras.iter().collect();
-    let points: Vec<ScenePoint> = model
-        .points3d
-        .values()
-        .map(|p| ScenePoint { position: gs_core::glam::DVec3::from_array(p.xyz), color: p.rgb.map(|c| c as f32 / 255.0) })
-        .collect();
+    let points: Vec<ScenePoint> = model.points3d.values().map(gs_io::colmap::ColmapPoint3D::scene_point).collect();
     let extent = extent_report(&refs, &points);
     Ok(Summary {
         source: scene.display().to_string(),

@@ -134,7 +134,7 @@ pub fn svg_plot(rungs: &[Rung]) -> String {
             y(r.chamfer),
             x(r.train_seconds) + 6.0,
             y(r.chamfer) - 6.0,
-            r.name.replace('&', "&amp;").replace('<', "&lt;")
+            gs_report::escape_html(&r.name)
         );
     }
     s.push_str("</svg>\n");

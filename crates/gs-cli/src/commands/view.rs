@@ -61,6 +61,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         true => Some(gs_report::MeshData::from_mesh(&gs_io::read_mesh_ply(&mesh_path)?)?),
         false => None,
     };
+    let has_mesh = mesh.is_some();
     let page = PageData {
         title: String::new(),
         facts: facts(&run, &test_psnr, mesh.as_ref()),
@@ -77,7 +78,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         path.display(),
         model.train.len() + model.test.len(),
         model.gaussians.len(),
-        if mesh_path.exists() { ", the mesh" } else { "" },
+        if has_mesh { ", the mesh" } else { "" },
         if args.serve { "" } else { ", or serve it with `vagsl view RUN --serve`" }
     );
     if args.serve {

@@ -77,6 +77,13 @@ pub struct ColmapPoint3D {
     pub track: Vec<(u32, u32)>,
 }
 
+impl ColmapPoint3D {
+    /// The point as a scene's sparse point: its position, and its colour in `[0, 1]`.
+    pub fn scene_point(&self) -> gs_core::ScenePoint {
+        gs_core::ScenePoint { position: gs_core::glam::DVec3::from_array(self.xyz), color: self.rgb.map(|c| c as f32 / 255.0) }
+    }
+}
+
 /// A COLMAP sparse model keyed by id.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ColmapModel {
