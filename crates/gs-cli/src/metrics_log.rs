@@ -8,9 +8,17 @@
 //! training time (earlier segments of a resumed run included, the held-out scoring excluded),
 //! so curves of different runs share a time axis. A resumed run keeps the lines up to its
 //! checkpoint and appends.
+//!
+//! With `--track-gt GT_MESH`, the same points also mesh the model (TSDF of the training views'
+//! plane depths, `vagsl mesh`'s defaults) and score it against the ground truth as `vagsl
+//! eval-mesh` does: a line `{"iteration", "seconds", "chamfer", "f1", "accuracy",
+//! "completeness", "triangles"}` — the Chamfer-against-wall-time curve of a run, with the
+//! meshing excluded from training time like the held-out scoring.
 
-use anyhow::{Context, Result};
-use gs_train::{StepReport, Trainer};
+use anyhow::{Context, Result, bail};
+use gs_core::TriangleMesh;
+use gs_train::{MeshOptions, StepReport, Trainer, extract_mesh};
+use gs_tsdf::{Aabb, EvalOptions, evaluate_meshes};
 use serde_json::{Value, json};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -55,6 +63,58 @@ impl Sums {
     }
 }
 
+/// `vagsl train`'s options of the mesh curve.
+#[derive(Debug, Clone, clap::Args)]
+pub struct TrackArgs {
+    /// Ground-truth mesh (PLY or OBJ): at each held-out scoring point (10 per run and the
+    /// last iteration) mesh the model and log its Chamfer / F1 against this mesh in
+    /// OUT/metrics.jsonl (not counted as training time).
+    #[arg(long)]
+    pub track_gt: Option<PathBuf>,
+    /// With --track-gt: crop the mesh to the GT's bounding box grown by this fraction per side
+    /// (as `eval-mesh --crop-to-gt`; the object protocol uses 0.05).
+    #[arg(long, requires = "track_gt")]
+    pub track_crop_to_gt: Option<f64>,
+    /// With --track-crop-to-gt: also drop everything below this z (as `eval-mesh --min-z`).
+    #[arg(long, requires = "track_crop_to_gt")]
+    pub track_min_z: Option<f64>,
+}
+
+/// The ground truth and settings of the mesh curve.
+pub struct MeshTrack {
+    gt: TriangleMesh,
+    eval: EvalOptions,
+    mesh: MeshOptions,
+}
+
+impl MeshTrack {
+    /// Reads the ground truth of `args` (None without `--track-gt`); the meshes are fused
+    /// under `max_memory` bytes, as `vagsl mesh`.
+    pub fn load(args: &TrackArgs, max_memory: u64) -> Result<Option<Self>> {
+        let Some(path) = &args.track_gt else { return Ok(None) };
+        let gt = crate::commands::eval_mesh::read_mesh(path)?;
+        let b = Aabb::of_mesh(&gt).with_context(|| format!("{}: the ground-truth mesh has no vertices", path.display()))?;
+        if let Some(f) = args.track_crop_to_gt
+            && !(f.is_finite() && f >= 0.0)
+        {
+            bail!("--track-crop-to-gt {f}: expected a fraction ≥ 0");
+        }
+        let eval = EvalOptions {
+            tau: 0.005 * b.diagonal(),
+            crop: args.track_crop_to_gt.map(|f| crate::commands::eval_mesh::gt_crop(&b, f, args.track_min_z)),
+            ..crate::commands::eval_mesh::default_options()
+        };
+        Ok(Some(Self { gt, eval, mesh: MeshOptions { max_memory: Some(max_memory), ..Default::default() } }))
+    }
+
+    /// Meshes the trainer's model and scores it: the fields of one curve line.
+    fn score(&self, tr: &Trainer, rasterizer: &mut gs_raster::Rasterizer) -> Result<Value> {
+        let (mesh, report) = extract_mesh(&tr.model(), rasterizer, &self.mesh)?;
+        let m = evaluate_meshes(&mesh, &self.gt, &self.eval)?.metrics;
+        Ok(json!({ "chamfer": m.chamfer, "f1": m.f1, "accuracy": m.accuracy, "completeness": m.completeness, "triangles": report.triangles }))
+    }
+}
+
 /// The open curve file of a training run.
 pub struct MetricsLog {
     path: PathBuf,
@@ -62,13 +122,15 @@ pub struct MetricsLog {
     sums: Sums,
     heldout_every: u64,
     rasterizer: Option<gs_raster::Rasterizer>,
+    has_test: bool,
+    mesh_track: Option<MeshTrack>,
 }
 
 impl MetricsLog {
     /// Opens `OUT/metrics.jsonl`: a fresh run starts it empty; a run resumed at iteration
     /// `resumed_from` keeps the lines up to it (a line cut short by a kill is dropped).
-    /// Held-out scoring renders on the CPU when `test` views exist.
-    pub fn open(out: &Path, resumed_from: Option<u64>, iterations: u64, has_test: bool) -> Result<Self> {
+    /// Held-out scoring (when `test` views exist) and the mesh curve render on the CPU.
+    pub fn open(out: &Path, resumed_from: Option<u64>, iterations: u64, has_test: bool, mesh_track: Option<MeshTrack>) -> Result<Self> {
         let path = out.join("metrics.jsonl");
         let kept = match resumed_from {
             Some(from) => kept_lines(&path, from),
@@ -79,13 +141,16 @@ impl MetricsLog {
             .append(true)
             .open(&path)
             .with_context(|| format!("{}: cannot open the training curves for writing", path.display()))?;
-        let rasterizer = if has_test { Some(gs_raster::Rasterizer::new(gs_raster::Backend::Cpu)?) } else { None };
+        let rasterizer =
+            if has_test || mesh_track.is_some() { Some(gs_raster::Rasterizer::new(gs_raster::Backend::Cpu)?) } else { None };
         Ok(Self {
             path,
             file: BufWriter::new(file),
             sums: Sums::default(),
             heldout_every: (iterations / HELDOUT_POINTS).max(1),
             rasterizer,
+            has_test,
+            mesh_track,
         })
     }
 
@@ -99,12 +164,25 @@ impl MetricsLog {
             self.sums = Sums::default();
         }
         let t0 = Instant::now();
+        let due = r.iteration % self.heldout_every == 0 || last;
         if let Some(rasterizer) = self.rasterizer.as_mut()
-            && (r.iteration % self.heldout_every == 0 || last)
+            && due
         {
-            let m = gs_train::evaluate_images(&tr.model(), rasterizer, test, None, false)?;
-            let line = json!({ "iteration": r.iteration, "seconds": seconds, "heldout_psnr": m.psnr, "heldout_ssim": m.ssim });
-            self.write(&line)?;
+            let mut lines = Vec::new();
+            if self.has_test {
+                let m = gs_train::evaluate_images(&tr.model(), rasterizer, test, None, false)?;
+                lines.push(json!({ "iteration": r.iteration, "seconds": seconds, "heldout_psnr": m.psnr, "heldout_ssim": m.ssim }));
+            }
+            if let Some(track) = &self.mesh_track {
+                // An early model may have no surface to mesh yet: the curve says so and goes on.
+                let mut line = track.score(tr, rasterizer).unwrap_or_else(|e| json!({ "mesh_error": format!("{e:#}") }));
+                line["iteration"] = json!(r.iteration);
+                line["seconds"] = json!(seconds);
+                lines.push(line);
+            }
+            for line in &lines {
+                self.write(line)?;
+            }
         }
         Ok(t0.elapsed())
     }

@@ -199,3 +199,36 @@ fn mesh_from_given_depth_maps_matches_the_open3d_floor() {
     let (ok, _, err) = vagsl(&["mesh", bunny.to_str().unwrap(), "--depth-dir", dir.path().to_str().unwrap()]);
     assert!(!ok && err.contains("0000"), "{err}");
 }
+
+#[test]
+fn the_mesh_curve_scores_each_point_against_the_ground_truth() {
+    // `train --track-gt`: at each of the 10 scoring points the model is meshed and scored with
+    // the object protocol; the curve must fall as training goes (SfM points → a surface).
+    let dir = tempfile::tempdir().unwrap();
+    let bunny = shared("synth-bunny");
+    let gt = bunny.join("gt_mesh.ply");
+    let out = dir.path().join("run");
+    let track = ["--track-gt", gt.to_str().unwrap(), "--track-crop-to-gt", "0.05", "--track-min-z", "0.005"];
+    let mut args = vec!["train", bunny.to_str().unwrap(), "-o", out.to_str().unwrap(), "-r", "4", "--iterations", "150"];
+    args.extend(track);
+    let (ok, _, err) = vagsl(&args);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(out.join("metrics.jsonl")).unwrap();
+    let points: Vec<serde_json::Value> =
+        text.lines().map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()).filter(|v| v.get("chamfer").is_some()).collect();
+    let its: Vec<u64> = points.iter().map(|p| p["iteration"].as_u64().unwrap()).collect();
+    assert_eq!(its, (1..=10).map(|k| 15 * k).collect::<Vec<u64>>(), "{text}");
+    let chamfer = |p: &serde_json::Value| p["chamfer"].as_f64().unwrap();
+    assert!(points.windows(2).all(|w| w[1]["seconds"].as_f64() >= w[0]["seconds"].as_f64()));
+    assert!(chamfer(&points[9]) < 0.6 * chamfer(&points[0]), "{text}");
+    assert!(points.iter().all(|p| (0.0..=1.0).contains(&p["f1"].as_f64().unwrap()) && p["triangles"].as_u64().unwrap() > 0));
+    // Training time leaves the meshing out: the last point's seconds are the run's.
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert!((points[9]["seconds"].as_f64().unwrap() - report["train_seconds"].as_f64().unwrap()).abs() < 1.0, "{report}");
+    // A missing ground truth is refused before the output folder is made.
+    let missing = dir.path().join("nope.ply");
+    let out2 = dir.path().join("run2");
+    let (ok, _, err) = vagsl(&["train", bunny.to_str().unwrap(), "-o", out2.to_str().unwrap(), "-r", "4", "--iterations", "20", "--track-gt", missing.to_str().unwrap()]);
+    assert!(!ok && err.contains("nope.ply"), "{err}");
+    assert!(!out2.exists());
+}

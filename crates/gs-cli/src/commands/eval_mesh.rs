@@ -19,7 +19,7 @@ pub struct EvalMeshArgs {
     #[arg(long)]
     pub tau: Option<f64>,
     /// Points sampled uniformly by area on each mesh.
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(long, default_value_t = EvalMeshArgs::DEFAULT_SAMPLES)]
     pub samples: usize,
     /// Crop the prediction to the GT's bounding box expanded by this fraction of its size per
     /// side (the object protocol uses 0.05).
@@ -37,6 +37,17 @@ pub struct EvalMeshArgs {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+impl EvalMeshArgs {
+    /// Points sampled per mesh unless `--samples` says otherwise.
+    pub const DEFAULT_SAMPLES: usize = 200_000;
+}
+
+/// `vagsl eval-mesh`'s settings without flags (τ = 0.5 % of the GT diagonal is set per GT):
+/// the mesh curve of `train --track-gt` scores the same way.
+pub fn default_options() -> EvalOptions {
+    EvalOptions { samples: EvalMeshArgs::DEFAULT_SAMPLES, tau: 0.0, max_distance: None, crop: None, seed: 0 }
 }
 
 /// Reads a PLY or OBJ triangle mesh.

@@ -133,6 +133,9 @@ pub struct TrainArgs {
     /// and scene options must match the run's.
     #[arg(long)]
     pub resume: Option<PathBuf>,
+    /// The Chamfer-against-time curve (`--track-gt`, …).
+    #[command(flatten)]
+    pub track: crate::metrics_log::TrackArgs,
     /// No progress bar (log a line every 500 iterations instead; also the default when stderr
     /// is not a terminal, e.g. redirected to a log file).
     #[arg(long)]
@@ -388,6 +391,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     };
     trainer.set_rasterizer(super::rasterizer(args.backend)?);
     crate::memory::check_train(&trainer, args.max_memory)?;
+    let mesh_track = crate::metrics_log::MeshTrack::load(&args.track, crate::memory::limit(args.max_memory))?;
     if config.ncc_scale > 1 {
         trainer.set_grey_images(crate::run_dir::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
@@ -405,7 +409,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     }
 
     let mut elapsed = earlier.unwrap_or_default();
-    let mut curves = crate::metrics_log::MetricsLog::open(out, resumed_from, config.iterations, !test_idx.is_empty())?;
+    let mut curves = crate::metrics_log::MetricsLog::open(out, resumed_from, config.iterations, !test_idx.is_empty(), mesh_track)?;
     let t0 = Instant::now();
     let Looped { last, sh_bands, growth, floaters_removed, signal } =
         train_loop(args, &config, &mut trainer, &mut elapsed, (&mut curves, &test_idx))?;
