@@ -10,7 +10,8 @@
 //! checkpoint and appends.
 //!
 //! With `--track-gt GT_MESH`, the same points also mesh the model (TSDF of the training views'
-//! plane depths, `vagsl mesh`'s defaults) and score it against the ground truth as `vagsl
+//! plane depths, `vagsl mesh`'s defaults, fused only inside the crop when one is given) and
+//! score it against the ground truth as `vagsl
 //! eval-mesh` does: a line `{"iteration", "seconds", "chamfer", "f1", "accuracy",
 //! "completeness", "triangles"}` — the Chamfer-against-wall-time curve of a run, with the
 //! meshing excluded from training time like the held-out scoring.
@@ -99,12 +100,12 @@ impl MeshTrack {
         {
             bail!("--track-crop-to-gt {f}: expected a fraction ≥ 0");
         }
-        let eval = EvalOptions {
-            tau: 0.005 * b.diagonal(),
-            crop: args.track_crop_to_gt.map(|f| crate::commands::eval_mesh::gt_crop(&b, f, args.track_min_z)),
-            ..crate::commands::eval_mesh::default_options()
-        };
-        Ok(Some(Self { gt, eval, mesh: MeshOptions { max_memory: Some(max_memory), ..Default::default() } }))
+        let crop = args.track_crop_to_gt.map(|f| crate::commands::eval_mesh::gt_crop(&b, f, args.track_min_z));
+        let eval = EvalOptions { tau: 0.005 * b.diagonal(), crop, ..crate::commands::eval_mesh::default_options() };
+        // Only the cropped region is scored, so only it is fused (a room's walls at a fine voxel
+        // can need more memory than the machine has, and the time goes to the object).
+        let mesh = MeshOptions { bounds: crop, max_memory: Some(max_memory), ..Default::default() };
+        Ok(Some(Self { gt, eval, mesh }))
     }
 
     /// Meshes the trainer's model and scores it: the fields of one curve line.

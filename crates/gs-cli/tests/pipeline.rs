@@ -195,6 +195,29 @@ fn mesh_from_given_depth_maps_matches_the_open3d_floor() {
     let m: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert!(m["chamfer"].as_f64().unwrap() <= 0.0059, "{m}");
     assert!(m["f1"].as_f64().unwrap() >= 0.94, "{m}");
+    // `--bounds` around the bunny (its GT box grown by 5 %, floor dropped) fuses the object
+    // alone: the same scores, a fraction of the triangles.
+    let (lo, hi) = gs_io::read_mesh_ply(&bunny.join("gt_mesh.ply")).unwrap().bounds().unwrap();
+    let g = |k: usize, s: f32| (if s < 0.0 { lo[k] } else { hi[k] } + s * 0.05 * (hi[k] - lo[k])) as f64;
+    let bounds = format!("{},{},0.005,{},{},{}", g(0, -1.0), g(1, -1.0), g(0, 1.0), g(1, 1.0), g(2, 1.0));
+    let boxed = dir.path().join("gt_boxed.ply");
+    let (ok, stdout, err) = vagsl(&[
+        "mesh", bunny.to_str().unwrap(), "--depth-dir", bunny.join("gt").to_str().unwrap(),
+        "--voxel-size", "0.008", "--depth-trunc", "20", "-o", boxed.to_str().unwrap(), "--bounds", &bounds,
+    ]);
+    assert!(ok, "{err}");
+    let triangles = |s: &str| s.split(" triangles").next().unwrap().rsplit(' ').next().unwrap().parse::<u64>().unwrap();
+    let all = gs_io::read_mesh_ply(&mesh).unwrap().triangles.len() as u64;
+    assert!(triangles(&stdout) * 4 < all, "{stdout} vs {all} triangles");
+    let (ok, out2, err) = vagsl(&[
+        "eval-mesh", "--pred", boxed.to_str().unwrap(), "--gt", bunny.join("gt_mesh.ply").to_str().unwrap(),
+        "--crop-to-gt", "0.05", "--min-z", "0.005", "--json",
+    ]);
+    assert!(ok, "{err}");
+    let b: serde_json::Value = serde_json::from_str(&out2).unwrap();
+    assert!((b["chamfer"].as_f64().unwrap() - m["chamfer"].as_f64().unwrap()).abs() < 2e-4, "{b} vs {m}");
+    let (ok, _, err) = vagsl(&["mesh", bunny.to_str().unwrap(), "--bounds", "1,2,3"]);
+    assert!(!ok && err.contains("six finite numbers"), "{err}");
     // A depth folder without the views' maps is a clear error naming the view.
     let (ok, _, err) = vagsl(&["mesh", bunny.to_str().unwrap(), "--depth-dir", dir.path().to_str().unwrap()]);
     assert!(!ok && err.contains("0000"), "{err}");

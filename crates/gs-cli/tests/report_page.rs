@@ -24,7 +24,11 @@ fn run_dir() -> &'static Path {
         let dir = tempfile::tempdir().unwrap().keep();
         let out = dir.join("run");
         let o = out.to_str().unwrap();
-        let (ok, stdout, err) = vagsl(&["train", "-o", o, "--iterations", "300", "--preset", "fast", "--eval", "--quiet"]);
+        // Any ground-truth mesh exercises the mesh curve (synth-bunny's: the numbers are
+        // large, the plot is what is checked).
+        let gt = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/synth-bunny/gt_mesh.ply"));
+        let gt = gt.to_str().unwrap();
+        let (ok, stdout, err) = vagsl(&["train", "-o", o, "--iterations", "300", "--preset", "fast", "--eval", "--quiet", "--track-gt", gt]);
         assert!(ok, "{err}");
         assert!(stdout.contains(&format!("vagsl view {o}")), "the summary names the next command: {stdout}");
         let (ok, _, err) = vagsl(&["mesh", o]);
@@ -75,6 +79,7 @@ fn the_page_holds_everything_it_shows_and_needs_no_network() {
     assert_eq!(curves.iter().filter(|c| c.get("loss").is_some()).count(), 30);
     let held: Vec<_> = curves.iter().filter_map(|c| c.get("heldout_psnr")).collect();
     assert_eq!(held.len(), 10);
+    assert_eq!(curves.iter().filter(|c| c["chamfer"].as_f64().is_some_and(f64::is_finite)).count(), 10, "the mesh curve");
     let seconds: Vec<f64> = curves.iter().map(|c| c["seconds"].as_f64().unwrap()).collect();
     assert!(seconds.windows(2).all(|w| w[1] >= w[0]), "time only moves forward");
     assert!(*seconds.last().unwrap() <= report["train_seconds"].as_f64().unwrap() + 1e-6);
@@ -174,7 +179,11 @@ fn the_viewer_at_a_scene_camera_matches_vagsl_render() {
     let full = run.join("page.png");
     let url = format!("file://{}", page.display());
     browse(&chrome, &url, 1280, 1500, &format!("--screenshot={}", full.display()));
-    let status = page_status(&browse(&chrome, &url, 1280, 1500, "--dump-dom"));
+    let dom = browse(&chrome, &url, 1280, 1500, "--dump-dom");
+    for title in ["Training loss", "Gaussians", "Held-out PSNR (dB)", "Mesh Chamfer vs ground truth"] {
+        assert!(dom.contains(&format!(">{title}</text>")), "the {title} plot is drawn");
+    }
+    let status = page_status(&dom);
     assert_eq!(status["errors"].as_array().unwrap().len(), 0, "script errors: {status}");
     if std::env::var_os("VAGSL_UPDATE_DOCS").is_some() {
         let docs = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/report.png"));

@@ -219,6 +219,9 @@ function drawCurves(curves) {
   box.append(plot("Gaussians", "training time (s)", [{ name: "Gaussians", color: "#9467bd", points: series((c) => c.gaussians) }], false));
   const held = curves.filter((c) => c.heldout_psnr !== undefined).map((c) => [c.seconds, c.heldout_psnr]);
   if (held.length) box.append(plot("Held-out PSNR (dB)", "training time (s)", [{ name: "PSNR", color: "#8c564b", points: held }], false));
+  // `train --track-gt`: the mesh scored against the ground truth at the same points.
+  const mesh = curves.filter((c) => c.chamfer !== undefined).map((c) => [c.seconds, c.chamfer]);
+  if (mesh.length) box.append(plot("Mesh Chamfer vs ground truth", "training time (s)", [{ name: "Chamfer", color: "#17becf", points: mesh }], true));
 }
 
 function drawResults(page) {

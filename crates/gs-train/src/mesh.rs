@@ -33,6 +33,8 @@ pub struct MeshOptions {
     pub use_masks: bool,
     /// Block cap of the TSDF.
     pub max_blocks: usize,
+    /// Fuse only inside this box (world units): see [`gs_tsdf::TsdfConfig::bounds`].
+    pub bounds: Option<gs_tsdf::Aabb>,
     /// Refuse a fusion whose estimated peak memory (bytes; see [`gs_tsdf::memory`]) exceeds
     /// this, before allocating it; the block cap is lowered to what fits, so an estimate that
     /// falls short still stops with an error. `None`: no estimate, only `max_blocks`.
@@ -50,6 +52,7 @@ impl Default for MeshOptions {
             largest_component_only: false,
             use_masks: false,
             max_blocks: TsdfConfig::default().max_blocks,
+            bounds: None,
             max_memory: None,
         }
     }
@@ -186,6 +189,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         max_blocks: opts.max_blocks,
         max_normal_angle_deg: opts.max_normal_angle_deg,
         with_color: true,
+        bounds: opts.bounds,
     };
     if let Some(limit) = opts.max_memory {
         config.max_blocks = config.max_blocks.min((limit / MemoryEstimate::bytes_per_block(true)).max(1) as usize);

@@ -9,6 +9,7 @@
 //! with weight 1 into a running weighted average, and the pixel colour likewise.
 
 use crate::error::{Result, TsdfError};
+use crate::metrics::Aabb;
 use gs_core::glam::{DVec3, Vec3};
 use gs_core::{Camera, Image};
 use rayon::prelude::*;
@@ -62,6 +63,9 @@ pub struct TsdfConfig {
     pub max_normal_angle_deg: Option<f64>,
     /// Whether colours are stored and fused.
     pub with_color: bool,
+    /// Region of interest: only the blocks meeting this box are allocated and fused (an
+    /// object's box in a room: the memory and time of the object alone). `None`: everywhere.
+    pub bounds: Option<Aabb>,
 }
 
 impl Default for TsdfConfig {
@@ -73,6 +77,7 @@ impl Default for TsdfConfig {
             max_blocks: 2_000_000,
             max_normal_angle_deg: None,
             with_color: true,
+            bounds: None,
         }
     }
 }
@@ -102,6 +107,12 @@ impl TsdfConfig {
         }
         if self.max_blocks == 0 {
             return bad("max_blocks must be at least 1".into());
+        }
+        if let Some(b) = &self.bounds
+            && !(0..3).all(|k| b.min[k].is_finite() && b.max[k].is_finite() && b.min[k] <= b.max[k])
+        {
+            let v = |p: [f64; 3]| format!("({}, {}, {})", p[0], p[1], p[2]);
+            return bad(format!("bounds must be finite with min ≤ max on every axis, got {} to {}", v(b.min), v(b.max)));
         }
         if let Some(a) = self.max_normal_angle_deg
             && !(a.is_finite() && a > 0.0 && a <= 90.0)
@@ -364,6 +375,13 @@ impl TsdfVolume {
         let lim = (i32::MAX / 2) as f64;
         let cap = self.config.max_blocks;
         let v = self.config.voxel_size;
+        // Block range of the region of interest (blocks meeting the box).
+        let roi = self.config.bounds.map(|b| {
+            let lo = DVec3::from_array(b.min) / block_len;
+            let hi = DVec3::from_array(b.max) / block_len;
+            let f = |x: f64| x.floor().clamp(-lim, lim) as i64;
+            ([f(lo.x), f(lo.y), f(lo.z)], [f(hi.x), f(hi.y), f(hi.z)])
+        });
         let all = depth
             .par_chunks(w)
             .enumerate()
@@ -381,8 +399,17 @@ impl TsdfVolume {
                     if !(lo.is_finite() && hi.is_finite()) || lo.min_element() < -lim || hi.max_element() > lim {
                         return Err(TsdfError::OutOfRange { point: p.to_array(), voxel_size: v });
                     }
-                    let lo = [lo.x as i64, lo.y as i64, lo.z as i64];
-                    let hi = [hi.x as i64, hi.y as i64, hi.z as i64];
+                    let mut lo = [lo.x as i64, lo.y as i64, lo.z as i64];
+                    let mut hi = [hi.x as i64, hi.y as i64, hi.z as i64];
+                    if let Some((rlo, rhi)) = roi {
+                        for k in 0..3 {
+                            lo[k] = lo[k].max(rlo[k]);
+                            hi[k] = hi[k].min(rhi[k]);
+                        }
+                        if (0..3).any(|k| lo[k] > hi[k]) {
+                            continue;
+                        }
+                    }
                     if last == Some((lo, hi)) {
                         continue;
                     }

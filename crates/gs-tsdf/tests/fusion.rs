@@ -296,3 +296,26 @@ fn max_tsdf_jump_removes_only_seams() {
     // On a clean sphere nothing is a seam: the surface stays (almost) the same.
     assert!(f.triangles.len() as f64 > 0.99 * m.triangles.len() as f64, "{} vs {}", f.triangles.len(), m.triangles.len());
 }
+
+#[test]
+fn bounds_fuse_only_the_region_of_interest_and_keep_its_voxels() {
+    // Two spheres; the box holds only the first. The bounded volume allocates only the blocks
+    // meeting the box (half of them here), its voxels there equal the unbounded volume's, and
+    // the mesh is the first sphere alone.
+    let (a, b) = (DVec3::new(0.0, 0.0, 0.0), DVec3::new(3.0, 0.0, 0.0));
+    let scene = [Primitive::Sphere { center: a, radius: 0.8 }, Primitive::Sphere { center: b, radius: 0.8 }];
+    let cams = orbit_cameras(16, 160, 120, DVec3::new(1.5, 0.0, 0.0), 6.0);
+    let (full, _) = fuse(TsdfConfig::with_voxel_size(0.05), &cams, &scene);
+    let bounds = gs_tsdf::Aabb { min: [-1.0; 3], max: [1.0; 3] };
+    let (part, mesh) = fuse(TsdfConfig { bounds: Some(bounds), ..TsdfConfig::with_voxel_size(0.05) }, &cams, &scene);
+    assert!(part.block_count() > 0 && 2 * part.block_count() <= full.block_count(), "{} of {}", part.block_count(), full.block_count());
+    for p in [DVec3::new(0.85, 0.0, 0.0), DVec3::new(0.0, -0.75, 0.1), DVec3::new(0.3, 0.3, 0.7)] {
+        assert_eq!(part.voxel_at(p), full.voxel_at(p), "voxel at {p}");
+    }
+    assert!(part.voxel_at(b + DVec3::new(0.8, 0.0, 0.0)).is_none(), "nothing fused at the other sphere");
+    let reach = mesh.positions.iter().map(|p| DVec3::from(p.map(f64::from)).length()).fold(0.0, f64::max);
+    assert!(mesh.triangles.len() > 500 && reach < 0.9, "{} triangles reaching {reach}", mesh.triangles.len());
+    // A box with min > max is refused.
+    let bad = gs_tsdf::Aabb { min: [1.0, 0.0, 0.0], max: [0.0, 1.0, 1.0] };
+    assert!(TsdfVolume::new(TsdfConfig { bounds: Some(bad), ..TsdfConfig::default() }).is_err());
+}

@@ -43,6 +43,10 @@ pub struct MeshArgs {
     /// Fuse only inside the views' masks.
     #[arg(long)]
     pub masks: bool,
+    /// Fuse only inside this box, `XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX` in scene units (an object
+    /// in a room: the memory and time of the object alone).
+    #[arg(long, value_parser = parse_bounds, allow_hyphen_values = true)]
+    pub bounds: Option<gs_tsdf::Aabb>,
     /// Refuse, before fusing, a mesh whose estimated memory exceeds this (e.g. 8GiB, 500MB;
     /// default 60 % of the available memory, or of 4 GiB when /proc/meminfo is unreadable).
     #[arg(long, value_parser = crate::memory::bytes_arg)]
@@ -65,6 +69,18 @@ fn read_depth(dir: &Path, name: &str) -> Result<gs_core::Image> {
     bail!("{}: no depth map for view '{name}' (looked for {stem}.exr, {stem}_depth.exr, depth_{stem}.npy, {stem}.npy)", dir.display())
 }
 
+/// `--bounds XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX`.
+fn parse_bounds(s: &str) -> std::result::Result<gs_tsdf::Aabb, String> {
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|e| format!("'{s}': {e}"))?;
+    if v.len() != 6 || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!("'{s}': expected six finite numbers XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX"));
+    }
+    if (0..3).any(|k| v[k] > v[k + 3]) {
+        return Err(format!("'{s}': each minimum must be at most its maximum"));
+    }
+    Ok(gs_tsdf::Aabb { min: [v[0], v[1], v[2]], max: [v[3], v[4], v[5]] })
+}
+
 /// The mesh options of `args`.
 fn options(args: &MeshArgs) -> MeshOptions {
     MeshOptions {
@@ -74,6 +90,7 @@ fn options(args: &MeshArgs) -> MeshOptions {
         max_normal_angle_deg: args.max_normal_angle,
         largest_component_only: args.largest,
         use_masks: args.masks,
+        bounds: args.bounds,
         max_memory: Some(crate::memory::limit(args.max_memory)),
         ..Default::default()
     }
