@@ -114,11 +114,39 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", message(&e));
             match e.chain().find_map(|c| c.downcast_ref::<signals::Stopped>()) {
                 Some(stopped) => std::process::ExitCode::from(stopped.exit_status()),
                 None => std::process::ExitCode::FAILURE,
             }
         }
+    }
+}
+
+/// The error and its causes joined by ": ", each cause left out when the text before it
+/// already ends with it (library errors such as `{path}: {source}` print their source
+/// themselves, and anyhow's `{:#}` would repeat it: "…: No such file or directory (os error
+/// 2): No such file or directory (os error 2)").
+fn message(e: &anyhow::Error) -> String {
+    let mut text = e.to_string();
+    for cause in e.chain().skip(1) {
+        let c = cause.to_string();
+        if !text.ends_with(&c) {
+            text.push_str(": ");
+            text.push_str(&c);
+        }
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_cause_already_printed_is_not_repeated() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
+        let e = anyhow::Error::new(gs_io::IoError::io("/nope.ply", io));
+        assert_eq!(super::message(&e), "/nope.ply: No such file or directory");
+        let e = anyhow::anyhow!("inner problem").context("outer");
+        assert_eq!(super::message(&e), "outer: inner problem");
     }
 }
