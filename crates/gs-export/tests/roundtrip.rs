@@ -85,6 +85,16 @@ fn check_opacity(max: &mut Max, g: &Gaussians, b: &Gaussians, i: usize) {
     max.check("opacity", i, (sigmoid(b.opacity_logits[i]) - sigmoid(g.opacity_logits[i])).abs(), 0.5 / 255.0 + 1e-6);
 }
 
+/// The decoded rotation of Gaussian `i` against the original, both as unit quaternions with
+/// the sign aligned (q and −q are one rotation), per component within `tol`.
+fn check_rotation(max: &mut Max, g: &Gaussians, b: &Gaussians, i: usize, tol: f32) {
+    let u = gs_core::gaussians::unit_quaternion(g.rotations[i]);
+    let v = unit_aligned(b.rotations[i], u);
+    for k in 0..4 {
+        max.check("quaternion component", i, (v[k] - u[k]).abs(), tol);
+    }
+}
+
 #[test]
 fn ply_is_lossless() {
     let g = fox_gaussians();
@@ -136,11 +146,7 @@ fn spz_round_trip() {
             }
         }
         check_opacity(&mut max, &g, &b, i);
-        let u = gs_core::gaussians::unit_quaternion(g.rotations[i]);
-        let v = unit_aligned(b.rotations[i], u);
-        for k in 0..4 {
-            max.check("quaternion component", i, (v[k] - u[k]).abs(), 2e-3);
-        }
+        check_rotation(&mut max, &g, &b, i, 2e-3);
     }
     eprintln!("spz (fractional bits {fb}): {max:?}");
 }
@@ -174,11 +180,7 @@ fn compressed_ply_round_trip() {
         }
         for &i in members {
             check_opacity(&mut max, &g, &b, i);
-            let u = gs_core::gaussians::unit_quaternion(g.rotations[i]);
-            let v = unit_aligned(b.rotations[i], u);
-            for k in 0..4 {
-                max.check("quaternion component", i, (v[k] - u[k]).abs(), 2e-3);
-            }
+            check_rotation(&mut max, &g, &b, i, 2e-3);
         }
     }
     eprintln!("compressed-ply: {max:?}");
