@@ -5,15 +5,13 @@
 //! gives the loss terms averaged over those iterations (one view per iteration makes single
 //! values noisy). With held-out views, [`HELDOUT_POINTS`] times per run (and at the end) a
 //! line `{"iteration", "seconds", "heldout_psnr", "heldout_ssim"}` scores them; a point that
-//! falls on an opacity reset is taken half an interval later. `seconds` is
-//! training time (earlier segments of a resumed run included, the held-out scoring excluded),
+//! falls on an opacity reset is taken half an interval later. `seconds` is training time (earlier segments of a resumed run included, the held-out scoring excluded),
 //! so curves of different runs share a time axis. A resumed run keeps the lines up to its
 //! checkpoint and appends.
 //!
 //! With `--track-gt GT_MESH`, the same points also mesh the model (TSDF of the training views'
 //! plane depths, `vagsl mesh`'s defaults, fused only inside the crop when one is given) and
-//! score it against the ground truth as `vagsl
-//! eval-mesh` does: a line `{"iteration", "seconds", "chamfer", "f1", "accuracy",
+//! score it against the ground truth as `vagsl eval-mesh` does: a line `{"iteration", "seconds", "chamfer", "f1", "accuracy",
 //! "completeness", "triangles"}` — the Chamfer-against-wall-time curve of a run, with the
 //! meshing excluded from training time like the held-out scoring.
 
@@ -101,8 +99,8 @@ impl MeshTrack {
         {
             bail!("--track-crop-to-gt {f}: expected a fraction ≥ 0");
         }
-        let crop = args.track_crop_to_gt.map(|f| crate::commands::eval_mesh::gt_crop(&b, f, args.track_min_z));
-        let eval = EvalOptions { tau: 0.005 * b.diagonal(), crop, ..crate::commands::eval_mesh::default_options() };
+        let crop = args.track_crop_to_gt.map(|f| b.grown(f, args.track_min_z));
+        let eval = EvalOptions::for_gt(&b, crop);
         // Only the cropped region is scored, so only it is fused (a room's walls at a fine voxel
         // can need more memory than the machine has, and the time goes to the object).
         let mesh = MeshOptions { bounds: crop, max_memory: Some(max_memory), ..Default::default() };
@@ -124,7 +122,6 @@ pub struct MetricsLog {
     sums: Sums,
     heldout_every: u64,
     rasterizer: Option<gs_raster::Rasterizer>,
-    has_test: bool,
     mesh_track: Option<MeshTrack>,
     /// A scoring point moved off an opacity reset (see [`MetricsLog::record`]).
     deferred: Option<u64>,
@@ -153,7 +150,6 @@ impl MetricsLog {
             sums: Sums::default(),
             heldout_every: (iterations / HELDOUT_POINTS).max(1),
             rasterizer,
-            has_test,
             mesh_track,
             deferred: None,
         })
@@ -181,7 +177,7 @@ impl MetricsLog {
             && due
         {
             let mut lines = Vec::new();
-            if self.has_test {
+            if !test.is_empty() {
                 let m = gs_train::evaluate_images(&tr.model(), rasterizer, test, None, false)?;
                 lines.push(json!({ "iteration": r.iteration, "seconds": seconds, "heldout_psnr": m.psnr, "heldout_ssim": m.ssim }));
             }

@@ -29,6 +29,16 @@ impl Aabb {
         mesh.bounds().map(|(lo, hi)| Self { min: lo.map(|v| v as f64), max: hi.map(|v| v as f64) })
     }
 
+    /// This box grown by `fraction` of its size per side, with everything below `min_z` cut
+    /// off when given (the object protocols' crop of a prediction around a GT object).
+    pub fn grown(&self, fraction: f64, min_z: Option<f64>) -> Self {
+        let mut min: [f64; 3] = std::array::from_fn(|k| self.min[k] - fraction * (self.max[k] - self.min[k]));
+        if let Some(z) = min_z {
+            min[2] = z;
+        }
+        Self { min, max: std::array::from_fn(|k| self.max[k] + fraction * (self.max[k] - self.min[k])) }
+    }
+
     /// Length of the diagonal.
     pub fn diagonal(&self) -> f64 {
         (0..3).map(|k| (self.max[k] - self.min[k]).powi(2)).sum::<f64>().sqrt()
@@ -51,16 +61,21 @@ pub struct EvalOptions {
 }
 
 impl EvalOptions {
+    /// Points sampled on each mesh by default.
+    pub const DEFAULT_SAMPLES: usize = 200_000;
+
+    /// The defaults against a GT whose bounding box is `gt`: [`Self::DEFAULT_SAMPLES`] samples,
+    /// τ = 0.5 % of the box diagonal, no distance clamp, seed 0, and `crop` as given.
+    pub fn for_gt(gt: &Aabb, crop: Option<Aabb>) -> Self {
+        Self { samples: Self::DEFAULT_SAMPLES, tau: 0.005 * gt.diagonal(), max_distance: None, crop, seed: 0 }
+    }
+
     /// The synth-bunny object protocol: crop the prediction to the GT's bounding box expanded by
-    /// 5 % of its size per side with the floor (z < 0.005) removed, 200,000 samples, τ = 0.5 % of
-    /// the GT bounding-box diagonal.
+    /// 5 % of its size per side with the floor (z < 0.005) removed, with [`Self::for_gt`]'s
+    /// defaults.
     pub fn object_protocol(gt: &TriangleMesh) -> Result<Self> {
         let b = Aabb::of_mesh(gt).ok_or_else(|| TsdfError::InvalidMesh("ground-truth mesh has no vertices".into()))?;
-        let pad: [f64; 3] = std::array::from_fn(|k| 0.05 * (b.max[k] - b.min[k]));
-        let mut min: [f64; 3] = std::array::from_fn(|k| b.min[k] - pad[k]);
-        min[2] = 0.005;
-        let max = std::array::from_fn(|k| b.max[k] + pad[k]);
-        Ok(Self { samples: 200_000, tau: 0.005 * b.diagonal(), max_distance: None, crop: Some(Aabb { min, max }), seed: 0 })
+        Ok(Self::for_gt(&b, Some(b.grown(0.05, Some(0.005)))))
     }
 }
 

@@ -19,7 +19,7 @@ pub struct EvalMeshArgs {
     #[arg(long)]
     pub tau: Option<f64>,
     /// Points sampled uniformly by area on each mesh.
-    #[arg(long, default_value_t = EvalMeshArgs::DEFAULT_SAMPLES)]
+    #[arg(long, default_value_t = EvalOptions::DEFAULT_SAMPLES)]
     pub samples: usize,
     /// Crop the prediction to the GT's bounding box expanded by this fraction of its size per
     /// side (the object protocol uses 0.05).
@@ -39,17 +39,6 @@ pub struct EvalMeshArgs {
     pub json: bool,
 }
 
-impl EvalMeshArgs {
-    /// Points sampled per mesh unless `--samples` says otherwise.
-    pub const DEFAULT_SAMPLES: usize = 200_000;
-}
-
-/// `vagsl eval-mesh`'s settings without flags (τ = 0.5 % of the GT diagonal is set per GT):
-/// the mesh curve of `train --track-gt` scores the same way.
-pub fn default_options() -> EvalOptions {
-    EvalOptions { samples: EvalMeshArgs::DEFAULT_SAMPLES, tau: 0.0, max_distance: None, crop: None, seed: 0 }
-}
-
 /// Reads a PLY or OBJ triangle mesh.
 pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
@@ -60,32 +49,23 @@ pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
     })
 }
 
-/// The crop of the object protocols: the GT's bounding box `b` grown by `fraction` of its size
-/// per side, with everything below `min_z` (a floor) dropped when given.
-pub fn gt_crop(b: &Aabb, fraction: f64, min_z: Option<f64>) -> Aabb {
-    let mut min: [f64; 3] = std::array::from_fn(|k| b.min[k] - fraction * (b.max[k] - b.min[k]));
-    if let Some(z) = min_z {
-        min[2] = z;
-    }
-    Aabb { min, max: std::array::from_fn(|k| b.max[k] + fraction * (b.max[k] - b.min[k])) }
-}
-
 /// Runs `vagsl eval-mesh`; a mesh inside a run folder gets its scores saved there as
 /// `eval_mesh.json` (shown by `vagsl view`).
 pub fn run(args: &EvalMeshArgs) -> Result<()> {
     let pred = read_mesh(&args.pred)?;
     let gt = read_mesh(&args.gt)?;
     let b = Aabb::of_mesh(&gt).with_context(|| format!("{}: the ground-truth mesh has no vertices", args.gt.display()))?;
-    let crop = args.crop_to_gt.map(|f| gt_crop(&b, f, args.min_z));
+    let crop = args.crop_to_gt.map(|f| b.grown(f, args.min_z));
     if args.min_z.is_some() && crop.is_none() {
         bail!("--min-z applies with --crop-to-gt");
     }
+    let defaults = EvalOptions::for_gt(&b, crop);
     let opts = EvalOptions {
         samples: args.samples,
-        tau: args.tau.unwrap_or(0.005 * b.diagonal()),
+        tau: args.tau.unwrap_or(defaults.tau),
         max_distance: args.max_distance,
-        crop,
         seed: args.seed,
+        ..defaults
     };
     let report = evaluate_meshes(&pred, &gt, &opts)?;
     if args.json {

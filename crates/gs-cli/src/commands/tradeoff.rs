@@ -2,7 +2,7 @@
 //! full; and the fast preset), each trained, meshed and scored, written as a Markdown / JSON
 //! table and an SVG plot of mesh error against wall time.
 
-use crate::commands::eval_mesh::{gt_crop, read_mesh};
+use crate::commands::eval_mesh::read_mesh;
 use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_path, load_scene, peak_memory_bytes, write_json};
 use anyhow::{Context, Result, bail};
 use gs_core::TriangleMesh;
@@ -176,13 +176,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     let (train, test) = scene.split(args.eval);
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create folder", args.output.display()))?;
     let b = Aabb::of_mesh(&gt).context("the ground-truth mesh has no vertices")?;
-    let eval = EvalOptions {
-        samples: args.samples,
-        tau: 0.005 * b.diagonal(),
-        max_distance: None,
-        crop: Some(gt_crop(&b, args.crop_to_gt, min_z)),
-        seed: 0,
-    };
+    let eval = EvalOptions { samples: args.samples, ..EvalOptions::for_gt(&b, Some(b.grown(args.crop_to_gt, min_z))) };
     let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
     let mut rungs = Vec::new();
     for (name, config) in ladder(args.iterations, args.seed) {
