@@ -49,16 +49,19 @@ fn training_memory_is_estimated_before_training() {
     // 10 MiB cannot hold even the photos: refused before any training, naming the estimate,
     // its parts, the limit and the flags to change; no output folder is created.
     let t = Instant::now();
-    let (ok, _, err) = vagsl(&["train", "-o", o, "--backend", "cpu", "--quiet", "--max-memory", "10MiB"]);
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--preset", "dtu", "--backend", "cpu", "--quiet", "--max-memory", "10MiB"]);
     assert!(!ok, "{err}");
     assert!(t.elapsed() < Duration::from_secs(60), "took {:?}", t.elapsed());
     assert!(err.contains("training needs about") && err.contains("more than the memory limit of 10.0 MiB"), "{err}");
     assert!(err.contains("Gaussians (the scene's budget)") && err.contains("VGG feature maps of L_f"), "{err}");
     assert!(err.contains("--max-memory") && err.contains("--no-features") && err.contains("-r 2"), "{err}");
     assert!(!out.exists(), "a refused start created its output folder");
-    // Without L_f its maps leave the estimate; a roomy limit lets the run go on and print it.
-    let (ok, _, err) = vagsl(&["train", "-o", o, "--backend", "cpu", "--quiet", "--max-memory", "10MiB", "--no-features"]);
+    // Without L_f (switched off, or the default schedule with no L_f phase) its maps leave the
+    // estimate; a roomy limit lets the run go on and print it.
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--preset", "dtu", "--backend", "cpu", "--quiet", "--max-memory", "10MiB", "--no-features"]);
     assert!(!ok && !err.contains("VGG") && !err.contains("--no-features"), "{err}");
+    let (ok, _, err) = vagsl(&["train", "-o", o, "--backend", "cpu", "--quiet", "--max-memory", "10MiB"]);
+    assert!(!ok && !err.contains("VGG") && err.contains("depths"), "{err}");
     let (ok, _, err) = vagsl(&["train", "-o", o, "--iterations", "2", "--backend", "cpu", "--quiet", "--max-memory", "8GiB"]);
     assert!(ok && err.contains("memory estimate: about") && err.contains("limit 8.0 GiB"), "{err}");
 }

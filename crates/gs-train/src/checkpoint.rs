@@ -1,24 +1,25 @@
 //! Versioned, checksummed training checkpoints (design.md §3): the configuration (JSON), the
-//! Gaussians, the Adam moments, the densification statistics, the exposure corrections and the
-//! wall time spent so far, little-endian, followed by a CRC-32 of everything before it. Written
+//! Gaussians, the Adam moments, the densification statistics, the exposure corrections, the
+//! wall time spent so far and the memo of source-view plane depths, little-endian, followed by a CRC-32 of everything before it. Written
 //! atomically (temporary file + rename).
 
 use crate::exposure::Exposure;
 use crate::config::TrainConfig;
 use crate::densify::DensifyStats;
 use crate::error::{Result, TrainError};
+use crate::source_depths::SourceDepths;
 use crate::trainer::TrainState;
 use gs_core::optim::ParamGroup;
 use gs_core::sh::SH_COEFFS;
-use gs_core::{Adam, AdamConfig, Gaussians};
+use gs_core::{Adam, AdamConfig, Gaussians, Image};
 use gs_features::weights::crc32;
 use std::io::Write;
 use std::path::Path;
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"VAGSLCKP";
-/// Format version (3 added the elapsed wall time).
-pub const VERSION: u32 = 3;
+/// Format version (3 added the elapsed wall time, 4 the source-depth memo).
+pub const VERSION: u32 = 4;
 
 /// Wall seconds a run has spent in the training loop so far, per phase (warm-up, photometric
 /// L_p, features L_f, refinement). Carried in the checkpoint so that a run resumed over several
@@ -191,6 +192,19 @@ pub fn encode(config: &TrainConfig, state: &TrainState, elapsed: &Elapsed) -> Ve
     }
     // Version 3: the wall time spent so far.
     w.f64s(&elapsed.phase_seconds);
+    // Version 4: the source-depth memo (slot count, then per slot a flag, iteration, size, depth).
+    w.u32(state.source_depths.len() as u32);
+    for entry in state.source_depths.entries() {
+        match entry {
+            None => w.u32(0),
+            Some((at, d)) => {
+                w.u32(1);
+                w.u64(*at);
+                w.u64(d.width() as u64);
+                w.f32s(d.data());
+            }
+        }
+    }
     let crc = crc32(&w.0);
     w.u32(crc);
     w.0
@@ -298,16 +312,38 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Checkpoint> {
         } else {
             None
         };
+        let source_depths = if version >= 4 { read_source_depths(r)? } else { SourceDepths::default() };
         if r.pos != r.buf.len() {
             return Err(format!("{} unexpected bytes after the last record", r.buf.len() - r.pos));
         }
-        let state = TrainState { iteration, gaussians, adam, stats, capped, exposure };
+        let state = TrainState { iteration, gaussians, adam, stats, capped, exposure, source_depths };
         Ok(Checkpoint { config, state, elapsed })
     };
     let ck = parse(&mut r).map_err(err)?;
     ck.state.gaussians.validate().map_err(|e| err(e.to_string()))?;
     ck.config.validate().map_err(|e| err(e.to_string()))?;
     Ok(ck)
+}
+
+/// The source-depth memo of a version-4 checkpoint.
+fn read_source_depths(r: &mut Reader) -> std::result::Result<SourceDepths, String> {
+    let slots = r.u32()? as usize;
+    let mut entries = Vec::new();
+    for slot in 0..slots {
+        if r.u32()? == 0 {
+            entries.push(None);
+            continue;
+        }
+        let at = r.u64()?;
+        let width = r.u64()? as usize;
+        let data = r.f32s("source depth")?;
+        if width == 0 || data.is_empty() || data.len() % width != 0 {
+            return Err(format!("source depth of training view {slot}: {} values do not fill rows of {width}", data.len()));
+        }
+        let depth = Image::from_vec(width, data.len() / width, 1, data).map_err(|e| e.to_string())?;
+        entries.push(Some((at, depth)));
+    }
+    Ok(SourceDepths::from_entries(entries))
 }
 
 /// Writes a checkpoint atomically.

@@ -61,11 +61,27 @@ impl Trainer<'_> {
             Some(e) => Some(crate::exposure::apply(rendered, &e.params[plan.slot])?),
             None => None,
         };
-        let depths = plan.sources.iter().map(|&s| self.source_plane_depth(s)).collect::<Result<Vec<Image>>>()?;
+        let max_age = self.config.source_depth_max_age;
+        let mut rendered_depths = Vec::with_capacity(plan.sources.len());
+        for &s in &plan.sources {
+            if self.state.source_depths.fresh(s, it, max_age).is_none() {
+                let d = self.source_plane_depth(s)?;
+                if max_age > 0 {
+                    self.state.source_depths.store(s, it, d);
+                } else {
+                    rendered_depths.push(d);
+                }
+            }
+        }
+        let memo = &self.state.source_depths;
+        let depths: Vec<&Image> = match max_age {
+            0 => rendered_depths.iter().collect(),
+            _ => plan.sources.iter().map(|&s| memo.fresh(s, it, max_age).expect("stored above")).collect(),
+        };
         let sources: Vec<SourceInputs> = plan
             .sources
             .iter()
-            .zip(&depths)
+            .zip(depths)
             .map(|(&s, d)| SourceInputs {
                 camera: &self.scene.views[self.train_views[s]].camera,
                 plane_depth: d,
@@ -107,6 +123,9 @@ impl Trainer<'_> {
             self.state.stats.accumulate(&out.radii, &g, plan.scale as f32);
         }
         adam_step(&mut self.state.adam, &mut self.state.gaussians, &g, it)?;
+        if let (true, Some(depth)) = (max_age > 0 && plan.scale == 1, out.plane_depth) {
+            self.state.source_depths.store(plan.slot, it, depth);
+        }
         Ok(values)
     }
 }

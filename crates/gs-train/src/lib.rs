@@ -47,6 +47,7 @@ pub mod params;
 pub mod plan;
 pub mod refine;
 pub mod sh_policy;
+pub mod source_depths;
 pub mod terms;
 pub mod trainer;
 
@@ -63,5 +64,6 @@ pub use params::Param;
 pub use plan::{RefinePlan, StepPlan, plan_step};
 pub use refine::RefineReport;
 pub use sh_policy::ShBandDecision;
+pub use source_depths::SourceDepths;
 pub use terms::{GradientBuffers, LossTerm, LossValues, TermInputs};
 pub use trainer::{StepReport, TrainState, Trainer};

@@ -5,7 +5,7 @@
 //! `max_gaussians` cap) with their parameters, Adam moments, gradients, densification
 //! statistics, the rasterizer's per-Gaussian data and a densification copy; the decoded photos
 //! (and masks) of every view; the per-view caches filled as views are visited (edge guides,
-//! grey images of L_p, coarse-to-fine pyramids, VGG feature maps of L_f); the buffers of one
+//! grey images of L_p, source-view depths, coarse-to-fine pyramids, VGG feature maps of L_f); the buffers of one
 //! render and its losses at the largest view; and the program with its network weights. Every
 //! term rounds up, so the estimate is an upper bound (RELIABILITY.md compares it with measured
 //! peaks).
@@ -75,7 +75,11 @@ pub fn estimate(scene: &Scene, train_views: &[usize], config: &TrainConfig, budg
     if config.coarse_to_fine.levels > 0 {
         per_pixel += 4;
     }
-    let feature_bytes = if config.losses.features {
+    // The source-depth memo of L_p / L_f (one plane depth per view, 4 B/px).
+    if config.source_depth_max_age > 0 {
+        per_pixel += 4;
+    }
+    let feature_bytes = if config.has_feature_phase() {
         let opts = ExtractOptions::at(config.feature_layer);
         let maps: u64 = train_views
             .iter()
@@ -113,7 +117,7 @@ impl TrainMemoryEstimate {
         let mut parts = vec![
             format!("{} Gaussians ({whose}) with their optimiser state and gradients {}", self.gaussians, format_bytes(self.gaussian_bytes)),
             format!("the photos of {} views at training resolution {}", self.views, format_bytes(self.image_bytes)),
-            format!("per-view caches (edge guides, grey images, pyramids) {}", format_bytes(self.view_cache_bytes)),
+            format!("per-view caches (edge guides, grey images, depths, pyramids) {}", format_bytes(self.view_cache_bytes)),
         ];
         if self.feature_bytes > 0 {
             parts.push(format!("VGG feature maps of L_f {}", format_bytes(self.feature_bytes)));

@@ -17,6 +17,7 @@ use crate::init::initial_gaussians;
 use crate::model::TrainedModel;
 use crate::plan::{StepPlan, plan_step};
 use crate::sh_policy::ShBandDecision;
+use crate::source_depths::SourceDepths;
 use crate::terms::LossValues;
 use gs_core::{Adam, Gaussians, Image, NeighbourRule, Scene};
 use gs_mvs::{SourceSelection, SourceViewSelector};
@@ -64,6 +65,9 @@ pub struct TrainState {
     pub capped: bool,
     /// Per-view exposure corrections (when `config.exposure`).
     pub exposure: Option<Exposure>,
+    /// The last rendered plane depth of each training view, reused by L_p / L_f as source
+    /// depth (`config.source_depth_max_age`; empty when 0).
+    pub source_depths: SourceDepths,
 }
 
 /// The trainer: a scene, its split, the configuration, the [`TrainState`], the rasterizer
@@ -118,6 +122,10 @@ fn check_state(config: &TrainConfig, state: &TrainState, views: usize) -> Result
     if state.stats.len() != n || state.adam.groups.iter().any(|g| n.checked_mul(g.row_width) != Some(g.m.len())) {
         return Err(TrainError::InvalidConfig("state: statistics or optimiser rows do not match the Gaussians".into()));
     }
+    let depths = state.source_depths.len();
+    if depths != 0 && depths != views {
+        return Err(TrainError::InvalidConfig(format!("state: {depths} source depths for {views} training views")));
+    }
     match &state.exposure {
         Some(e) if !config.exposure || e.params.len() != views => Err(TrainError::InvalidConfig(format!(
             "state: {} exposure corrections for {views} training views (exposure {})",
@@ -147,7 +155,9 @@ impl<'s> Trainer<'s> {
         let adam = crate::params::new_optimiser(&config.lr, n)?;
         let exposure = if config.exposure { Some(Exposure::new(train_views.len())?) } else { None };
         let budget = budget_of(scene, &train_views, &config, &gaussians);
-        let state = TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false, exposure };
+        let source_depths = SourceDepths::new(if config.source_depth_max_age > 0 { train_views.len() } else { 0 });
+        let state =
+            TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false, exposure, source_depths };
         Self::assemble(scene, train_views, config, state, budget)
     }
 
@@ -162,8 +172,11 @@ impl<'s> Trainer<'s> {
     }
 
     /// The trainer around a checked configuration, scene and state.
-    fn assemble(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, state: TrainState, budget: Budget) -> Result<Self> {
+    fn assemble(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, mut state: TrainState, budget: Budget) -> Result<Self> {
         check_state(&config, &state, train_views.len())?;
+        if config.source_depth_max_age > 0 && state.source_depths.is_empty() {
+            state.source_depths = SourceDepths::new(train_views.len());
+        }
         let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
         let extent = scene.extent_of(&train_views).max(1e-9);
         let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), config.source_views, SourceSelection::RandomN)?;

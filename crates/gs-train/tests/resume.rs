@@ -20,6 +20,8 @@ fn config() -> TrainConfig {
     c.seed = 7;
     // The per-view exposure corrections and their optimiser are checkpointed too.
     c.exposure = true;
+    // So is the memo of source-view plane depths that L_p and L_f reuse.
+    c.source_depth_max_age = 15;
     c
 }
 
@@ -61,6 +63,8 @@ fn resume_continues_bit_identically() {
     assert_eq!(resumed.state(), straight.state(), "parameters, optimiser and statistics must match bit for bit");
     assert!(straight.gaussians().len() != 400, "densification ran");
     assert!(straight.state().exposure.as_ref().unwrap().params.iter().any(|p| p[0] != 0.0), "exposure was learned");
+    let memo = &straight.state().source_depths;
+    assert!(memo.entries().iter().flatten().count() > 1, "the geometry phases stored plane depths");
 }
 
 #[test]
@@ -86,19 +90,44 @@ fn corrupt_checkpoints_are_named_errors() {
 }
 
 #[test]
-fn version_2_checkpoints_still_load_without_elapsed_time() {
+fn version_2_and_3_checkpoints_still_load() {
+    let scene = small_scene();
+    let (train, _) = scene.split(false);
+    let mut t = Trainer::new(&scene, train, TrainConfig { source_depth_max_age: 0, ..config() }).unwrap();
+    t.run(|_, r| r.iteration < 3).unwrap();
+    let v4 = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
+    // A version-3 file is the version-4 body without the trailing (empty) source-depth memo
+    // (a 4-byte slot count); a version-2 file also lacks the elapsed record before it (8-byte
+    // count + 4 × 8 bytes). Each has its own version number and checksum.
+    let old = |version: u32, cut: usize| {
+        let mut b = v4[..v4.len() - 4 - cut].to_vec();
+        b[8..12].copy_from_slice(&version.to_le_bytes());
+        let crc = gs_features::weights::crc32(&b);
+        b.extend_from_slice(&crc.to_le_bytes());
+        checkpoint::decode(&b, std::path::Path::new("old.bin")).unwrap()
+    };
+    let v3 = old(3, 4);
+    assert_eq!((v3.elapsed, &v3.state), (Some(Elapsed::default()), t.state()));
+    let v2 = old(2, 4 + 40);
+    assert_eq!((v2.elapsed, &v2.state), (None, t.state()));
+}
+
+#[test]
+fn a_source_depth_that_does_not_fill_its_rows_is_refused() {
     let scene = small_scene();
     let t = three_iterations(&scene);
-    let v3 = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
-    // A version-2 file is the version-3 body without the trailing elapsed record (8-byte count
-    // + 4 × 8 bytes), with its own version number and checksum.
-    let mut v2 = v3[..v3.len() - 4 - 40].to_vec();
-    v2[8..12].copy_from_slice(&2u32.to_le_bytes());
-    let crc = gs_features::weights::crc32(&v2);
-    v2.extend_from_slice(&crc.to_le_bytes());
-    let ck = checkpoint::decode(&v2, std::path::Path::new("old.bin")).unwrap();
-    assert_eq!(ck.elapsed, None);
-    assert_eq!(&ck.state, t.state());
+    let mut state = t.state().clone();
+    let depth = gs_core::Image::filled(5, 3, 1, 1.0).unwrap();
+    state.source_depths = gs_train::SourceDepths::from_entries(vec![Some((2, depth))]);
+    let mut bytes = checkpoint::encode(t.config(), &state, &Elapsed::default());
+    // The stored width (the u64 before the 15 depth values and their 8-byte count) becomes 4.
+    let at = bytes.len() - 4 - 15 * 4 - 8 - 8;
+    bytes[at..at + 8].copy_from_slice(&4u64.to_le_bytes());
+    let body = bytes.len() - 4;
+    let crc = gs_features::weights::crc32(&bytes[..body]);
+    bytes[body..].copy_from_slice(&crc.to_le_bytes());
+    let e = checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).unwrap_err().to_string();
+    assert!(e.contains("ck.bin") && e.contains("source depth of training view 0"), "{e}");
 }
 
 /// Found by the `checkpoint` fuzz target: an optimiser group's row width (a u64 of the file)

@@ -17,10 +17,12 @@ pub use resolution::CoarseToFine;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
-    /// The default: the `dtu` schedule compressed to 6,000 iterations for a CPU, the model
-    /// bounded by the scene's Gaussian budget (as in every preset). Coarse-to-fine and a
-    /// sparser L_p / L_f (`coarse_to_fine`, `multiview_interval`) stay off: measured, both cost
-    /// held-out PSNR (BENCHMARKS.md, issue #18).
+    /// The default: the paper's surface schedule reshaped for a CPU ([`TrainConfig::cpu_schedule`]):
+    /// 3,000 iterations, the colour warm-up then edge + L_nc + L_ns + L_p to the end, with no
+    /// L_f phase and no opacity reset, source-view depths reused, the model bounded by the
+    /// scene's Gaussian budget (as in every preset). Coarse-to-fine and a sparser L_p / L_f
+    /// (`coarse_to_fine`, `multiview_interval`) stay off: measured, both cost held-out PSNR
+    /// (BENCHMARKS.md, issue #18).
     #[default]
     Standard,
     /// Object-scale scenes (DTU): the paper's surface schedule, 20,000 iterations,
@@ -31,7 +33,7 @@ pub enum Preset {
     /// Novel-view synthesis (Mip-NeRF 360): the 20,000-iteration surface schedule, then 10,000
     /// more with L_I and the normal terms; absolute-gradient threshold 2e-4.
     Mip360,
-    /// A quick look: `standard` in 3,000 iterations with 2 source views. Its accuracy cost is
+    /// A quick look: `standard` in 1,500 iterations with 2 source views. Its accuracy cost is
     /// measured in BENCHMARKS.md.
     Fast,
 }
@@ -309,6 +311,11 @@ pub struct TrainConfig {
     /// the paper); the other iterations skip the source views.
     #[serde(default = "one_u64")]
     pub multiview_interval: u64,
+    /// L_p and L_f take a source view's plane depth (visibility only, no gradient) from its last
+    /// render while it is at most this many iterations old, instead of rendering it again
+    /// ([`crate::source_depths`]); 0 renders every source every iteration (the paper).
+    #[serde(default)]
+    pub source_depth_max_age: u64,
 }
 
 fn one_u64() -> u64 {
@@ -351,9 +358,12 @@ impl Default for TrainConfig {
 
 
 /// Iterations of the `standard` preset.
-pub const STANDARD_ITERATIONS: u64 = 6_000;
+pub const STANDARD_ITERATIONS: u64 = 3_000;
 /// Iterations of the `fast` preset.
-pub const FAST_ITERATIONS: u64 = 3_000;
+pub const FAST_ITERATIONS: u64 = 1_500;
+/// Oldest reused source-view depth of the CPU presets, in iterations: about two epochs of a
+/// 40-view scene, so a view rendered as reference serves as source until it is rendered again.
+pub const CPU_SOURCE_DEPTH_MAX_AGE: u64 = 100;
 
 /// Fewest iterations between two densification steps of a scaled schedule: a step judges the
 /// gradients accumulated since the last one, and fewer than this many iterations give noisy
@@ -395,6 +405,7 @@ impl TrainConfig {
             near: 0.01,
             coarse_to_fine: CoarseToFine::default(),
             multiview_interval: 1,
+            source_depth_max_age: 0,
         };
         match preset {
             Preset::Dtu => base,
@@ -404,8 +415,25 @@ impl TrainConfig {
                 densify: DensifyConfig { abs_grad_threshold: 2e-4, ..base.densify },
                 ..base
             },
-            Preset::Standard => base.scaled(STANDARD_ITERATIONS),
-            Preset::Fast => Self { source_views: 2, ..base }.scaled(FAST_ITERATIONS),
+            Preset::Standard => base.cpu_schedule().scaled(STANDARD_ITERATIONS),
+            Preset::Fast => Self { source_views: 2, ..base.cpu_schedule() }.scaled(FAST_ITERATIONS),
+        }
+    }
+
+    /// The paper's surface schedule reshaped for short CPU runs, as measured on synth-bunny at
+    /// full resolution with `train --track-gt` (BENCHMARKS.md, issue #18): the mesh is made by
+    /// L_p, so after the colour warm-up L_p runs to the last iteration (L_f, which left the
+    /// mesh no better at full resolution and worse at half, has no phase); no opacity reset
+    /// (each one made the model transparent and cost hundreds of iterations of recovery); and
+    /// L_p / L_f reuse source-view depths up to [`CPU_SOURCE_DEPTH_MAX_AGE`] iterations old.
+    /// Phase boundaries scale with [`TrainConfig::scaled`] as before.
+    pub fn cpu_schedule(&self) -> Self {
+        Self {
+            photometric_end: self.iterations,
+            features_end: self.iterations,
+            source_depth_max_age: CPU_SOURCE_DEPTH_MAX_AGE,
+            densify: DensifyConfig { opacity_reset_interval: 0, ..self.densify },
+            ..self.clone()
         }
     }
 
@@ -455,6 +483,12 @@ impl TrainConfig {
             photometric: l.photometric && (photometric_window || (self.overlap_mv && feature_window)),
             features: l.features && feature_window,
         }
+    }
+
+    /// Whether any iteration runs L_f (the switch is on and its phase is not empty): the
+    /// VGG feature maps are only needed then.
+    pub fn has_feature_phase(&self) -> bool {
+        self.losses.features && self.features_end > self.photometric_end
     }
 
     /// The rasterizer settings of a run (near plane and background from this configuration);
@@ -533,6 +567,24 @@ mod tests {
         let m = TrainConfig::preset(Preset::Mip360);
         let p = m.phase(25_000);
         assert!(p.normal_consistency && !p.features && !p.photometric);
+    }
+
+    #[test]
+    fn the_cpu_presets_run_l_p_to_the_end_without_resets() {
+        let (s, f) = (TrainConfig::preset(Preset::Standard), TrainConfig::preset(Preset::Fast));
+        for (c, n, sources) in [(&s, STANDARD_ITERATIONS, 3), (&f, FAST_ITERATIONS, 2)] {
+            c.validate().unwrap();
+            assert_eq!((c.iterations, c.source_views, c.densify.opacity_reset_interval), (n, sources, 0));
+            assert_eq!((c.photometric_end, c.features_end, c.source_depth_max_age), (n, n, CPU_SOURCE_DEPTH_MAX_AGE));
+            assert!(!c.has_feature_phase() && c.phase(n).photometric && !c.phase(c.warmup_end).photometric);
+            assert!(c.warmup_end > 0 && c.densify.until < n);
+        }
+        // --iterations keeps the shape; the paper's presets keep L_f and render every source.
+        let long = s.scaled(9000);
+        assert_eq!((long.photometric_end, long.features_end, long.densify.opacity_reset_interval), (9000, 9000, 0));
+        let dtu = TrainConfig::preset(Preset::Dtu);
+        assert!(dtu.has_feature_phase() && dtu.source_depth_max_age == 0);
+        assert!(!TrainConfig { losses: LossSwitches { features: false, ..dtu.losses }, ..dtu }.has_feature_phase());
     }
 
     #[test]

@@ -17,7 +17,7 @@ impl TrainConfig {
         if !geometry.is_empty() {
             s.push_str(&format!(", {} to {}", geometry.join(" + "), self.photometric_end));
         }
-        if l.features {
+        if self.has_feature_phase() {
             s.push_str(&format!(", L_f{} to {}", if self.overlap_mv && l.photometric { " + L_p" } else { "" }, self.features_end));
         }
         s.push_str(&format!(
