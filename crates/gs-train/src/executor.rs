@@ -43,6 +43,24 @@ impl Trainer<'_> {
         Ok(out.plane_depth.expect("requested"))
     }
 
+    /// Renders the plan's source depths that the memo cannot serve ([`crate::source_depths`]):
+    /// with reuse on they go into the memo, else they are returned in source order.
+    fn render_source_depths(&mut self, plan: &StepPlan) -> Result<Vec<Image>> {
+        let (it, max_age) = (plan.iteration, self.config.source_depth_max_age);
+        let mut rendered = Vec::new();
+        for &s in &plan.sources {
+            if self.state.source_depths.fresh(s, it, max_age).is_none() {
+                let d = self.source_plane_depth(s)?;
+                if max_age > 0 {
+                    self.state.source_depths.store(s, it, d);
+                } else {
+                    rendered.push(d);
+                }
+            }
+        }
+        Ok(rendered)
+    }
+
     /// Carries out `plan` (render, loss terms, backward, Adam; no density control) and returns
     /// the loss values. Accumulates the densification statistics when the plan says so.
     pub fn execute(&mut self, plan: &StepPlan) -> Result<LossValues> {
@@ -62,17 +80,7 @@ impl Trainer<'_> {
             None => None,
         };
         let max_age = self.config.source_depth_max_age;
-        let mut rendered_depths = Vec::with_capacity(plan.sources.len());
-        for &s in &plan.sources {
-            if self.state.source_depths.fresh(s, it, max_age).is_none() {
-                let d = self.source_plane_depth(s)?;
-                if max_age > 0 {
-                    self.state.source_depths.store(s, it, d);
-                } else {
-                    rendered_depths.push(d);
-                }
-            }
-        }
+        let rendered_depths = self.render_source_depths(plan)?;
         let memo = &self.state.source_depths;
         let depths: Vec<&Image> = match max_age {
             0 => rendered_depths.iter().collect(),

@@ -5,7 +5,7 @@
 //! `max_gaussians` cap) with their parameters, Adam moments, gradients, densification
 //! statistics, the rasterizer's per-Gaussian data and a densification copy; the decoded photos
 //! (and masks) of every view; the per-view caches filled as views are visited (edge guides,
-//! grey images of L_p, source-view depths, coarse-to-fine pyramids, VGG feature maps of L_f); the buffers of one
+//! grey images of L_p, coarse-to-fine pyramids, VGG feature maps of L_f, reused source-view depths); the buffers of one
 //! render and its losses at the largest view; and the program with its network weights. Every
 //! term rounds up, so the estimate is an upper bound (RELIABILITY.md compares it with measured
 //! peaks).
@@ -50,6 +50,8 @@ pub struct TrainMemoryEstimate {
     pub view_cache_bytes: u64,
     /// Bytes of the VGG feature maps of L_f and one forward pass (0 without L_f).
     pub feature_bytes: u64,
+    /// Bytes of the reused source-view plane depths (0 unless `source_depth_max_age` > 0).
+    pub source_depth_bytes: u64,
     /// Bytes of one render and its losses at the largest training view.
     pub render_bytes: u64,
     /// Bytes of the program and its weights.
@@ -75,10 +77,6 @@ pub fn estimate(scene: &Scene, train_views: &[usize], config: &TrainConfig, budg
     if config.coarse_to_fine.levels > 0 {
         per_pixel += 4;
     }
-    // The source-depth memo of L_p / L_f (one plane depth per view, 4 B/px).
-    if config.source_depth_max_age > 0 {
-        per_pixel += 4;
-    }
     let feature_bytes = if config.has_feature_phase() {
         let opts = ExtractOptions::at(config.feature_layer);
         let maps: u64 = train_views
@@ -97,6 +95,7 @@ pub fn estimate(scene: &Scene, train_views: &[usize], config: &TrainConfig, budg
         image_bytes,
         view_cache_bytes: train_pixels * per_pixel,
         feature_bytes,
+        source_depth_bytes: if config.source_depth_max_age > 0 { train_pixels * 4 } else { 0 },
         render_bytes: largest * RENDER_BYTES_PER_PIXEL,
         base_bytes: BASE_BYTES,
     }
@@ -105,7 +104,15 @@ pub fn estimate(scene: &Scene, train_views: &[usize], config: &TrainConfig, budg
 impl TrainMemoryEstimate {
     /// The estimated peak in bytes.
     pub fn peak_bytes(&self) -> u64 {
-        [self.gaussian_bytes, self.image_bytes, self.view_cache_bytes, self.feature_bytes, self.render_bytes, self.base_bytes]
+        [
+            self.gaussian_bytes,
+            self.image_bytes,
+            self.view_cache_bytes,
+            self.feature_bytes,
+            self.source_depth_bytes,
+            self.render_bytes,
+            self.base_bytes,
+        ]
             .iter()
             .fold(0u64, |a, &b| a.saturating_add(b))
     }
@@ -117,10 +124,13 @@ impl TrainMemoryEstimate {
         let mut parts = vec![
             format!("{} Gaussians ({whose}) with their optimiser state and gradients {}", self.gaussians, format_bytes(self.gaussian_bytes)),
             format!("the photos of {} views at training resolution {}", self.views, format_bytes(self.image_bytes)),
-            format!("per-view caches (edge guides, grey images, depths, pyramids) {}", format_bytes(self.view_cache_bytes)),
+            format!("per-view caches (edge guides, grey images, pyramids) {}", format_bytes(self.view_cache_bytes)),
         ];
         if self.feature_bytes > 0 {
             parts.push(format!("VGG feature maps of L_f {}", format_bytes(self.feature_bytes)));
+        }
+        if self.source_depth_bytes > 0 {
+            parts.push(format!("reused source-view depths {}", format_bytes(self.source_depth_bytes)));
         }
         parts.push(format!("render and loss buffers {}", format_bytes(self.render_bytes)));
         parts.push(format!("program and network weights {}", format_bytes(self.base_bytes)));
@@ -157,10 +167,14 @@ mod tests {
             image_bytes: 10 << 20,
             view_cache_bytes: 1 << 20,
             feature_bytes: 0,
+            source_depth_bytes: 0,
             render_bytes: 1 << 20,
             base_bytes: BASE_BYTES,
         };
         assert_eq!(e.peak_bytes(), 1000 * 2048 + (12 << 20) + BASE_BYTES);
+        let with_depths = TrainMemoryEstimate { source_depth_bytes: 1 << 20, ..e };
+        assert_eq!(with_depths.peak_bytes(), e.peak_bytes() + (1 << 20));
+        assert!(with_depths.describe().contains("reused source-view depths 1.0 MiB") && !e.describe().contains("depths"));
         assert!(e.check(e.peak_bytes()).is_ok());
         let m = e.check(10 << 20).unwrap_err().to_string();
         assert!(m.contains("more than the memory limit of 10.0 MiB") && m.contains("--max-memory"), "{m}");

@@ -18,8 +18,8 @@ pub use resolution::CoarseToFine;
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// The default: the paper's surface schedule reshaped for a CPU ([`TrainConfig::cpu_schedule`]):
-    /// 3,000 iterations, the colour warm-up then edge + L_nc + L_ns + L_p to the end, with no
-    /// L_f phase and no opacity reset, source-view depths reused, the model bounded by the
+    /// 2,000 iterations, the colour warm-up then edge + L_nc + L_ns + L_p to the end, with no
+    /// L_f phase and no opacity reset, the model bounded by the
     /// scene's Gaussian budget (as in every preset). Coarse-to-fine and a sparser L_p / L_f
     /// (`coarse_to_fine`, `multiview_interval`) stay off: measured, both cost held-out PSNR
     /// (BENCHMARKS.md, issue #18).
@@ -33,8 +33,8 @@ pub enum Preset {
     /// Novel-view synthesis (Mip-NeRF 360): the 20,000-iteration surface schedule, then 10,000
     /// more with L_I and the normal terms; absolute-gradient threshold 2e-4.
     Mip360,
-    /// A quick look: `standard` in 1,500 iterations with 2 source views. Its accuracy cost is
-    /// measured in BENCHMARKS.md.
+    /// A quick look: `standard` with 2 source views (L_p a fifth cheaper). Shorter schedules
+    /// lost held-out PSNR on the built-in scene (BENCHMARKS.md, issue #18).
     Fast,
 }
 
@@ -358,12 +358,14 @@ impl Default for TrainConfig {
 
 
 /// Iterations of the `standard` preset.
-pub const STANDARD_ITERATIONS: u64 = 3_000;
+pub const STANDARD_ITERATIONS: u64 = 2_000;
 /// Iterations of the `fast` preset.
-pub const FAST_ITERATIONS: u64 = 1_500;
-/// Oldest reused source-view depth of the CPU presets, in iterations: about two epochs of a
-/// 40-view scene, so a view rendered as reference serves as source until it is rendered again.
-pub const CPU_SOURCE_DEPTH_MAX_AGE: u64 = 100;
+pub const FAST_ITERATIONS: u64 = 2_000;
+/// Oldest reused source-view depth of the CPU presets, in iterations (0: every source is
+/// rendered, as in the paper). Reuse up to 100 iterations made an L_p iteration 27 % cheaper
+/// but the mesh worse at equal iterations while the surface still moves (synth-bunny, full
+/// resolution, BENCHMARKS.md issue #18), so the presets leave it off.
+pub const CPU_SOURCE_DEPTH_MAX_AGE: u64 = 0;
 
 /// Fewest iterations between two densification steps of a scaled schedule: a step judges the
 /// gradients accumulated since the last one, and fewer than this many iterations give noisy
@@ -425,7 +427,7 @@ impl TrainConfig {
     /// L_p, so after the colour warm-up L_p runs to the last iteration (L_f, which left the
     /// mesh no better at full resolution and worse at half, has no phase); no opacity reset
     /// (each one made the model transparent and cost hundreds of iterations of recovery); and
-    /// L_p / L_f reuse source-view depths up to [`CPU_SOURCE_DEPTH_MAX_AGE`] iterations old.
+    /// source-view depths reused up to [`CPU_SOURCE_DEPTH_MAX_AGE`] iterations old.
     /// Phase boundaries scale with [`TrainConfig::scaled`] as before.
     pub fn cpu_schedule(&self) -> Self {
         Self {
