@@ -9,9 +9,9 @@
 //!   (one band judged and dropped).
 //! - The budget, floater and CPU-schedule paths, recorded at issue #18 and re-recorded when
 //!   `standard` took its CPU schedule (L_p to the end, no opacity reset, source-view depths
-//!   rendered every time): the default schedule with a budget small enough to bound the densification step
-//!   (ρ = 0.15, B = 5,205) and the final floater removal switched on (90 removed); colour
-//!   warm-up to 21, edge + L_nc + L_ns + L_p to 60.
+//!   rendered every time): the default schedule with a budget small enough to bound the
+//!   densification step (ρ = 0.15, B = 5,205) and the final floater removal switched on (90
+//!   removed); colour warm-up to 21, edge + L_nc + L_ns + L_p to 60.
 //!
 //! Results do not depend on the thread count (checked at 1 and 2 threads when recorded); the
 //! runs use 2, as CI's machine has.

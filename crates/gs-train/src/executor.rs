@@ -131,7 +131,11 @@ impl Trainer<'_> {
             self.state.stats.accumulate(&out.radii, &g, plan.scale as f32);
         }
         adam_step(&mut self.state.adam, &mut self.state.gaussians, &g, it)?;
-        if let (true, Some(depth)) = (max_age > 0 && plan.scale == 1, out.plane_depth) {
+        // The reference's plane depth serves later iterations as this view's source depth.
+        if max_age > 0
+            && plan.scale == 1
+            && let Some(depth) = out.plane_depth
+        {
             self.state.source_depths.store(plan.slot, it, depth);
         }
         Ok(values)

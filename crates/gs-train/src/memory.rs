@@ -5,8 +5,9 @@
 //! `max_gaussians` cap) with their parameters, Adam moments, gradients, densification
 //! statistics, the rasterizer's per-Gaussian data and a densification copy; the decoded photos
 //! (and masks) of every view; the per-view caches filled as views are visited (edge guides,
-//! grey images of L_p, coarse-to-fine pyramids, VGG feature maps of L_f, reused source-view depths); the buffers of one
-//! render and its losses at the largest view; and the program with its network weights. Every
+//! grey images of L_p, coarse-to-fine pyramids, VGG feature maps of L_f, reused source-view
+//! depths); the buffers of one render and its losses at the largest view; and the program with
+//! its network weights. Every
 //! term rounds up, so the estimate is an upper bound (RELIABILITY.md compares it with measured
 //! peaks).
 

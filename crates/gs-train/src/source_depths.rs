@@ -59,8 +59,8 @@ impl SourceDepths {
     }
 
     /// Bytes held.
-    pub fn bytes(&self) -> u64 {
-        self.entries.iter().flatten().map(|(_, d)| d.data().len() as u64 * 4).sum()
+    pub fn bytes(&self) -> usize {
+        self.entries.iter().flatten().map(|(_, d)| d.data().len() * 4).sum()
     }
 }
 

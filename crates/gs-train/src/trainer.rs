@@ -155,7 +155,7 @@ impl<'s> Trainer<'s> {
         let adam = crate::params::new_optimiser(&config.lr, n)?;
         let exposure = if config.exposure { Some(Exposure::new(train_views.len())?) } else { None };
         let budget = budget_of(scene, &train_views, &config, &gaussians);
-        let source_depths = SourceDepths::new(if config.source_depth_max_age > 0 { train_views.len() } else { 0 });
+        let source_depths = SourceDepths::default();
         let state =
             TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false, exposure, source_depths };
         Self::assemble(scene, train_views, config, state, budget)
@@ -174,6 +174,7 @@ impl<'s> Trainer<'s> {
     /// The trainer around a checked configuration, scene and state.
     fn assemble(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig, mut state: TrainState, budget: Budget) -> Result<Self> {
         check_state(&config, &state, train_views.len())?;
+        // A fresh run (or a checkpoint written with reuse off) starts with an empty memo.
         if config.source_depth_max_age > 0 && state.source_depths.is_empty() {
             state.source_depths = SourceDepths::new(train_views.len());
         }
@@ -299,9 +300,10 @@ impl<'s> Trainer<'s> {
         self.state.iteration >= self.config.iterations
     }
 
-    /// Bytes held by the per-view caches (edge guides, grey images, feature maps).
+    /// Bytes held by the per-view caches (edge guides, grey images, feature maps, reused
+    /// source-view depths).
     pub fn cache_bytes(&self) -> usize {
-        self.caches.bytes()
+        self.caches.bytes() + self.state.source_depths.bytes()
     }
 
     /// Supplies the grey GT images of L_p, one per training view in `train_views` order, at

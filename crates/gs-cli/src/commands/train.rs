@@ -250,7 +250,7 @@ pub struct TrainReport {
     pub earlier_time_known: bool,
     /// Peak resident memory, bytes.
     pub peak_memory_bytes: Option<u64>,
-    /// Bytes of the per-view caches (guides, grey images, features).
+    /// Bytes of the per-view caches (guides, grey images, features, reused source depths).
     pub cache_bytes: usize,
     /// SH degree the model ended with.
     pub sh_degree: u32,

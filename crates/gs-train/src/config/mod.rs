@@ -17,9 +17,9 @@ pub use resolution::CoarseToFine;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
-    /// The default: the paper's surface schedule reshaped for a CPU ([`TrainConfig::cpu_schedule`]):
-    /// 2,000 iterations, the colour warm-up then edge + L_nc + L_ns + L_p to the end, with no
-    /// L_f phase and no opacity reset, the model bounded by the
+    /// The default: the paper's surface schedule reshaped for a CPU
+    /// ([`TrainConfig::cpu_schedule`]): 2,000 iterations, the colour warm-up then edge + L_nc +
+    /// L_ns + L_p to the end, with no L_f phase and no opacity reset, the model bounded by the
     /// scene's Gaussian budget (as in every preset). Coarse-to-fine and a sparser L_p / L_f
     /// (`coarse_to_fine`, `multiview_interval`) stay off: measured, both cost held-out PSNR
     /// (BENCHMARKS.md, issue #18).
