@@ -121,6 +121,39 @@ fn builtin_scene_end_to_end() {
     assert_eq!(second["earlier_time_known"], true);
     let (t1, t2) = (first["train_seconds"].as_f64().unwrap(), second["train_seconds"].as_f64().unwrap());
     assert!(t1 > 0.0 && t2 >= t1 && t2 - t1 <= second["segment_seconds"].as_f64().unwrap() + 1e-9, "{t1} then {t2}");
+
+    // A veil injected in front of held-out view 0000 (20 opaque magenta splats 0.1–0.3 in
+    // front of its camera) is reported by eval-images and on the report page, with its price.
+    let scene = gs_synth::generate(&gs_synth::BuiltinOptions::default()).unwrap().scene;
+    let cam = &scene.views.iter().find(|v| v.name == "0000.png").unwrap().camera;
+    let ply = out.join("point_cloud.ply");
+    let mut g = gs_io::read_gaussian_ply(&ply).unwrap();
+    for k in 0..20 {
+        let p = cam.camera_to_world(gs_core::glam::DVec3::new(0.04 * (k % 5) as f64 - 0.08, 0.04 * (k / 5) as f64 - 0.06, 0.1 + 0.01 * k as f64));
+        let mut sh = [[0.0; 3]; 16];
+        sh[0] = [1.772, -1.772, 1.772]; // RGB (1, 0, 1)
+        g.push(p.as_vec3().to_array(), [0.05f32.ln(); 3], [1.0, 0.0, 0.0, 0.0], 5.0, sh);
+    }
+    gs_io::write_gaussian_ply(&ply, &g).unwrap();
+    // The edited model is no longer the one report.json fingerprints: drop the fingerprint, as
+    // reports written before it existed have none.
+    let mut rep = json(&out.join("report.json"));
+    rep.as_object_mut().unwrap().remove("model_fingerprint").expect("the report fingerprints its model");
+    std::fs::write(out.join("report.json"), serde_json::to_string(&rep).unwrap()).unwrap();
+    let (ok, stdout, err) = vagsl(&["eval-images", o, "--json", "--no-lpips"]);
+    assert!(ok, "{err}");
+    let m: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let veil = &m["views"][0]["veil"];
+    assert!(veil["splats"].as_u64().unwrap() >= 20 && veil["cover"].as_f64().unwrap() > 0.9, "{veil}");
+    let (with, without) = (m["views"][0]["psnr"].as_f64().unwrap(), veil["psnr_without"].as_f64().unwrap());
+    assert!(without > with + 3.0, "{with} dB, {without} dB without the veil");
+    assert!(m["views"].as_array().unwrap()[1..].iter().all(|v| v.get("veil").is_none()), "{m}");
+    let (ok, stdout, err) = vagsl(&["eval-images", o, "--no-lpips"]);
+    assert!(ok && stdout.contains("veil: ") && stdout.contains("of the camera"), "{stdout}{err}");
+    let (ok, _, err) = vagsl(&["view", o, "--no-lpips"]);
+    assert!(ok, "{err}");
+    let page = std::fs::read_to_string(out.join("report/data.js")).unwrap();
+    assert_eq!(page.matches("veil: ").count(), 1, "one view carries the note");
 }
 
 #[test]

@@ -160,7 +160,7 @@ function drawViews(views) {
     const img = (src, alt) => el("td", {}, el("a", { href: src }, el("img", { src, alt, loading: "lazy", width: 200 })));
     body.append(el("tr", { class: v.camera.split },
       el("td", {}, pick, el("br"), v.camera.split === "test" ? "held-out" : "training"),
-      el("td", { class: "num" }, s ? `${fmt(s.psnr, 2)} dB` : "—", el("br"), s ? `SSIM ${fmt(s.ssim, 4)}` : "", el("br"), s && s.lpips !== null ? `LPIPS ${fmt(s.lpips, 4)}` : ""),
+      el("td", { class: "num" }, s ? `${fmt(s.psnr, 2)} dB` : "—", el("br"), s ? `SSIM ${fmt(s.ssim, 4)}` : "", el("br"), s && s.lpips !== null ? `LPIPS ${fmt(s.lpips, 4)}` : "", s && s.note ? el("div", { class: "note" }, s.note) : ""),
       img(v.photo, "photo"), img(v.render, "render"), img(v.normal, "normal map"), img(v.depth, "depth map")));
   }
   const test = views.filter((v) => v.camera.split === "test" && v.scores);

@@ -20,7 +20,7 @@ const PAGE: &str = include_str!("../assets/page.js");
 const JPEG_QUALITY: u8 = 92;
 
 /// Image scores of one view (method-spec §9).
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct ViewScores {
     /// PSNR, dB.
     pub psnr: f64,
@@ -28,6 +28,8 @@ pub struct ViewScores {
     pub ssim: f64,
     /// LPIPS-alex, when computed.
     pub lpips: Option<f64>,
+    /// A note shown under the scores in words (e.g. a veil in front of the camera), if any.
+    pub note: Option<String>,
 }
 
 /// Training curves: the lines of `RUN/metrics.jsonl` as JSON objects (iteration, seconds,

@@ -55,7 +55,7 @@ pub use config::{DensifyConfig, InitMode, LearningRates, LossSwitches, LossWeigh
 pub use budget::{Budget, GrowthLimit};
 pub use densify::{DensifyReport, DensifyStats, Growth};
 pub use error::{Result, TrainError};
-pub use evaluate::{ImageMetrics, ViewMetrics, evaluate_images, score_view};
+pub use evaluate::{ImageMetrics, VEIL_MIN_COVER, Veil, ViewMetrics, evaluate_images, find_veil, score_view};
 pub use exposure::{Exposure, ExposureParams};
 pub use floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
 pub use mesh::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, MeshReport, default_voxel, extract_mesh, fuse_mesh};

@@ -54,6 +54,9 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
                 v.ssim,
                 v.lpips.map_or(String::new(), |l| format!("  LPIPS {l:.4}"))
             );
+            if let Some(veil) = &v.veil {
+                println!("{:<24} {}", "", veil.describe());
+            }
         }
         println!(
             "mean over {} views{}: PSNR {:.2} dB, SSIM {:.4}{}",

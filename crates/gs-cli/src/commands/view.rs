@@ -47,11 +47,12 @@ pub fn run(args: &ViewArgs) -> Result<()> {
             let mut color = out.color.expect("requested");
             color.data_mut().iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
             let m = gs_train::score_view(view, &color, lpips.as_ref(), false)?;
+            let veil = gs_train::find_veil(&model, &mut rasterizer, i, false)?;
             if split == "test" {
                 test_psnr.push(m.psnr);
             }
             let normal = super::render::world_normal_png(&view.camera, out.normal.as_ref().expect("requested"))?;
-            let scores = ViewScores { psnr: m.psnr, ssim: m.ssim, lpips: m.lpips };
+            let scores = ViewScores { psnr: m.psnr, ssim: m.ssim, lpips: m.lpips, note: veil.map(|v| v.describe()) };
             let depth = out.plane_depth.as_ref().expect("requested");
             writer.add_view(&view.name, split, &view.camera, &view.image, &color, &normal, depth, Some(scores))?;
         }
