@@ -95,6 +95,11 @@ fn chromium() -> Option<PathBuf> {
 /// returns stdout. Every console message of the page (which logs nothing when all is well:
 /// script errors, WebGL warnings, resources that failed to load) fails the test.
 fn browse(chrome: &Path, url: &str, w: u32, h: u32, what: &str) -> String {
+    browse_with(chrome, url, w, h, what, &[])
+}
+
+/// [`browse`] with `extra` Chromium flags.
+fn browse_with(chrome: &Path, url: &str, w: u32, h: u32, what: &str, extra: &[&str]) -> String {
     let profile = tempfile::tempdir().unwrap();
     let out = Command::new(chrome)
         .args([
@@ -110,6 +115,7 @@ fn browse(chrome: &Path, url: &str, w: u32, h: u32, what: &str) -> String {
         ])
         .arg(format!("--user-data-dir={}", profile.path().display()))
         .arg(format!("--window-size={w},{h}"))
+        .args(extra)
         .arg(what)
         .arg(url)
         .output()
@@ -185,6 +191,13 @@ fn the_viewer_at_a_scene_camera_matches_vagsl_render() {
     }
     let status = page_status(&dom);
     assert_eq!(status["errors"].as_array().unwrap().len(), 0, "script errors: {status}");
+    // Without WebGL2 (Chromium's 3D APIs off) the page says why the viewer is missing and
+    // still shows every view with its scores, the curves and the results.
+    let dom = browse_with(&chrome, &url, 1280, 1500, "--dump-dom", &["--disable-3d-apis"]);
+    assert!(dom.contains("class=\"error\">The viewer could not start: this browser offers no WebGL2"), "no WebGL2 message");
+    let views = json(&run.join("config.json"))["test_views"].as_array().unwrap().len();
+    assert_eq!(dom.matches("<tr class=\"test\">").count(), views, "the held-out views are listed without WebGL2");
+    assert!(dom.contains(">Training loss</text>"), "the curves are drawn without WebGL2");
     if std::env::var_os("VAGSL_UPDATE_DOCS").is_some() {
         let docs = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/report.png"));
         std::fs::copy(&full, &docs).unwrap();

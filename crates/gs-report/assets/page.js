@@ -44,6 +44,10 @@ function main() {
   $("#title").textContent = page.title;
   const facts = $("#facts");
   for (const [k, v] of page.facts) facts.append(el("tr", {}, el("th", {}, k), el("td", {}, v)));
+  // The views, curves and results first: a browser without WebGL2 still shows them.
+  drawViews(views);
+  drawCurves(page.curves);
+  drawResults(page);
 
   const canvas = $("#viewer");
   const viewer = new window.VagslViewer(canvas, page);
@@ -146,9 +150,6 @@ function main() {
   });
   window.addEventListener("resize", () => { if (base) { resize(); redraw(); } });
 
-  drawViews(views);
-  drawCurves(page.curves);
-  drawResults(page);
   fromHash();
 }
 
