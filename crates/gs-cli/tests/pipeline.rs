@@ -131,8 +131,8 @@ fn builtin_scene_end_to_end() {
     for k in 0..20 {
         let p = cam.camera_to_world(gs_core::glam::DVec3::new(0.04 * (k % 5) as f64 - 0.08, 0.04 * (k / 5) as f64 - 0.06, 0.1 + 0.01 * k as f64));
         let mut sh = [[0.0; 3]; 16];
-        sh[0] = [1.772, -1.772, 1.772]; // RGB (1, 0, 1)
-        g.push(p.as_vec3().to_array(), [0.05f32.ln(); 3], [1.0, 0.0, 0.0, 0.0], 5.0, sh);
+        sh[0] = [1.0, 0.0, 1.0].map(gs_core::gaussians::rgb_to_sh_dc);
+        g.push(p.as_vec3().to_array(), [0.05f32.ln(); 3], [1.0, 0.0, 0.0, 0.0], gs_core::gaussians::inverse_sigmoid(0.99), sh);
     }
     gs_io::write_gaussian_ply(&ply, &g).unwrap();
     // The edited model is no longer the one report.json fingerprints: drop the fingerprint, as

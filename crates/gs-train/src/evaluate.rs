@@ -122,27 +122,46 @@ pub fn score_view(view: &gs_core::View, img: &Image, lpips: Option<&Lpips>, mask
     if !masked {
         return Ok(ViewMetrics {
             name: view.name.clone(),
-            psnr: psnr(img, &view.image)?,
+            psnr: view_psnr(view, img, false)?,
             ssim: ssim_metric(img, &view.image)?,
             lpips: lpips.map(|l| l.distance(img, &view.image)).transpose()?,
             mask_fraction: None,
             veil: None,
         });
     }
-    let mask = view.mask.as_ref().ok_or_else(|| {
-        TrainError::InvalidScene(format!("view {} has no mask (masked evaluation needs masks/<stem>.png for every view)", view.name))
-    })?;
-    let named = |e: gs_losses::LossError| TrainError::InvalidScene(format!("mask of view {}: {e}", view.name));
+    let mask = view_mask(view)?;
+    let named = |e: gs_losses::LossError| mask_error(view, e);
     let (render_obj, photo_obj) =
         (gs_losses::masked_on_black(img, mask).map_err(named)?, gs_losses::masked_on_black(&view.image, mask).map_err(named)?);
     Ok(ViewMetrics {
         name: view.name.clone(),
-        psnr: gs_losses::psnr_masked(img, &view.image, mask).map_err(named)?,
+        psnr: view_psnr(view, img, true)?,
         ssim: ssim_metric(&render_obj, &photo_obj)?,
         lpips: lpips.map(|l| l.distance(&render_obj, &photo_obj)).transpose()?,
         mask_fraction: Some(mask.data().iter().filter(|m| **m >= 0.5).count() as f64 / mask.data().len() as f64),
         veil: None,
     })
+}
+
+/// PSNR of a render against its view's photo: the whole image, or with `masked` the pixels
+/// inside the view's mask (SSIM and LPIPS are left to [`score_view`]).
+fn view_psnr(view: &gs_core::View, img: &Image, masked: bool) -> Result<f64> {
+    if !masked {
+        return Ok(psnr(img, &view.image)?);
+    }
+    gs_losses::psnr_masked(img, &view.image, view_mask(view)?).map_err(|e| mask_error(view, e))
+}
+
+/// The view's object mask, or an error naming the view when it has none.
+fn view_mask(view: &gs_core::View) -> Result<&Image> {
+    view.mask.as_ref().ok_or_else(|| {
+        TrainError::InvalidScene(format!("view {} has no mask (masked evaluation needs masks/<stem>.png for every view)", view.name))
+    })
+}
+
+/// A mask-related loss error as a scene error naming the view.
+fn mask_error(view: &gs_core::View, e: gs_losses::LossError) -> TrainError {
+    TrainError::InvalidScene(format!("mask of view {}: {e}", view.name))
 }
 
 /// The [`Veil`] in front of scene view `view`, if one covers at least [`VEIL_MIN_COVER`] of its
@@ -188,7 +207,7 @@ pub fn find_veil(model: &TrainedModel<'_>, rasterizer: &mut Rasterizer, view: us
     let color_req = RenderRequest { color: true, alpha: false, ..RenderRequest::default() };
     let mut img = rasterizer.render(&rest, &v.camera, &color_req, model.raster)?.color.expect("requested");
     img.data_mut().iter_mut().for_each(|c| *c = c.clamp(0.0, 1.0));
-    let psnr_without = score_view(v, &img, None, masked)?.psnr;
+    let psnr_without = view_psnr(v, &img, masked)?;
     Ok(Some(Veil { radius, splats, cover, psnr_without }))
 }
 

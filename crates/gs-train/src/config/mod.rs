@@ -33,8 +33,9 @@ pub enum Preset {
     /// Novel-view synthesis (Mip-NeRF 360): the 20,000-iteration surface schedule, then 10,000
     /// more with L_I and the normal terms; absolute-gradient threshold 2e-4.
     Mip360,
-    /// A quick look: `standard` with 2 source views (L_p a fifth cheaper). Shorter schedules
-    /// lost held-out PSNR on the built-in scene (BENCHMARKS.md, issue #18).
+    /// A quick look: `standard`'s schedule in [`FAST_ITERATIONS`] instead of
+    /// [`STANDARD_ITERATIONS`], with 2 source views (L_p a fifth cheaper); its accuracy cost
+    /// is measured in BENCHMARKS.md (issue #18).
     Fast,
 }
 
