@@ -72,8 +72,9 @@ enum Command {
     /// Export a run's model (ply, splat, spz, compressed-ply) or mesh (mesh-ply, obj, glb) for
     /// other viewers and tools.
     Export(commands::export::ExportArgs),
-    /// Run the ablation ladder (only L_I … full VA-GS, and the fast preset) and tabulate wall
-    /// time, Gaussians, Chamfer / F1 and PSNR, with an SVG plot of accuracy against time.
+    /// Run the ablation ladder on a preset (only L_I, then one loss term at a time up to the
+    /// preset; and the fast preset) and tabulate wall time, Gaussians, Chamfer / F1 and PSNR,
+    /// with an SVG plot of accuracy against time.
     Tradeoff(commands::tradeoff::TradeoffArgs),
     /// Write the run's report page, RUN/report.html: an interactive view of the splats and the
     /// mesh, every view's photo, render, normal and depth maps with their scores, and the

@@ -1,5 +1,6 @@
-//! `vagsl tradeoff`: the ablation ladder (only L_I ≈ 3DGS; + edge; + L_nc/L_ns; + L_p; + L_f =
-//! full; and the fast preset), each trained, meshed and scored, written as a Markdown / JSON
+//! `vagsl tradeoff`: the ablation ladder on a preset's schedule (only L_I ≈ 3DGS; + edge;
+//! + L_nc/L_ns; + L_p; + L_f where the schedule has an L_f phase; the last rung is the preset
+//! itself) and the fast preset, each trained, meshed and scored, written as a Markdown / JSON
 //! table and an SVG plot of mesh error against wall time.
 
 use crate::commands::eval_mesh::read_mesh;
@@ -27,9 +28,14 @@ pub struct TradeoffArgs {
     /// Output folder: one sub-folder per rung, tradeoff.{md,json,svg}.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Iterations of the ladder's runs (the fast rung uses the fast preset's own length).
-    #[arg(long, default_value_t = 20_000)]
-    pub iterations: u64,
+    /// The schedule the ladder ablates: standard (the default, as `vagsl train`), fast, or the
+    /// paper's dtu, tnt and mip360.
+    #[arg(long, default_value = "standard")]
+    pub preset: Preset,
+    /// Iterations of the ladder's runs (default: the preset's own length; every phase
+    /// boundary scales with it). The fast rung keeps the fast preset's own length.
+    #[arg(long)]
+    pub iterations: Option<u64>,
     /// Downscale images by this factor.
     #[arg(short = 'r', long = "resolution")]
     pub resolution: Option<u32>,
@@ -84,22 +90,31 @@ pub struct Rung {
     pub psnr: Option<f64>,
 }
 
-fn ladder(iterations: u64, seed: u64) -> Vec<(&'static str, TrainConfig)> {
-    let base = TrainConfig { seed, ..TrainConfig::default().scaled(iterations) };
+/// The rungs: each loss term added in turn to `preset`'s schedule (an L_f rung only where the
+/// schedule has an L_f phase, so no two rungs train the same thing), the last being the preset
+/// itself; then the fast preset when the ladder is not already it.
+fn ladder(preset: Preset, iterations: Option<u64>, seed: u64) -> Vec<(String, TrainConfig)> {
+    let own = TrainConfig::preset(preset);
+    let base = TrainConfig { seed, ..iterations.map_or_else(|| own.clone(), |n| own.scaled(n)) };
+    let with = |losses: LossSwitches| TrainConfig { losses, ..base.clone() };
     let image_only = LossSwitches::image_only();
-    let with = |f: &dyn Fn(&mut LossSwitches)| {
-        let mut l = image_only;
-        f(&mut l);
-        TrainConfig { losses: l, ..base.clone() }
-    };
-    vec![
-        ("only L_I (≈ 3DGS)", with(&|_| {})),
-        ("+ edge", with(&|l| l.edge = true)),
-        ("+ L_nc, L_ns", with(&|l| (l.edge, l.normal_consistency, l.normal_smoothing) = (true, true, true))),
-        ("+ L_p", with(&|l| *l = LossSwitches { features: false, ..LossSwitches::default() })),
-        ("+ L_f (full VA-GS)", TrainConfig { losses: LossSwitches::default(), ..base.clone() }),
-        ("fast preset", TrainConfig { seed, ..TrainConfig::preset(Preset::Fast) }),
-    ]
+    let mut rungs = vec![
+        ("only L_I (≈ 3DGS)".to_string(), with(image_only)),
+        ("+ edge".to_string(), with(LossSwitches { edge: true, ..image_only })),
+        ("+ L_nc, L_ns".to_string(), with(LossSwitches { normal_consistency: true, normal_smoothing: true, edge: true, ..image_only })),
+    ];
+    let full = base.has_feature_phase();
+    let tag = |s: &str, last: bool| if last { format!("{s} = {preset}") } else { s.to_string() };
+    // Without an L_f phase the preset's own switches train exactly "+ L_p".
+    let photometric = if full { with(LossSwitches { features: false, ..base.losses }) } else { base.clone() };
+    rungs.push((tag("+ L_p", !full), photometric));
+    if full {
+        rungs.push((tag("+ L_f (full VA-GS)", true), base.clone()));
+    }
+    if preset != Preset::Fast {
+        rungs.push(("fast".to_string(), TrainConfig { seed, ..TrainConfig::preset(Preset::Fast) }));
+    }
+    rungs
 }
 
 fn slug(name: &str) -> String {
@@ -179,7 +194,8 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     let eval = EvalOptions { samples: args.samples, ..EvalOptions::for_gt(&b, Some(b.grown(args.crop_to_gt, min_z))) };
     let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
     let mut rungs = Vec::new();
-    for (name, config) in ladder(args.iterations, args.seed) {
+    for (name, config) in ladder(args.preset, args.iterations, args.seed) {
+        let name = name.as_str();
         let dir = args.output.join(slug(name));
         std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
         eprintln!("[tradeoff] {name}: {} iterations", config.iterations);
@@ -242,15 +258,28 @@ mod tests {
 
     #[test]
     fn ladder_adds_one_term_per_rung() {
-        let l = ladder(2000, 3);
-        assert_eq!(l.len(), 6);
+        // standard has no L_f phase: four ablation rungs, the last being standard itself, then fast.
+        let l = ladder(Preset::Standard, None, 3);
+        let names: Vec<&str> = l.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["only L_I (≈ 3DGS)", "+ edge", "+ L_nc, L_ns", "+ L_p = standard", "fast"]);
         assert_eq!(l[0].1.losses, LossSwitches::image_only());
         assert!(l[1].1.losses.edge && !l[1].1.losses.normal_consistency);
         assert!(l[2].1.losses.normal_smoothing && !l[2].1.losses.photometric);
-        assert!(l[3].1.losses.photometric && !l[3].1.losses.features);
-        assert_eq!(l[4].1.losses, LossSwitches::default());
+        let standard = TrainConfig { seed: 3, ..TrainConfig::preset(Preset::Standard) };
+        assert_eq!(l[3].1, standard);
+        assert_eq!(l[4].1, TrainConfig { seed: 3, ..TrainConfig::preset(Preset::Fast) });
         assert!(l.iter().all(|(_, c)| c.seed == 3 && c.validate().is_ok()));
+        assert!(l[..4].iter().all(|(_, c)| c.iterations == gs_train::config::STANDARD_ITERATIONS));
+        // dtu's schedule has an L_f phase: a fifth rung, the preset itself, scaled to --iterations.
+        let d = ladder(Preset::Dtu, Some(2000), 0);
+        assert_eq!(d.len(), 6);
+        assert_eq!(d[4].0, "+ L_f (full VA-GS) = dtu");
+        assert_eq!(d[4].1, TrainConfig::preset(Preset::Dtu).scaled(2000));
+        assert!(d[3].1.losses.photometric && !d[3].1.losses.features);
+        // The fast ladder has no second fast rung.
+        assert_eq!(ladder(Preset::Fast, None, 0).len(), 4);
         assert_eq!(slug("+ L_nc, L_ns"), "l_nc_l_ns");
+        assert_eq!(slug("+ L_p = standard"), "l_p_standard");
         let rung = Rung {
             name: "a<b".into(),
             iterations: 1,
