@@ -375,6 +375,7 @@ pub(crate) enum PatchResult<T> {
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn patch_cost<T: Real>(
     g: &PairGeometry<T>,
+    rays: &(Vec<T>, Vec<T>),
     ref_grey: &MapView<'_, T>,
     src_grey: &MapView<'_, T>,
     n: [T; 3],
@@ -398,13 +399,11 @@ pub(crate) fn patch_cost<T: Real>(
     let mut wv = [[T::ZERO; 3]; M];
     let mut qv = [[T::ZERO; 3]; M];
     let mut mv = [T::ZERO; M];
-    let hp = T::from_f64(0.5);
     let mut k = 0;
     for py in j - half..=j + half {
-        let v = T::from_usize(py) + hp;
+        let qy = rays.1[py];
         for px in i - half..=i + half {
-            let u = T::from_usize(px) + hp;
-            let q = g.ref_ray(u, v);
+            let q = [rays.0[px], qy, T::ONE];
             let (wh, m) = g.warp(q, n, inv_d);
             if !(wh[2] > T::ZERO) {
                 return PatchResult::Outside;
@@ -527,6 +526,8 @@ fn source_pass<T: Real>(
     scratch_d: &mut [T],
 ) -> (SourceStats, bool) {
     let w = reference.camera.width as usize;
+    let rays = g.ref_ray_tables(reference.grey.width, reference.grey.height);
+    let rays = &rays;
     let rows: Vec<RowStats> = scratch_n
         .par_chunks_mut(3 * w)
         .zip(scratch_d.par_chunks_mut(w))
@@ -549,6 +550,7 @@ fn source_pass<T: Real>(
                 let d = reference.distance.data[p];
                 match patch_cost(
                     g,
+                    rays,
                     &reference.grey,
                     &source.grey,
                     n,
