@@ -303,10 +303,10 @@ mod tests {
         let g = PairGeometry::<f32>::new(&r, &s);
         let (xs, ys) = g.ref_ray_tables(64, 48);
         assert_eq!((xs.len(), ys.len()), (64, 48));
-        for py in 0..48 {
-            for px in 0..64 {
+        for (py, y) in ys.iter().enumerate() {
+            for (px, x) in xs.iter().enumerate() {
                 let q = g.ref_ray(px as f32 + 0.5, py as f32 + 0.5);
-                assert_eq!([xs[px].to_bits(), ys[py].to_bits(), 1f32.to_bits()], q.map(f32::to_bits));
+                assert_eq!([x.to_bits(), y.to_bits(), 1f32.to_bits()], q.map(f32::to_bits));
             }
         }
     }

@@ -1,7 +1,7 @@
-//! `vagsl tradeoff`: the ablation ladder on a preset's schedule (only L_I ≈ 3DGS; + edge;
-//! + L_nc/L_ns; + L_p; + L_f where the schedule has an L_f phase; the last rung is the preset
-//! itself) and the fast preset, each trained, meshed and scored, written as a Markdown / JSON
-//! table and an SVG plot of mesh error against wall time.
+//! `vagsl tradeoff`: the ablation ladder on a preset's schedule (only L_I ≈ 3DGS, then with
+//! the edge term, L_nc and L_ns, L_p, and L_f where the schedule has an L_f phase; the last
+//! rung is the preset itself) and the fast preset, each trained, meshed and scored, written as
+//! a Markdown / JSON table and an SVG plot of mesh error against wall time.
 
 use crate::commands::eval_mesh::read_mesh;
 use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_path, load_scene, peak_memory_bytes, write_json};
@@ -292,7 +292,7 @@ mod tests {
             f1: 0.5,
             psnr: None,
         };
-        let svg = svg_plot(&[rung.clone()]);
+        let svg = svg_plot(std::slice::from_ref(&rung));
         assert!(svg.starts_with("<svg") && svg.contains("a&lt;b") && svg.trim_end().ends_with("</svg>"));
         assert!(markdown(&[rung]).contains("| a<b | 1 | 2 |"));
     }
