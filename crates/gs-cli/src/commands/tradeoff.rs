@@ -103,13 +103,16 @@ fn ladder(preset: Preset, iterations: Option<u64>, seed: u64) -> Vec<(String, Tr
         ("+ edge".to_string(), with(LossSwitches { edge: true, ..image_only })),
         ("+ L_nc, L_ns".to_string(), with(LossSwitches { normal_consistency: true, normal_smoothing: true, edge: true, ..image_only })),
     ];
-    let full = base.has_feature_phase();
-    let tag = |s: &str, last: bool| if last { format!("{s} = {preset}") } else { s.to_string() };
-    // Without an L_f phase the preset's own switches train exactly "+ L_p".
-    let photometric = if full { with(LossSwitches { features: false, ..base.losses }) } else { base.clone() };
-    rungs.push((tag("+ L_p", !full), photometric));
-    if full {
-        rungs.push((tag("+ L_f (full VA-GS)", true), base.clone()));
+    if base.has_feature_phase() {
+        rungs.push(("+ L_p".to_string(), with(LossSwitches { features: false, ..base.losses })));
+        rungs.push(("+ L_f (full VA-GS)".to_string(), base.clone()));
+    } else {
+        // Without an L_f phase the preset's own switches train exactly "+ L_p".
+        rungs.push(("+ L_p".to_string(), base.clone()));
+    }
+    // The last ablation rung is the preset itself.
+    if let Some((name, _)) = rungs.last_mut() {
+        name.push_str(&format!(" = {preset}"));
     }
     if preset != Preset::Fast {
         rungs.push(("fast".to_string(), TrainConfig { seed, ..TrainConfig::preset(Preset::Fast) }));
