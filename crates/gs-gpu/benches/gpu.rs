@@ -36,6 +36,7 @@ fn bench(c: &mut Criterion) {
         pool.ensure(id, N as u64 * 4);
     }
     sort.reserve(&mut pool, N as u64);
+    sort.prefix_scan().reserve(&mut pool, N as u64);
     let wait = || ctx.download(pool.buffer(ids[2]), 0, 4).expect("readback");
     let mut g = c.benchmark_group("gs-gpu");
     g.sample_size(10).throughput(Throughput::Elements(N as u64));

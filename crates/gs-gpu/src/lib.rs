@@ -81,6 +81,17 @@ pub enum GpuError {
     /// More dispatches were recorded into one submission than there are uniform slots.
     #[error("too many dispatches in one submission (at most {0})")]
     TooManyDispatches(usize),
+    /// A kernel's scratch buffer is smaller than the work recorded needs: its owner's
+    /// `reserve` was not called for this size in this frame.
+    #[error("scratch buffer '{label}' holds {have} bytes but this pass needs {need}: call reserve for the size first")]
+    NotReserved {
+        /// The pool label of the scratch buffer.
+        label: &'static str,
+        /// Bytes the recorded pass needs.
+        need: u64,
+        /// Bytes the buffer has.
+        have: u64,
+    },
 }
 
 /// Result alias of gs-gpu.

@@ -1,8 +1,8 @@
 //! Exclusive prefix sum of u32 on the device, in place, multi-level.
 
 use crate::{
-    Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, Kernel, PassUniform, Result,
-    grid,
+    Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, GpuError, Kernel, PassUniform,
+    Result, grid,
 };
 
 /// Elements per scan / radix-sort block (one workgroup).
@@ -53,7 +53,8 @@ impl PrefixScan {
         pool.ensure(self.tmp, Self::tmp_bytes(n));
     }
 
-    /// Records the exclusive scan of the first `n` u32 of `data`.
+    /// Records the exclusive scan of the first `n` u32 of `data`; an error, before anything is
+    /// recorded, when the scratch was not reserved for `n`.
     pub fn encode(
         &self,
         disp: &Dispatcher,
@@ -62,6 +63,10 @@ impl PrefixScan {
         data: Bind,
         n: u32,
     ) -> Result<()> {
+        let (need, have) = (Self::tmp_bytes(n as u64), pool.capacity(self.tmp));
+        if need > have {
+            return Err(GpuError::NotReserved { label: "scan_tmp", need, have });
+        }
         self.level(disp, enc, pool, data, n, 0)
     }
 

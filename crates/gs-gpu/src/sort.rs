@@ -2,7 +2,7 @@
 
 use crate::scan::{BLOCK, BLOCK_SCAN};
 use crate::{
-    Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, Kernel, PassUniform,
+    Bind, Binding, BufId, BufferPool, Dispatcher, Encoder, GpuContext, GpuError, Kernel, PassUniform,
     PrefixScan, Result, grid,
 };
 
@@ -79,6 +79,10 @@ impl RadixSort {
         let mut in_b = false;
         if n == 0 {
             return Ok(false);
+        }
+        let (need, have) = (16 * nb as u64 * 4, pool.capacity(self.hist));
+        if need > have {
+            return Err(GpuError::NotReserved { label: "radix_hist", need, have });
         }
         for p in 0..bits.div_ceil(4) {
             let ((ki, vi), (ko, vo)) = if in_b { (b, a) } else { (a, b) };

@@ -208,3 +208,50 @@ fn kernel_errors_are_results() {
     let err = Kernel::new(&ctx, "broken", &["fn broken( {"], &[]).unwrap_err();
     assert!(matches!(err, gs_gpu::GpuError::Device(_)), "{err}");
 }
+
+#[test]
+fn unreserved_scratch_is_an_error_before_anything_is_recorded() {
+    let Some(ctx) = context() else { return };
+    let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
+    let sort = RadixSort::new(&ctx, &mut pool).unwrap();
+    let ids: Vec<_> = ["ka", "va", "kb", "vb"].into_iter().map(|l| pool.add_storage(l)).collect();
+    let n = 1u64 << 20;
+    for &id in &ids {
+        pool.ensure(id, n * 4);
+    }
+    // Reserved for the sort of 1000 pairs, not for a scan or a sort of 2^20.
+    sort.reserve(&mut pool, 1000);
+    let disp = Dispatcher::new(&ctx, 16);
+    let mut enc = disp.encoder();
+    let err = sort
+        .prefix_scan()
+        .encode(&disp, &mut enc, &pool, pool.whole(ids[0]), n as u32)
+        .unwrap_err();
+    assert!(
+        matches!(err, gs_gpu::GpuError::NotReserved { label: "scan_tmp", .. }),
+        "{err}"
+    );
+    let err = sort
+        .encode(&disp, &mut enc, &pool, pairs(&pool, &ids), n as u32, 32)
+        .unwrap_err();
+    assert!(
+        matches!(err, gs_gpu::GpuError::NotReserved { label: "radix_hist", .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("reserve"), "{err}");
+    // Reserved, both record.
+    sort.reserve(&mut pool, n);
+    sort.prefix_scan().reserve(&mut pool, n);
+    let mut enc = disp.encoder();
+    sort.prefix_scan()
+        .encode(&disp, &mut enc, &pool, pool.whole(ids[0]), n as u32)
+        .unwrap();
+    sort.encode(&disp, &mut enc, &pool, pairs(&pool, &ids), n as u32, 32)
+        .unwrap();
+    disp.submit(enc);
+}
+
+/// The (keys, values) ping-pong pairs of four pool buffers.
+fn pairs<'a>(p: &'a BufferPool, ids: &[gs_gpu::BufId]) -> [(gs_gpu::Bind<'a>, gs_gpu::Bind<'a>); 2] {
+    [(p.whole(ids[0]), p.whole(ids[1])), (p.whole(ids[2]), p.whole(ids[3]))]
+}

@@ -17,7 +17,10 @@
 //!   A pixel may legitimately differ more when an ulp-level difference flips one of the
 //!   discrete decisions (α ≥ 1/255, T·(1−α) < 1e-4, pixel inside the splat's box); at most
 //!   [`MAX_FLIP_FRACTION`] of the pixels may exceed the tolerance, and never by more than
-//!   [`FLIP_ABS`].
+//!   [`FLIP_ABS`]. A flipped pixel is one whose last contributor differs or whose final T
+//!   differs by a power of (1 − 1/255) (a Gaussian at the α threshold kept by one backend
+//!   only: an NVIDIA driver contracts the `exp` polynomial into fused multiply-adds, lavapipe
+//!   does not); any other difference in T fails.
 //! - integer outputs: visible and intersection counts exact; radii exact except that
 //!   ceil(level·√λ) may differ by one for at most 2 + 0.1 % of the Gaussians (never culled on
 //!   one side only); last contributor and the
@@ -27,9 +30,11 @@
 //! - gradients: per value |gpu − cpu| ≤ 1e-3·|cpu| + 1e-5·max|group| (the floor absorbs the
 //!   cancellation error of summing many terms of both signs, which is relative to the
 //!   terms, not to the sum) for all but 2 + 0.5 % of the values of each group, and the whole
-//!   group within 2e-3 in relative L2 norm. Measured on lavapipe: relative L2 ≤ 1e-4 without
-//!   flipped pixels, ≤ 7e-4 with one; outliers come from flips and from cancellation in the
-//!   projection backward (e.g. a log-scale gradient that is a difference of near-equal terms).
+//!   group within 2e-3 in relative L2 norm — over the Gaussians no flipped pixel touches; the
+//!   values of those a flipped pixel touches (its screen box holds one) within
+//!   [`TOUCHED_L2`] in relative L2. Measured on lavapipe: relative L2 ≤ 1e-4 without
+//!   flipped pixels; outliers come from cancellation in the projection backward (e.g. a
+//!   log-scale gradient that is a difference of near-equal terms).
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Gaussians, Image, Intrinsics, Rng};
@@ -162,13 +167,48 @@ impl Grads {
     }
 }
 
-/// Pixels whose last contributor differs (a flipped discrete decision).
-fn flipped_pixels(cpu: &RenderOutput, gpu: &RenderOutput) -> usize {
-    cpu.last_contributor
-        .iter()
-        .zip(&gpu.last_contributor)
-        .filter(|(a, b)| a != b)
-        .count()
+/// Pixels where a discrete decision flipped between the backends: a different last
+/// contributor, or a final transmittance off by a power of (1 − 1/255) — a Gaussian whose α
+/// sits at the skip threshold, kept by one backend only. (A hardware driver contracts the
+/// `exp` polynomial into fused multiply-adds, so α differs by an ulp: seen on an NVIDIA H200,
+/// never on lavapipe.) Any other transmittance difference fails here.
+fn flipped_pixels(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) -> Vec<usize> {
+    let step = (1.0f64 - 1.0 / 255.0).ln();
+    let mut out = Vec::new();
+    for (i, (&a, &b)) in cpu.final_t.iter().zip(&gpu.final_t).enumerate() {
+        if cpu.last_contributor[i] != gpu.last_contributor[i] {
+            out.push(i);
+        } else if (a - b).abs() > IMG_ABS {
+            let k = ((b as f64) / (a as f64)).ln() / step;
+            assert!(
+                k.round() != 0.0 && (k - k.round()).abs() < 0.05,
+                "{label}: final_t at pixel {i} differs (cpu {a}, gpu {b}) with the same last \
+                 contributor, not by a threshold flip"
+            );
+            out.push(i);
+        }
+    }
+    out
+}
+
+/// Gaussians whose screen box (projected mean ± radius, one pixel of slack) holds a flipped
+/// pixel: their gradients include that pixel's changed terms and are compared loosely.
+fn touched_by(g: &Gaussians, cam: &Camera, radii: &[u32], pixels: &[usize]) -> Vec<bool> {
+    let w = cam.width as usize;
+    (0..g.len())
+        .map(|i| {
+            let m = g.means[i];
+            let Some((c, _)) = cam.project(DVec3::new(m[0] as f64, m[1] as f64, m[2] as f64)) else {
+                return radii[i] > 0;
+            };
+            let r = radii[i] as f64 + 1.0;
+            radii[i] > 0
+                && pixels.iter().any(|&p| {
+                    let (x, y) = ((p % w) as f64 + 0.5, (p / w) as f64 + 0.5);
+                    (x - c.x).abs() <= r && (y - c.y).abs() <= r
+                })
+        })
+        .collect()
 }
 
 fn compare_image(name: &str, cpu: Option<&Image>, gpu: Option<&Image>, rel: f32) {
@@ -202,15 +242,17 @@ fn compare_image(name: &str, cpu: Option<&Image>, gpu: Option<&Image>, rel: f32)
     );
 }
 
-fn compare_outputs(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) {
+/// Compares every output; returns the flipped pixels (see [`flipped_pixels`]).
+fn compare_outputs(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) -> Vec<usize> {
     let npix = cpu.final_t.len();
-    let flips = flipped_pixels(cpu, gpu);
+    let flipped = flipped_pixels(label, cpu, gpu);
+    let flips = flipped.len();
     if std::env::var("GS_PARITY_STATS").is_ok() {
         eprintln!("FSTAT {label} flips {flips}");
     }
     assert!(
         flips as f64 <= MAX_FLIP_FRACTION * npix as f64 + 1.0,
-        "{label}: {flips} of {npix} pixels have a different last contributor"
+        "{label}: {flips} of {npix} pixels flipped a discrete decision"
     );
     compare_image(&format!("{label} color"), cpu.color.as_ref(), gpu.color.as_ref(), 0.0);
     compare_image(&format!("{label} alpha"), cpu.alpha.as_ref(), gpu.alpha.as_ref(), 0.0);
@@ -233,13 +275,10 @@ fn compare_outputs(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) {
         gpu.expected_depth.as_ref(),
         1e-4,
     );
-    let t_bad = cpu
-        .final_t
-        .iter()
-        .zip(&gpu.final_t)
-        .filter(|(a, b)| (*a - *b).abs() > IMG_ABS)
-        .count();
-    assert!(t_bad <= flips + 1, "{label}: final_t differs at {t_bad} pixels");
+    if std::env::var("GS_PARITY_STATS").is_ok() {
+        let radius_diffs = cpu.radii.iter().zip(&gpu.radii).filter(|(a, b)| a != b).count();
+        eprintln!("TSTAT {label} flipped pixels {flipped:?}, radii differ {radius_diffs}");
+    }
     // Radii: ceil(level·√λ) may flip by one where the driver's exp/log/sqrt differ by an ulp.
     assert_eq!(cpu.radii.len(), gpu.radii.len(), "{label}: radii length");
     let radius_diffs: Vec<usize> = (0..cpu.radii.len())
@@ -261,8 +300,7 @@ fn compare_outputs(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) {
         );
     }
     assert_eq!(cpu.stats.visible, gpu.stats.visible, "{label}: visible");
-    if flips == 0 {
-        assert_eq!(cpu.last_contributor, gpu.last_contributor);
+    if cpu.last_contributor == gpu.last_contributor {
         assert_eq!(cpu.stats.forward_pairs, gpu.stats.forward_pairs, "{label}: forward pairs");
         assert_eq!(cpu.stats.backward_pairs, gpu.stats.backward_pairs, "{label}: backward pairs");
     }
@@ -284,43 +322,76 @@ fn compare_outputs(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) {
     } else {
         assert_eq!(cpu.observed.is_some(), gpu.observed.is_some(), "{label}: observed presence");
     }
+    flipped
 }
 
-fn compare_group(label: &str, name: &str, cpu: &[f32], gpu: &[f32]) {
+/// Relative L2 bound on the gradients of the Gaussians a flipped pixel touches: their terms
+/// at that pixel change by one α ≈ 1/255 contribution, and the transmittance behind it by
+/// 1/255 (measured on an NVIDIA H200: see BENCHMARKS.md).
+const TOUCHED_L2: f64 = 0.05;
+
+/// Per value within the tolerances of the module doc, except the values of Gaussians marked
+/// in `touched` (one flag per Gaussian; empty = none), which must stay within [`TOUCHED_L2`].
+fn compare_group(label: &str, name: &str, cpu: &[f32], gpu: &[f32], touched: &[bool]) {
     assert_eq!(cpu.len(), gpu.len());
     if cpu.is_empty() {
         return;
     }
+    let per = if touched.is_empty() { cpu.len() } else { cpu.len() / touched.len() };
+    let is_touched = |i: usize| !touched.is_empty() && touched[i / per];
     let max = cpu.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64));
     let floor = GRAD_FLOOR * max;
     let (mut ok, mut num, mut den) = (0usize, 0.0f64, 0.0f64);
+    let (mut n_touched, mut tnum, mut tden) = (0usize, 0.0f64, 0.0f64);
     let mut worst = (0usize, 0.0f32, 0.0f32);
     let mut worst_excess = 0.0f64;
+    let mut listed = Vec::new();
     for (i, (&a, &b)) in cpu.iter().zip(gpu).enumerate() {
         assert!(b.is_finite(), "{label} {name}[{i}]: non-finite GPU gradient {b}");
         let d = (a as f64 - b as f64).abs();
+        if is_touched(i) {
+            n_touched += 1;
+            tnum += d * d;
+            tden += (a as f64) * (a as f64);
+            continue;
+        }
         let tol = GRAD_REL * (a as f64).abs() + floor;
         if d <= tol {
             ok += 1;
-        } else if d / tol > worst_excess {
-            worst_excess = d / tol;
-            worst = (i, a, b);
+        } else {
+            if listed.len() < 12 {
+                listed.push(format!("[{i}] {a} / {b}"));
+            }
+            if d / tol > worst_excess {
+                worst_excess = d / tol;
+                worst = (i, a, b);
+            }
         }
         num += d * d;
         den += (a as f64) * (a as f64);
     }
-    let outliers = cpu.len() - ok;
+    let strict = cpu.len() - n_touched;
+    let outliers = strict - ok;
+    let rel = |num: f64, den: f64| if den > 0.0 { (num / den).sqrt() } else { num.sqrt() };
+    let (l2, tl2) = (rel(num, den), rel(tnum, tden));
     if std::env::var("GS_PARITY_STATS").is_ok() {
-        eprintln!("STAT {label} {name} bad {} of {} l2 {:e}", cpu.len() - ok, cpu.len(), if den > 0.0 { (num / den).sqrt() } else { num.sqrt() });
+        eprintln!(
+            "STAT {label} {name} bad {outliers} of {strict} l2 {l2:e}; touched {n_touched} l2 {tl2:e}"
+        );
+        if outliers > 0 {
+            eprintln!("  outliers (cpu / gpu; max |cpu| {max:e}): {}", listed.join(", "));
+        }
     }
-    let l2 = if den > 0.0 { (num / den).sqrt() } else { num.sqrt() };
     assert!(
-        outliers as f64 <= 2.0 + GRAD_OUTLIER_FRACTION * cpu.len() as f64 && l2 <= GRAD_L2,
-        "{label} {name}: {outliers} of {} values beyond tolerance, relative L2 {l2:.2e}; worst [{}] cpu {} gpu {}",
-        cpu.len(),
+        outliers as f64 <= 2.0 + GRAD_OUTLIER_FRACTION * strict as f64 && l2 <= GRAD_L2,
+        "{label} {name}: {outliers} of {strict} values beyond tolerance, relative L2 {l2:.2e}; worst [{}] cpu {} gpu {}",
         worst.0,
         worst.1,
         worst.2
+    );
+    assert!(
+        tl2 <= TOUCHED_L2,
+        "{label} {name}: the {n_touched} values of Gaussians at flipped pixels differ by relative L2 {tl2:.2e}"
     );
 }
 
@@ -328,17 +399,19 @@ fn flat<const K: usize>(v: &[[f32; K]]) -> Vec<f32> {
     v.iter().flatten().copied().collect()
 }
 
-fn compare_grads(label: &str, cpu: &GaussianGradients, gpu: &GaussianGradients) {
-    compare_group(label, "means", &flat(&cpu.means), &flat(&gpu.means));
-    compare_group(label, "log_scales", &flat(&cpu.log_scales), &flat(&gpu.log_scales));
-    compare_group(label, "rotations", &flat(&cpu.rotations), &flat(&gpu.rotations));
-    compare_group(label, "opacity", &cpu.opacity_logits, &gpu.opacity_logits);
+/// Every gradient group (see [`compare_group`]; `touched` from [`touched_by`], or empty).
+fn compare_grads(label: &str, cpu: &GaussianGradients, gpu: &GaussianGradients, touched: &[bool]) {
+    let t = touched;
+    compare_group(label, "means", &flat(&cpu.means), &flat(&gpu.means), t);
+    compare_group(label, "log_scales", &flat(&cpu.log_scales), &flat(&gpu.log_scales), t);
+    compare_group(label, "rotations", &flat(&cpu.rotations), &flat(&gpu.rotations), t);
+    compare_group(label, "opacity", &cpu.opacity_logits, &gpu.opacity_logits, t);
     let sh = |g: &GaussianGradients| -> Vec<f32> {
         g.sh.iter().flat_map(|c| c.iter().flatten().copied()).collect()
     };
-    compare_group(label, "sh", &sh(cpu), &sh(gpu));
-    compare_group(label, "mean2d", &flat(&cpu.mean2d), &flat(&gpu.mean2d));
-    compare_group(label, "mean2d_abs", &flat(&cpu.mean2d_abs), &flat(&gpu.mean2d_abs));
+    compare_group(label, "sh", &sh(cpu), &sh(gpu), t);
+    compare_group(label, "mean2d", &flat(&cpu.mean2d), &flat(&gpu.mean2d), t);
+    compare_group(label, "mean2d_abs", &flat(&cpu.mean2d_abs), &flat(&gpu.mean2d_abs), t);
 }
 
 /// Forward (all channels) and backward (all gradients) parity of one scene and camera.
@@ -346,11 +419,12 @@ fn parity(r: &mut WgpuRasterizer, label: &str, g: &Gaussians, cam: &Camera, cfg:
     let req = RenderRequest::all();
     let cpu = gs_raster::render(g, cam, &req, cfg).unwrap();
     let gpu = r.render(g, cam, &req, cfg).unwrap();
-    compare_outputs(label, &cpu, &gpu);
+    let flipped = compare_outputs(label, &cpu, &gpu);
+    let touched = touched_by(g, cam, &cpu.radii, &flipped);
     let grads = Grads::new(cam.width, cam.height, 7);
     let gc = gs_raster::backward(g, cam, cfg, &cpu, &grads.all()).unwrap();
     let gg = r.backward(g, cam, cfg, &gpu, &grads.all()).unwrap();
-    compare_grads(label, &gc, &gg);
+    compare_grads(label, &gc, &gg, &touched);
 }
 
 fn run_scenes(r: &mut WgpuRasterizer, n: usize, w: u32, h: u32, seed: u64) {
@@ -396,6 +470,52 @@ fn parity_20k_gaussians() {
     };
     let g0 = random_scene(20_000, 0, 4, 1.5, (-4.5, -3.0));
     parity(&mut r, "20k deg0 aa", &g0, &cameras(320, 240)[0], &cfg);
+}
+
+/// A hardware GPU runs many workgroups at once where lavapipe runs few: the forward must
+/// repeat bit for bit, and the backward up to the order of its atomic adds; anything more is
+/// a race in a kernel.
+#[test]
+fn repeated_calls_agree_on_the_device() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cfg = RasterConfig::default();
+    let cases = [
+        (random_scene(20_000, 3, 3, 1.5, (-4.5, -3.0)), cameras(320, 240)[1].clone()),
+        (
+            random_scene(200, 2, 11, 1.0, (-3.0, -1.5)),
+            camera(17, 33, 40.0, DVec3::new(0.4, -0.3, -4.0)),
+        ),
+    ];
+    for (k, (g, cam)) in cases.iter().enumerate() {
+        let grads = Grads::new(cam.width, cam.height, 7);
+        let mut runs = Vec::new();
+        for _ in 0..3 {
+            let out = r.render(g, cam, &RenderRequest::all(), &cfg).unwrap();
+            let gr = r.backward(g, cam, &cfg, &out, &grads.all()).unwrap();
+            runs.push((out, gr));
+        }
+        let (a, ga) = &runs[0];
+        for (b, gb) in &runs[1..] {
+            assert_eq!(a.final_t, b.final_t, "case {k}: final_t");
+            assert_eq!(a.last_contributor, b.last_contributor, "case {k}: last contributor");
+            for (x, y) in [(&a.color, &b.color), (&a.plane_depth, &b.plane_depth), (&a.normal, &b.normal)] {
+                assert_eq!(x.as_ref().unwrap().data(), y.as_ref().unwrap().data(), "case {k}: image");
+            }
+            for (name, x, y) in [
+                ("means", flat(&ga.means), flat(&gb.means)),
+                ("log_scales", flat(&ga.log_scales), flat(&gb.log_scales)),
+                ("opacity", ga.opacity_logits.clone(), gb.opacity_logits.clone()),
+            ] {
+                let num: f64 = x.iter().zip(&y).map(|(p, q)| ((p - q) as f64).powi(2)).sum();
+                let den: f64 = x.iter().map(|p| (*p as f64).powi(2)).sum();
+                let rel = (num / den.max(1e-30)).sqrt();
+                if std::env::var("GS_PARITY_STATS").is_ok() {
+                    eprintln!("RSTAT case {k} {name}: relative L2 between runs {rel:e}");
+                }
+                assert!(rel <= 1e-5, "case {k} {name}: runs differ, relative L2 {rel:e}");
+            }
+        }
+    }
 }
 
 #[test]
@@ -444,7 +564,7 @@ fn parity_for_channel_subsets_and_single_gradients() {
         let cpu = gs_raster::render(&g, cam, req, &cfg).unwrap();
         let gpu = r.render(&g, cam, req, &cfg).unwrap();
         let label = format!("request {k}");
-        compare_outputs(&label, &cpu, &gpu);
+        let touched = touched_by(&g, cam, &cpu.radii, &compare_outputs(&label, &cpu, &gpu));
         let og = OutputGradients {
             color: req.color.then_some(&grads.color),
             alpha: req.alpha.then_some(&grads.alpha),
@@ -455,7 +575,7 @@ fn parity_for_channel_subsets_and_single_gradients() {
         };
         let gc = gs_raster::backward(&g, cam, &cfg, &cpu, &og).unwrap();
         let gg = r.backward(&g, cam, &cfg, &gpu, &og).unwrap();
-        compare_grads(&label, &gc, &gg);
+        compare_grads(&label, &gc, &gg, &touched);
     }
 }
 
@@ -617,7 +737,7 @@ fn a_gaussian_covering_more_tiles_than_one_emit_window() {
     let cpu = gs_raster::render(&g, &cam, &req, &cfg).unwrap();
     let gpu = r.render(&g, &cam, &req, &cfg).unwrap();
     assert!(cpu.radii[20] > 2000, "the last Gaussian must cover the image");
-    compare_outputs("32k tiles", &cpu, &gpu);
+    let _ = compare_outputs("32k tiles", &cpu, &gpu);
 }
 
 #[test]
@@ -698,7 +818,7 @@ fn errors_match_the_cpu_backend_and_states_do_not_mix() {
     let fresh_out = r.render(&g, &cam, &req, &cfg).unwrap();
     let fresh = r.backward(&g, &cam, &cfg, &fresh_out, &og).unwrap();
     // (Equal up to the order of the float atomics, which varies between runs.)
-    compare_grads("rebuilt state", &fresh, &stale);
+    compare_grads("rebuilt state", &fresh, &stale, &[]);
     // ... but not with different Gaussians than the render's.
     let _newer = r.render(&g2, &cam, &req, &cfg).unwrap();
     let mut moved = g.clone();
@@ -772,5 +892,6 @@ fn backend_selector() {
     let gg = w.backward(&g, &cam, &cfg, &out, &og).unwrap();
     let cpu_out = gs_raster::render(&g, &cam, &RenderRequest::default(), &cfg).unwrap();
     let gc = gs_raster::backward(&g, &cam, &cfg, &cpu_out, &og).unwrap();
-    compare_grads("selector", &gc, &gg);
+    let touched = touched_by(&g, &cam, &cpu_out.radii, &flipped_pixels("selector", &cpu_out, &out));
+    compare_grads("selector", &gc, &gg, &touched);
 }
