@@ -201,8 +201,20 @@ impl GpuContext {
 
     /// Maps the first `bytes` of a `MAP_READ` buffer, waits for the device and returns a copy.
     pub fn read_buffer(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
+        self.read_mapped(buffer, bytes, |b| b.to_vec())
+    }
+
+    /// Maps the first `bytes` of a `MAP_READ` buffer, waits for the device and hands the
+    /// mapped bytes to `read` (no copy: large readbacks are unpacked straight from the
+    /// mapping, which is at least 4-byte aligned).
+    pub fn read_mapped<R>(
+        &self,
+        buffer: &wgpu::Buffer,
+        bytes: u64,
+        read: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R> {
         if bytes == 0 {
-            return Ok(Vec::new());
+            return Ok(read(&[]));
         }
         let dev = |e: &dyn std::fmt::Display| GpuError::Device(e.to_string());
         let slice = buffer.slice(0..bytes);
@@ -214,9 +226,25 @@ impl GpuContext {
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| dev(&e))?;
         rx.recv().map_err(|e| dev(&e))?.map_err(|e| dev(&e))?;
-        let out = slice.get_mapped_range().to_vec();
+        let out = read(&slice.get_mapped_range());
         buffer.unmap();
         Ok(out)
+    }
+
+    /// Queues a write of `bytes` bytes to the start of `buffer`, produced by `fill` straight
+    /// into the queue's staging memory (no intermediate host copy).
+    pub fn write_with(&self, buffer: &wgpu::Buffer, bytes: u64, fill: impl FnOnce(&mut [u8])) {
+        let Some(size) = std::num::NonZeroU64::new(bytes) else { return };
+        match self.queue.write_buffer_with(buffer, 0, size) {
+            Some(mut view) => fill(&mut view),
+            None => {
+                // Refused (a validation error, reported through the error scopes): produce
+                // the bytes anyway so that `fill` always runs, and let the write report it.
+                let mut v = vec![0u8; bytes as usize];
+                fill(&mut v);
+                self.queue.write_buffer(buffer, 0, &v);
+            }
+        }
     }
 
     /// Copies `bytes` of `src` (a `COPY_SRC` buffer) from `offset` into a temporary staging

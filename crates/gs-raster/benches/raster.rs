@@ -360,6 +360,16 @@ fn bench_wgpu(
                 let o = r.render(&g, cam, req, cfg).unwrap();
                 drop(r.backward(&g, cam, cfg, &o, &og).unwrap())
             });
+            // Where the last call's time went (host clock): uploads, device, unpacking.
+            let t = r.timings();
+            for (name, p) in [("render", t.render), ("backward", t.backward)] {
+                eprintln!(
+                    "wgpu n={n} last {name}: upload {:.1} ms, device {:.1} ms, unpack {:.1} ms",
+                    p.upload.as_secs_f64() * 1e3,
+                    p.device.as_secs_f64() * 1e3,
+                    p.unpack.as_secs_f64() * 1e3
+                );
+            }
             continue;
         }
         group.throughput(Throughput::Elements(st.forward_pairs));

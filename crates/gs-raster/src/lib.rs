@@ -78,7 +78,9 @@ pub use backend::{Backend, Rasterizer};
 pub use cpu::project::{JACOBIAN_CLAMP, LOW_PASS, MIN_COMPENSATION};
 pub use cpu::{backward, render, render_naive};
 #[cfg(feature = "wgpu")]
-pub use gpu::{WgpuOptions, WgpuRasterizer, hardware_adapter_available, probe_adapter};
+pub use gpu::{
+    CallTimings, GpuTimings, WgpuOptions, WgpuRasterizer, hardware_adapter_available, probe_adapter,
+};
 pub use types::{
     ALPHA_THRESHOLD, ForwardState, GaussianGradients, MAX_ALPHA, OBSERVE_T, OutputGradients,
     PLANE_DEPTH_EPS, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats,

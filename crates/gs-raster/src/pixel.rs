@@ -8,6 +8,7 @@ use crate::{
     RenderRequest, RenderStats, Result, StateInner,
 };
 use gs_core::Image;
+use rayon::prelude::*;
 
 /// Camera-space ray K⁻¹(u, v, 1) at the centre of pixel (x, y), in f32.
 #[inline]
@@ -45,14 +46,18 @@ pub(crate) fn assemble(
     final_t: &[f32],
 ) -> Result<RenderOutput> {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let img = |c: usize, f: &dyn Fn(usize, usize, usize) -> f32| -> Result<Image> {
-        let mut data = Vec::with_capacity(w * h * c);
-        for y in 0..h {
-            for x in 0..w {
-                for ch in 0..c {
-                    data.push(f(x, y, ch));
+    // Rows in parallel: every value is a pure function of its pixel, so the bytes do not
+    // depend on the thread count.
+    let img = |c: usize, f: &(dyn Fn(usize, usize, usize) -> f32 + Sync)| -> Result<Image> {
+        let mut data = vec![0.0f32; w * h * c];
+        if w > 0 {
+            data.par_chunks_mut(w * c).enumerate().for_each(|(y, row)| {
+                for (x, px) in row.chunks_mut(c).enumerate() {
+                    for (ch, v) in px.iter_mut().enumerate() {
+                        *v = f(x, y, ch);
+                    }
                 }
-            }
+            });
         }
         Image::from_vec(w, h, c, data).map_err(|e| RasterError::InvalidCamera(e.to_string()))
     };

@@ -2,7 +2,9 @@
 //! reverse blend `raster_bwd` per band and window, then `project_bwd` per chunk of Gaussians,
 //! and the readback of the parameter gradients.
 
-use super::{BWD_WINDOW, CamUniform, Frame, GpuState, PARAM_STRIDE, WgpuRasterizer, chunks};
+use super::{
+    BWD_WINDOW, CamUniform, Frame, GpuState, GpuTimings, PARAM_STRIDE, WgpuRasterizer, chunks,
+};
 use crate::cpu::project::CamParams;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
 use crate::{
@@ -11,6 +13,8 @@ use crate::{
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Camera, Gaussians};
 use gs_gpu::{Encoder, PassUniform};
+use rayon::prelude::*;
+use std::time::Instant;
 
 impl WgpuRasterizer {
     /// Backward like [`crate::backward`] (same inputs as the render of `forward`, which must
@@ -57,16 +61,13 @@ impl WgpuRasterizer {
                 }
             }
         };
-        let n = gaussians.len();
-        let mut out = GaussianGradients::zeros(n);
         let color = grads.color.is_some();
         let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
         let depth = grads.expected_depth.is_some();
         if frame.total == 0 || !(color || geo || depth || grads.alpha.is_some()) {
-            return Ok(out);
+            return Ok(GaussianGradients::zeros(gaussians.len()));
         }
-        self.scoped(|r| r.backward_inner(gaussians, &cam, config, st, grads, frame, &mut out))?;
-        Ok(out)
+        self.scoped(|r| r.backward_inner(gaussians, &cam, config, st, grads, frame))
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -78,8 +79,7 @@ impl WgpuRasterizer {
         st: &GpuState,
         grads: &OutputGradients,
         frame: Frame,
-        out: &mut GaussianGradients,
-    ) -> Result<()> {
+    ) -> Result<GaussianGradients> {
         let nn = g.len() as u64;
         let gstride = 15 + 3 * coeffs_for_degree(g.sh_degree) as u64;
         let npix = cam.width as u64 * cam.height as u64;
@@ -90,7 +90,9 @@ impl WgpuRasterizer {
             | (grads.expected_depth.is_some() as u32) << 2;
         self.disp
             .write_frame(&CamUniform::new(cam, config, g, flags));
-        self.upload_gaussians(g);
+        // The parameters on the device are those of this frame's render (its generation was
+        // checked, or it was just rebuilt): no second upload.
+        let t0 = Instant::now();
         let bands = self.bands(cam)?;
         let (p, b) = (&mut self.pool, &self.bufs);
         p.ensure(b.pixgrad, npix * 36);
@@ -99,6 +101,7 @@ impl WgpuRasterizer {
         p.ensure(b.gout, nn * gstride * 4 + 4);
         p.ensure(b.staging, nn * gstride * 4 + 4);
         self.upload_pixel_grads(cam, config, st, grads);
+        let t1 = Instant::now();
         let mut enc = self.disp.encoder();
         let (p, b) = (&self.pool, &self.bufs);
         enc.encoder
@@ -113,20 +116,21 @@ impl WgpuRasterizer {
             nn * gstride * 4,
         );
         self.disp.submit(enc);
-        let bytes = self
-            .ctx
-            .read_buffer(p.buffer(b.staging), nn * gstride * 4)?;
-        unpack_gradients(
-            &bytemuck::pod_collect_to_vec(&bytes),
-            gstride as usize,
-            g,
-            out,
-        );
-        Ok(())
+        let gs = gstride as usize;
+        let (out, t2) = self.ctx.read_mapped(p.buffer(b.staging), nn * gstride * 4, |bytes| {
+            let t2 = Instant::now();
+            let out = match bytemuck::try_cast_slice::<u8, f32>(bytes) {
+                Ok(v) => unpack_gradients(v, gs, g),
+                Err(_) => unpack_gradients(&bytemuck::pod_collect_to_vec(bytes), gs, g),
+            };
+            (out, t2)
+        })?;
+        self.timings.backward = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
+        Ok(out)
     }
 
-    /// Per-pixel channel gradients, folded on the host exactly as the CPU backend does, and
-    /// uploaded to `pixgrad` (9 floats a pixel).
+    /// Per-pixel channel gradients, folded on the host exactly as the CPU backend does (rows
+    /// in parallel), written to `pixgrad` (9 floats a pixel).
     fn upload_pixel_grads(
         &mut self,
         cam: &CamParams,
@@ -135,23 +139,16 @@ impl WgpuRasterizer {
         grads: &OutputGradients,
     ) {
         let (w, h) = (cam.width as usize, cam.height as usize);
-        let mut pg = std::mem::take(&mut self.scratch_px);
-        pg.clear();
-        pg.reserve(w * h * 9);
-        for y in 0..h {
-            for x in 0..w {
-                let (gc, ga) =
-                    crate::pixel::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
-                pg.extend_from_slice(&gc);
-                pg.push(ga);
-            }
-        }
-        self.ctx.queue().write_buffer(
-            self.pool.buffer(self.bufs.pixgrad),
-            0,
-            bytemuck::cast_slice(&pg),
-        );
-        self.scratch_px = pg;
+        super::upload_with(&self.ctx, &mut self.pool, self.bufs.pixgrad, w * h * 9, |pg| {
+            pg.par_chunks_mut(w * 9).enumerate().for_each(|(y, row)| {
+                for (x, px) in row.chunks_mut(9).enumerate() {
+                    let (gc, ga) =
+                        crate::pixel::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
+                    px[..8].copy_from_slice(&gc);
+                    px[8] = ga;
+                }
+            })
+        });
     }
 
     /// `raster_bwd` per band of tile rows and window of tile-list positions (last first).
@@ -215,20 +212,26 @@ impl WgpuRasterizer {
     }
 }
 
-/// Spreads the `gstride`-float records of `v` into the gradient arrays (SH only up to the
-/// active degree).
-fn unpack_gradients(v: &[f32], gs: usize, g: &Gaussians, out: &mut GaussianGradients) {
+/// The gradients from the `gs`-float records of `v`, one per Gaussian (SH only up to the
+/// active degree, zero above), built in parallel.
+fn unpack_gradients(v: &[f32], gs: usize, g: &Gaussians) -> GaussianGradients {
     let nc = coeffs_for_degree(g.sh_degree);
-    for i in 0..g.len() {
-        let r = &v[i * gs..(i + 1) * gs];
-        out.means[i] = [r[0], r[1], r[2]];
-        out.log_scales[i] = [r[3], r[4], r[5]];
-        out.rotations[i] = [r[6], r[7], r[8], r[9]];
-        out.opacity_logits[i] = r[10];
-        out.mean2d[i] = [r[11], r[12]];
-        out.mean2d_abs[i] = [r[13], r[14]];
-        for k in 0..nc {
-            out.sh[i][k] = [r[15 + 3 * k], r[16 + 3 * k], r[17 + 3 * k]];
-        }
+    let recs = || v.par_chunks(gs).take(g.len());
+    GaussianGradients {
+        means: recs().map(|r| [r[0], r[1], r[2]]).collect(),
+        log_scales: recs().map(|r| [r[3], r[4], r[5]]).collect(),
+        rotations: recs().map(|r| [r[6], r[7], r[8], r[9]]).collect(),
+        opacity_logits: recs().map(|r| r[10]).collect(),
+        mean2d: recs().map(|r| [r[11], r[12]]).collect(),
+        mean2d_abs: recs().map(|r| [r[13], r[14]]).collect(),
+        sh: recs()
+            .map(|r| {
+                let mut c = [[0.0f32; 3]; 16];
+                for (k, ck) in c.iter_mut().enumerate().take(nc) {
+                    *ck = [r[15 + 3 * k], r[16 + 3 * k], r[17 + 3 * k]];
+                }
+                c
+            })
+            .collect(),
     }
 }

@@ -3,7 +3,7 @@
 //! and the readback of the requested planes).
 
 use super::{
-    CamUniform, FWD_WINDOW, Frame, GpuState, PARAM_STRIDE, SPLAT_STRIDE, WgpuRasterizer, chunks,
+    CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, PARAM_STRIDE, SPLAT_STRIDE, WgpuRasterizer, chunks,
 };
 use crate::cpu::project::CamParams;
 use crate::{
@@ -13,6 +13,8 @@ use crate::{
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Camera, Gaussians};
 use gs_gpu::{Encoder, PassUniform};
+use rayon::prelude::*;
+use std::time::Instant;
 
 /// Where each forward output lies in the staging buffer.
 struct Readback {
@@ -107,7 +109,9 @@ impl WgpuRasterizer {
             .write_frame(&CamUniform::new(cam, config, g, flags));
         // No buffer holds anything needed any more: the pool may shrink now.
         self.pool.begin_frame();
+        let t0 = Instant::now();
         self.upload_gaussians(g);
+        let t1 = Instant::now();
         let (visible, total) = self.project_and_count(g, npix, n_tiles)?;
         if total > config.max_intersections as u64 || total > u32::MAX as u64 {
             return Err(RasterError::TooManyIntersections {
@@ -126,11 +130,13 @@ impl WgpuRasterizer {
             total as u32,
             &rb,
         )?;
-        let bytes = self
-            .ctx
-            .read_buffer(self.pool.buffer(self.bufs.staging), rb.bytes)?;
-        let out =
-            self.forward_output(g, cam, config, request, &rb, &bytes, visible, total as u32)?;
+        let (out, t2) = self.ctx.read_mapped(self.pool.buffer(self.bufs.staging), rb.bytes, |bytes| {
+            let t2 = Instant::now();
+            let out = self.forward_output(g, cam, config, request, &rb, bytes, visible, total as u32);
+            (out, t2)
+        })?;
+        let out = out?;
+        self.timings.render = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
         let max_last = out.last_contributor.iter().copied().max().unwrap_or(0);
         self.frame = Some(Frame {
             generation: self.generation,
@@ -416,10 +422,11 @@ impl WgpuRasterizer {
         let mut acc = vec![[0.0f32; 8]; npix];
         let (final_t, last, counters, observed) = if total > 0 {
             for (k, &p) in rb.planes.iter().enumerate() {
-                let plane = f32s(rb.planes_at + k as u64 * npix as u64 * 4, npix);
-                for (a, v) in acc.iter_mut().zip(plane) {
-                    a[p] = v;
-                }
+                let at = (rb.planes_at + k as u64 * npix as u64 * 4) as usize;
+                let plane = &bytes[at..at + npix * 4];
+                acc.par_iter_mut().zip(plane.par_chunks(4)).for_each(|(a, v)| {
+                    a[p] = f32::from_ne_bytes([v[0], v[1], v[2], v[3]]);
+                });
             }
             (
                 f32s(rb.final_t, npix),
@@ -446,7 +453,7 @@ impl WgpuRasterizer {
             box_pairs: 0,
         };
         let geo = if request.plane_depth || request.expected_depth {
-            acc.iter().map(|a| [a[3], a[4], a[5], a[6], a[7]]).collect()
+            acc.par_iter().map(|a| [a[3], a[4], a[5], a[6], a[7]]).collect()
         } else {
             Vec::new()
         };

@@ -41,6 +41,7 @@ use gs_gpu::{
     BufId, BufferPool, Dispatcher, GpuContext, GpuError, GpuOptions, RadixSort, ShrinkPolicy,
 };
 use kernels::{CamUniform, Kernels};
+use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 pub use gs_gpu::{hardware_adapter_available, probe_adapter};
@@ -181,9 +182,29 @@ pub struct WgpuRasterizer {
     id: u64,
     generation: u64,
     frame: Option<Frame>,
-    /// Host scratch reused across calls (parameter and SH upload, per-pixel gradients).
-    scratch: Vec<f32>,
-    scratch_px: Vec<f32>,
+    timings: CallTimings,
+}
+
+/// Host-measured wall time of the phases of one call (see [`WgpuRasterizer::timings`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GpuTimings {
+    /// Packing and queueing the uploads (parameters and SH for a render, the per-pixel
+    /// gradients for a backward).
+    pub upload: std::time::Duration,
+    /// From the first submission until the last readback is mapped: the kernels, the
+    /// transfers and the waits.
+    pub device: std::time::Duration,
+    /// Turning the readbacks into the result on the host.
+    pub unpack: std::time::Duration,
+}
+
+/// [`GpuTimings`] of the latest render and the latest backward.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CallTimings {
+    /// The latest [`WgpuRasterizer::render`].
+    pub render: GpuTimings,
+    /// The latest [`WgpuRasterizer::backward`].
+    pub backward: GpuTimings,
 }
 
 impl std::fmt::Debug for WgpuRasterizer {
@@ -242,8 +263,7 @@ impl WgpuRasterizer {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             generation: 0,
             frame: None,
-            scratch: Vec::new(),
-            scratch_px: Vec::new(),
+            timings: CallTimings::default(),
         })
     }
 
@@ -260,6 +280,12 @@ impl WgpuRasterizer {
     /// Whether gradients accumulate with native f32 atomics (else the u32 CAS loop).
     pub fn native_f32_atomics(&self) -> bool {
         self.ctx.native_f32_atomics()
+    }
+
+    /// Where the latest render and backward spent their wall time (host clock): what the
+    /// raster bench reports, to tell transfers from kernels.
+    pub fn timings(&self) -> CallTimings {
+        self.timings
     }
 
     fn check_binding(&self, what: &str, bytes: u64) -> Result<()> {
@@ -314,37 +340,48 @@ impl WgpuRasterizer {
         Ok(out)
     }
 
-    /// Uploads parameters and SH (packed, only the active degree's coefficients).
+    /// Uploads parameters and SH (packed, only the active degree's coefficients), written in
+    /// parallel straight into the queue's staging memory.
     fn upload_gaussians(&mut self, g: &Gaussians) {
         let n = g.len();
         let nc = coeffs_for_degree(g.sh_degree);
-        let s = &mut self.scratch;
-        s.clear();
-        s.reserve(n * PARAM_STRIDE as usize);
-        for i in 0..n {
-            s.extend_from_slice(&g.means[i]);
-            s.extend_from_slice(&g.log_scales[i]);
-            s.extend_from_slice(&g.rotations[i]);
-            s.push(g.opacity_logits[i]);
-        }
-        upload(&self.ctx, &mut self.pool, self.bufs.params, s);
-        s.clear();
-        s.reserve(n * nc * 3);
-        for c in &g.sh {
-            for k in c.iter().take(nc) {
-                s.extend_from_slice(k);
+        let ps = PARAM_STRIDE as usize;
+        upload_with(&self.ctx, &mut self.pool, self.bufs.params, n * ps, |out| {
+            out.par_chunks_mut(ps).enumerate().for_each(|(i, r)| {
+                r[0..3].copy_from_slice(&g.means[i]);
+                r[3..6].copy_from_slice(&g.log_scales[i]);
+                r[6..10].copy_from_slice(&g.rotations[i]);
+                r[10] = g.opacity_logits[i];
+            })
+        });
+        upload_with(&self.ctx, &mut self.pool, self.bufs.sh, n * nc * 3, |out| {
+            if nc > 0 {
+                out.par_chunks_mut(nc * 3).zip(&g.sh).for_each(|(r, c)| {
+                    for (k, v) in c.iter().take(nc).enumerate() {
+                        r[3 * k..3 * k + 3].copy_from_slice(v);
+                    }
+                })
             }
-        }
-        upload(&self.ctx, &mut self.pool, self.bufs.sh, s);
+        });
     }
 }
 
-/// Writes `data` to the start of pool buffer `id` (grown first).
-fn upload(ctx: &GpuContext, pool: &mut BufferPool, id: BufId, data: &[f32]) {
-    let bytes = (data.len() * 4) as u64;
+/// Writes `len` f32 produced by `fill` to the start of pool buffer `id` (grown first).
+fn upload_with(
+    ctx: &GpuContext,
+    pool: &mut BufferPool,
+    id: BufId,
+    len: usize,
+    fill: impl Fn(&mut [f32]),
+) {
+    let bytes = (len * 4) as u64;
     pool.ensure(id, bytes.max(4));
-    if bytes > 0 {
-        ctx.queue()
-            .write_buffer(pool.buffer(id), 0, bytemuck::cast_slice(data));
-    }
+    ctx.write_with(pool.buffer(id), bytes, |b| match bytemuck::try_cast_slice_mut::<u8, f32>(b) {
+        Ok(f) => fill(f),
+        Err(_) => {
+            let mut v = vec![0.0f32; len];
+            fill(&mut v);
+            b.copy_from_slice(bytemuck::cast_slice(&v));
+        }
+    });
 }
