@@ -370,6 +370,32 @@ pub(crate) enum PatchResult<T> {
     Valid { cost: T, grad_n: [T; 3], grad_d: T },
 }
 
+const M: usize = MAX_PATCH_SIZE * MAX_PATCH_SIZE;
+
+/// Per-sample arrays of [`patch_cost`], allocated once per image row rather than zeroed per
+/// patch (each call writes the `patch²` entries it reads).
+pub(crate) struct PatchScratch<T> {
+    rv: [T; M],
+    sv: [T; M],
+    gu: [T; M],
+    gv: [T; M],
+    wv: [[T; 3]; M],
+    mv: [T; M],
+}
+
+impl<T: Real> PatchScratch<T> {
+    pub(crate) fn new() -> Self {
+        Self {
+            rv: [T::ZERO; M],
+            sv: [T::ZERO; M],
+            gu: [T::ZERO; M],
+            gv: [T::ZERO; M],
+            wv: [[T::ZERO; 3]; M],
+            mv: [T::ZERO; M],
+        }
+    }
+}
+
 /// The NCC cost of one reference pixel's patch and its gradient with respect to (Ñ, D).
 #[inline]
 #[allow(clippy::too_many_arguments)]
@@ -384,21 +410,15 @@ pub(crate) fn patch_cost<T: Real>(
     j: usize,
     patch: usize,
     mode: NccMode,
+    scratch: &mut PatchScratch<T>,
 ) -> PatchResult<T> {
-    const M: usize = MAX_PATCH_SIZE * MAX_PATCH_SIZE;
     let inv_d = T::ONE / d;
     if !(inv_d.is_finite() && n[0].is_finite() && n[1].is_finite() && n[2].is_finite()) {
         return PatchResult::Outside;
     }
     let half = patch / 2;
     let count = patch * patch;
-    let mut rv = [T::ZERO; M];
-    let mut sv = [T::ZERO; M];
-    let mut gu = [T::ZERO; M];
-    let mut gv = [T::ZERO; M];
-    let mut wv = [[T::ZERO; 3]; M];
-    let mut qv = [[T::ZERO; 3]; M];
-    let mut mv = [T::ZERO; M];
+    let PatchScratch { rv, sv, gu, gv, wv, mv } = scratch;
     let mut k = 0;
     for py in j - half..=j + half {
         let qy = rays.1[py];
@@ -420,7 +440,6 @@ pub(crate) fn patch_cost<T: Real>(
             gu[k] = du;
             gv[k] = dv;
             wv[k] = wh;
-            qv[k] = q;
             mv[k] = m;
             k += 1;
         }
@@ -489,9 +508,11 @@ pub(crate) fn patch_cost<T: Real>(
         let dm = -dot3(dw, g.kt);
         // m = Ñ·q / D  ⇒  ∂m/∂Ñ = q / D, ∂m/∂D = −m / D.
         let f = dm * inv_d;
-        grad_n[0] += f * qv[k][0];
-        grad_n[1] += f * qv[k][1];
-        grad_n[2] += f * qv[k][2];
+        // The sample's reference ray q = (x, y, 1), read again from the tables.
+        let q = [rays.0[i - half + k % patch], rays.1[j - half + k / patch], T::ONE];
+        grad_n[0] += f * q[0];
+        grad_n[1] += f * q[1];
+        grad_n[2] += f * q[2];
         grad_d -= f * mv[k];
     }
     PatchResult::Valid {
@@ -536,6 +557,7 @@ fn source_pass<T: Real>(
             gn_row.fill(T::ZERO);
             gd_row.fill(T::ZERO);
             let mut st = RowStats::default();
+            let mut scratch = PatchScratch::new();
             for i in 0..w {
                 let p = j * w + i;
                 if selected[p] != 2 {
@@ -559,6 +581,7 @@ fn source_pass<T: Real>(
                     grey_scale * j + grey_scale / 2,
                     config.patch_size,
                     config.ncc,
+                    &mut scratch,
                 ) {
                     PatchResult::Outside => {}
                     PatchResult::Masked => st.inside += 1,
