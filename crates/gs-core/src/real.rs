@@ -51,6 +51,11 @@ pub trait Real:
     fn from_usize(v: usize) -> Self {
         Self::from_f64(v as f64)
     }
+    /// ⌊x⌋ as an integer for finite x with |x| < 2²⁴ (pixel coordinates): truncation and one
+    /// compare in the type itself, without libm or a round trip through f64.
+    fn floor_index(self) -> isize;
+    /// Conversion from a signed pixel index (exact for |v| < 2²⁴).
+    fn from_isize(v: isize) -> Self;
 }
 
 macro_rules! impl_real {
@@ -98,6 +103,15 @@ macro_rules! impl_real {
             fn sign0(self) -> Self {
                 ((self > 0.0) as i32 - (self < 0.0) as i32) as $t
             }
+            #[inline]
+            fn floor_index(self) -> isize {
+                let i = self as isize;
+                if (i as $t) > self { i - 1 } else { i }
+            }
+            #[inline]
+            fn from_isize(v: isize) -> Self {
+                v as $t
+            }
         }
     };
 }
@@ -113,5 +127,10 @@ mod tests {
         assert_eq!((2.5f32.sign0(), (-1e-30f64).sign0(), 0.0f32.sign0()), (1.0, -1.0, 0.0));
         assert_eq!(f32::from_usize(7), 7.0);
         assert_eq!(<f64 as Real>::floor(-0.5), -1.0);
+        for v in [-1.0f32, -0.75, -0.0, 0.0, 0.25, 1.0, 479.99997, 480.0] {
+            assert_eq!(v.floor_index(), v.floor() as isize, "{v}");
+            assert_eq!((v as f64).floor_index(), (v as f64).floor() as isize, "{v}");
+        }
+        assert_eq!(f32::from_isize(-1), -1.0);
     }
 }

@@ -78,14 +78,10 @@ pub fn sample_bilinear_grad<T: Real>(
     let x = (u - half).max(T::from_f64(-1.0)).min(T::from_usize(width));
     let y = (v - half).max(T::from_f64(-1.0)).min(T::from_usize(height));
     // Floor by truncation (x, y are finite in [−1, size], so this is `floor` exactly, without
-    // the libm call that showed at 4 % of an L_p iteration).
-    let floor = |t: T| {
-        let i = t.to_f64() as isize;
-        if i as f64 > t.to_f64() { i - 1 } else { i }
-    };
-    let (x0, y0) = (floor(x), floor(y));
-    let fx = x - T::from_f64(x0 as f64);
-    let fy = y - T::from_f64(y0 as f64);
+    // the libm call that showed at 4 % of an L_p iteration, and in the type itself).
+    let (x0, y0) = (x.floor_index(), y.floor_index());
+    let fx = x - T::from_isize(x0);
+    let fy = y - T::from_isize(y0);
     let cx = |i: isize| i.clamp(0, width as isize - 1) as usize;
     let cy = |j: isize| j.clamp(0, height as isize - 1) as usize;
     let (xa, xb, ya, yb) = (cx(x0), cx(x0 + 1), cy(y0), cy(y0 + 1));
