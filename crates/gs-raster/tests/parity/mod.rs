@@ -1,0 +1,4 @@
+//! Shared parts of the wgpu parity tests.
+
+pub mod compare;
+pub mod scenes;
