@@ -35,10 +35,18 @@ impl Trainer<'_> {
         Ok(())
     }
 
-    /// Renders the plane depth of training slot `slot` without gradients (a source view).
+    /// Renders the plane depth of training slot `slot` without gradients (a source view), at
+    /// 1/`source_depth_downscale` of its size and upsampled back when that is above 1.
     fn source_plane_depth(&mut self, slot: usize) -> Result<Image> {
         let req = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
         let camera = &self.scene.views[self.train_views[slot]].camera;
+        let s = self.config.source_depth_downscale;
+        if s > 1 {
+            let small = downscaled_camera(camera, s)?;
+            let out = self.rasterizer.render(&self.state.gaussians, &small, &req, &self.raster)?;
+            let low = out.plane_depth.expect("requested");
+            return crate::source_depths::upsample_depth(&low, camera.width as usize, camera.height as usize);
+        }
         let out = self.rasterizer.render(&self.state.gaussians, camera, &req, &self.raster)?;
         Ok(out.plane_depth.expect("requested"))
     }

@@ -317,6 +317,11 @@ pub struct TrainConfig {
     /// ([`crate::source_depths`]); 0 renders every source every iteration (the paper).
     #[serde(default)]
     pub source_depth_max_age: u64,
+    /// L_p and L_f render a source view's plane depth (visibility only, no gradient) at
+    /// 1/this of its size and upsample it bilinearly ([`crate::source_depths::upsample_depth`]);
+    /// 1 renders it at full size (the paper).
+    #[serde(default = "one_u32")]
+    pub source_depth_downscale: u32,
 }
 
 fn one_u64() -> u64 {
@@ -413,6 +418,7 @@ impl TrainConfig {
             coarse_to_fine: CoarseToFine::default(),
             multiview_interval: 1,
             source_depth_max_age: 0,
+            source_depth_downscale: 1,
         };
         match preset {
             Preset::Dtu => base,

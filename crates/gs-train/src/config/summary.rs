@@ -30,6 +30,9 @@ impl TrainConfig {
         if self.multiview_interval > 1 {
             s.push_str(&format!("; L_p/L_f every {} iterations", self.multiview_interval));
         }
+        if self.source_depth_downscale > 1 {
+            s.push_str(&format!("; source depths at 1/{} size", self.source_depth_downscale));
+        }
         let c2f = &self.coarse_to_fine;
         if c2f.levels > 0 && c2f.until > 0 {
             s.push_str(&format!("; coarse-to-fine from 1/{} size to full by {}", 1u32 << c2f.levels, c2f.until));

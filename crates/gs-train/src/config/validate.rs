@@ -117,6 +117,9 @@ impl TrainConfig {
         if self.multiview_interval == 0 {
             return bad("multiview_interval must be positive".into());
         }
+        if !(1..=8).contains(&self.source_depth_downscale) {
+            return bad(format!("source_depth_downscale = {} must be in 1..=8", self.source_depth_downscale));
+        }
         if !(self.near > 0.0 && self.near.is_finite()) {
             return bad(format!("near = {} must be positive", self.near));
         }
