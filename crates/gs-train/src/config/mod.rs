@@ -319,7 +319,9 @@ pub struct TrainConfig {
     pub source_depth_max_age: u64,
     /// L_p and L_f render a source view's plane depth (visibility only, no gradient) at
     /// 1/this of its size and upsample it bilinearly ([`crate::source_depths::upsample_depth`]);
-    /// 1 renders it at full size (the paper).
+    /// 1 renders it at full size (the paper), as every preset does: 2 made the default's L_p
+    /// phase 16 % faster on synth-bunny at full resolution but its mesh much worse (Chamfer
+    /// 0.0070 → 0.0105, BENCHMARKS.md issue #18, stop 30).
     #[serde(default = "one_u32")]
     pub source_depth_downscale: u32,
 }
