@@ -153,17 +153,24 @@ impl Image {
         }
     }
 
-    /// Bilinear sample of channel `c` at continuous coordinates `(u, v)` (pixel centres at
-    /// `i + 0.5`), clamping to the border pixels outside the image.
-    pub fn sample_bilinear(&self, u: f32, v: f32, c: usize) -> f32 {
+    /// The four taps `(x0, x1, y0, y1)` and weights `(fx, fy)` of a bilinear sample at
+    /// continuous coordinates `(u, v)` (pixel centres at `i + 0.5`), clamped to the border
+    /// pixels outside the image: what [`Image::sample_bilinear`] interpolates, for callers that
+    /// must look at the taps first (e.g. skip "no data" values).
+    pub fn bilinear_taps(&self, u: f32, v: f32) -> ([usize; 4], [f32; 2]) {
         let x = (u - 0.5).clamp(0.0, (self.width - 1) as f32);
         let y = (v - 0.5).clamp(0.0, (self.height - 1) as f32);
         let x0 = x.floor() as usize;
         let y0 = y.floor() as usize;
         let x1 = (x0 + 1).min(self.width - 1);
         let y1 = (y0 + 1).min(self.height - 1);
-        let fx = x - x0 as f32;
-        let fy = y - y0 as f32;
+        ([x0, x1, y0, y1], [x - x0 as f32, y - y0 as f32])
+    }
+
+    /// Bilinear sample of channel `c` at continuous coordinates `(u, v)` (pixel centres at
+    /// `i + 0.5`), clamping to the border pixels outside the image.
+    pub fn sample_bilinear(&self, u: f32, v: f32, c: usize) -> f32 {
+        let ([x0, x1, y0, y1], [fx, fy]) = self.bilinear_taps(u, v);
         let a = self.get(x0, y0, c) * (1.0 - fx) + self.get(x1, y0, c) * fx;
         let b = self.get(x0, y1, c) * (1.0 - fx) + self.get(x1, y1, c) * fx;
         a * (1.0 - fy) + b * fy

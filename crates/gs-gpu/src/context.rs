@@ -232,18 +232,12 @@ impl GpuContext {
     }
 
     /// Queues a write of `bytes` bytes to the start of `buffer`, produced by `fill` straight
-    /// into the queue's staging memory (no intermediate host copy).
+    /// into the queue's staging memory (no intermediate host copy). A write wgpu refuses is a
+    /// validation error of the open error scopes, and `fill` is not called.
     pub fn write_with(&self, buffer: &wgpu::Buffer, bytes: u64, fill: impl FnOnce(&mut [u8])) {
         let Some(size) = std::num::NonZeroU64::new(bytes) else { return };
-        match self.queue.write_buffer_with(buffer, 0, size) {
-            Some(mut view) => fill(&mut view),
-            None => {
-                // Refused (a validation error, reported through the error scopes): produce
-                // the bytes anyway so that `fill` always runs, and let the write report it.
-                let mut v = vec![0u8; bytes as usize];
-                fill(&mut v);
-                self.queue.write_buffer(buffer, 0, &v);
-            }
+        if let Some(mut view) = self.queue.write_buffer_with(buffer, 0, size) {
+            fill(&mut view);
         }
     }
 

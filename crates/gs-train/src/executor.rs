@@ -41,14 +41,13 @@ impl Trainer<'_> {
         let req = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
         let camera = &self.scene.views[self.train_views[slot]].camera;
         let s = self.config.source_depth_downscale;
+        let rendered_at = downscaled_camera(camera, s)?;
+        let out = self.rasterizer.render(&self.state.gaussians, &rendered_at, &req, &self.raster)?;
+        let depth = out.plane_depth.expect("requested");
         if s > 1 {
-            let small = downscaled_camera(camera, s)?;
-            let out = self.rasterizer.render(&self.state.gaussians, &small, &req, &self.raster)?;
-            let low = out.plane_depth.expect("requested");
-            return crate::source_depths::upsample_depth(&low, camera.width as usize, camera.height as usize);
+            return crate::source_depths::upsample_depth(&depth, camera.width as usize, camera.height as usize);
         }
-        let out = self.rasterizer.render(&self.state.gaussians, camera, &req, &self.raster)?;
-        Ok(out.plane_depth.expect("requested"))
+        Ok(depth)
     }
 
     /// Renders the plan's source depths that the memo cannot serve ([`crate::source_depths`]):

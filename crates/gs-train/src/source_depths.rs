@@ -27,13 +27,8 @@ pub fn upsample_depth(low: &Image, width: usize, height: usize) -> Result<Image>
     let (sx, sy) = (lw as f32 / width as f32, lh as f32 / height as f32);
     let mut out = vec![0.0f32; width * height];
     for (y, row) in out.chunks_mut(width).enumerate() {
-        let v = ((y as f32 + 0.5) * sy - 0.5).clamp(0.0, (lh - 1) as f32);
-        let (y0, fy) = (v as usize, v - (v as usize) as f32);
-        let y1 = (y0 + 1).min(lh - 1);
         for (x, px) in row.iter_mut().enumerate() {
-            let u = ((x as f32 + 0.5) * sx - 0.5).clamp(0.0, (lw - 1) as f32);
-            let (x0, fx) = (u as usize, u - (u as usize) as f32);
-            let x1 = (x0 + 1).min(lw - 1);
+            let ([x0, x1, y0, y1], [fx, fy]) = low.bilinear_taps((x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy);
             let t = [d[y0 * lw + x0], d[y0 * lw + x1], d[y1 * lw + x0], d[y1 * lw + x1]];
             *px = if t.iter().all(|&z| z > 0.0) {
                 let top = t[0] + (t[1] - t[0]) * fx;

@@ -95,7 +95,6 @@ impl WgpuRasterizer {
         let t0 = Instant::now();
         let bands = self.bands(cam)?;
         let (p, b) = (&mut self.pool, &self.bufs);
-        p.ensure(b.pixgrad, npix * 36);
         p.ensure(b.bstate, npix * 36);
         p.ensure(b.gacc, nn * 64 + 4);
         p.ensure(b.gout, nn * gstride * 4 + 4);

@@ -422,11 +422,8 @@ impl WgpuRasterizer {
         let mut acc = vec![[0.0f32; 8]; npix];
         let (final_t, last, counters, observed) = if total > 0 {
             for (k, &p) in rb.planes.iter().enumerate() {
-                let at = (rb.planes_at + k as u64 * npix as u64 * 4) as usize;
-                let plane = &bytes[at..at + npix * 4];
-                acc.par_iter_mut().zip(plane.par_chunks(4)).for_each(|(a, v)| {
-                    a[p] = f32::from_ne_bytes([v[0], v[1], v[2], v[3]]);
-                });
+                let plane = f32s(rb.planes_at + k as u64 * npix as u64 * 4, npix);
+                acc.par_iter_mut().zip(plane).for_each(|(a, v)| a[p] = v);
             }
             (
                 f32s(rb.final_t, npix),
