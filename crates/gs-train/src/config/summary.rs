@@ -7,19 +7,8 @@ impl TrainConfig {
     /// A one-paragraph description for people (no Rust syntax).
     pub fn summary(&self) -> String {
         let l = &self.losses;
-        let mut geometry: Vec<&str> = Vec::new();
-        for (on, name) in [(l.edge, "edge"), (l.normal_consistency, "L_nc"), (l.normal_smoothing, "L_ns"), (l.photometric, "L_p")] {
-            if on {
-                geometry.push(name);
-            }
-        }
         let mut s = format!("preset {}, {} iterations: colour warm-up to {}", self.preset, self.iterations, self.warmup_end);
-        if !geometry.is_empty() {
-            s.push_str(&format!(", {} to {}", geometry.join(" + "), self.photometric_end));
-        }
-        if self.has_feature_phase() {
-            s.push_str(&format!(", L_f{} to {}", if self.overlap_mv && l.photometric { " + L_p" } else { "" }, self.features_end));
-        }
+        s.push_str(&self.phases_after_warmup());
         s.push_str(&format!(
             "; seed {}; {} source views, {p}×{p} NCC patches ({})",
             self.seed,
@@ -58,6 +47,37 @@ impl TrainConfig {
         s
     }
 
+    /// The terms after the colour warm-up and the iteration each one ends at (method-spec §7):
+    /// edge, L_nc and L_ns run to the last iteration; L_p to `photometric_end`, L_f from there
+    /// to `features_end` (with L_p when `overlap_mv`).
+    fn phases_after_warmup(&self) -> String {
+        let l = &self.losses;
+        let n = self.iterations;
+        let geometry: Vec<&str> = [(l.edge, "edge"), (l.normal_consistency, "L_nc"), (l.normal_smoothing, "L_ns")]
+            .into_iter()
+            .filter_map(|(on, name)| on.then_some(name))
+            .collect();
+        let p_end = self.photometric_end.min(n);
+        let photometric = l.photometric && p_end > self.warmup_end;
+        let features = self.has_feature_phase() && p_end < n;
+        let mut parts = Vec::new();
+        if photometric && p_end == n && !features {
+            parts.push(format!("{} to {n}", [geometry.as_slice(), &["L_p"]].concat().join(" + ")));
+        } else {
+            if !geometry.is_empty() {
+                parts.push(format!("{} to {n}", geometry.join(" + ")));
+            }
+            if photometric {
+                parts.push(format!("L_p to {p_end}"));
+            }
+            if features {
+                let with_p = if self.overlap_mv && l.photometric { " + L_p" } else { "" };
+                parts.push(format!("L_f{with_p} from {p_end} to {}", self.features_end.min(n)));
+            }
+        }
+        if parts.is_empty() { String::new() } else { format!(", then {}", parts.join(", ")) }
+    }
+
     /// `key value (preset value)` for every setting that differs from the preset scaled to
     /// this length (switches of the loss terms are listed by [`TrainConfig::summary`] instead).
     pub fn changed_from_preset(&self) -> Vec<String> {
@@ -90,7 +110,12 @@ mod tests {
     fn the_summary_is_words() {
         let c = TrainConfig::default().scaled(60);
         let s = c.summary();
-        assert!(s.starts_with("preset dtu, 60 iterations: colour warm-up to 21, edge + L_nc + L_ns + L_p to 45, L_f to 60"), "{s}");
+        assert!(s.starts_with("preset dtu, 60 iterations: colour warm-up to 21, then edge + L_nc + L_ns to 60, L_p to 45, L_f from 45 to 60;"), "{s}");
+        let std = TrainConfig::preset(Preset::Standard).summary();
+        assert!(std.contains("colour warm-up to 560, then edge + L_nc + L_ns + L_p to 1600;"), "{std}");
+        // L_p ended early with no L_f phase: the normal terms still run to the end.
+        let tail = TrainConfig { photometric_end: 1200, features_end: 1200, ..TrainConfig::preset(Preset::Standard) };
+        assert!(tail.summary().contains("then edge + L_nc + L_ns to 1600, L_p to 1200;"), "{}", tail.summary());
         assert!(!s.contains('{') && !s.contains("changed"), "{s}");
         let d = TrainConfig { seed: 4, ..TrainConfig::preset(Preset::Fast) }.with_assignment("weights.lambda_p=0.3").unwrap();
         let mut d = d;
