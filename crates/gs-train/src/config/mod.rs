@@ -19,7 +19,8 @@ pub use resolution::CoarseToFine;
 pub enum Preset {
     /// The default: the paper's surface schedule reshaped for a CPU
     /// ([`TrainConfig::cpu_schedule`]): 1,600 iterations, the colour warm-up then edge + L_nc +
-    /// L_ns + L_p to the end, with no L_f phase and no opacity reset, the model bounded by the
+    /// L_ns + L_p to the end, with no L_f phase and no opacity reset, source-view depths
+    /// reused up to [`CPU_SOURCE_DEPTH_MAX_AGE`] iterations old, the model bounded by the
     /// scene's Gaussian budget (as in every preset). Coarse-to-fine and a sparser L_p / L_f
     /// (`coarse_to_fine`, `multiview_interval`) stay off: measured, both cost held-out PSNR
     /// (BENCHMARKS.md, issue #18).
@@ -374,10 +375,13 @@ pub const STANDARD_ITERATIONS: u64 = 1_600;
 /// Iterations of the `fast` preset (with 2 source views instead of 3).
 pub const FAST_ITERATIONS: u64 = 1_200;
 /// Oldest reused source-view depth of the CPU presets, in iterations (0: every source is
-/// rendered, as in the paper). Reuse up to 100 iterations made an L_p iteration 27 % cheaper
-/// but the mesh worse at equal iterations while the surface still moves (synth-bunny, full
-/// resolution, BENCHMARKS.md issue #18), so the presets leave it off.
-pub const CPU_SOURCE_DEPTH_MAX_AGE: u64 = 0;
+/// rendered, as in the paper). On synth-bunny at full resolution (BENCHMARKS.md issue #18,
+/// stop 31) 10 kept the default's mesh and held-out PSNR (Chamfer 0.00701 / F1 0.926 /
+/// 26.05 dB against 0.00703 / 0.928 / 26.20 dB) with the L_p phase 0.79× the time (12.0
+/// against 14.8 minutes in all, 2 threads); 20 let the mesh drift off the surface in the last
+/// 300 iterations (Chamfer 0.0117), and 100 made it worse while the surface still moves
+/// (stop 27).
+pub const CPU_SOURCE_DEPTH_MAX_AGE: u64 = 10;
 
 /// Fewest iterations between two densification steps of a scaled schedule: a step judges the
 /// gradients accumulated since the last one, and fewer than this many iterations give noisy
