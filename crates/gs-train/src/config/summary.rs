@@ -61,7 +61,7 @@ impl TrainConfig {
         let photometric = l.photometric && p_end > self.warmup_end;
         let features = self.has_feature_phase() && p_end < n;
         let mut parts = Vec::new();
-        if photometric && p_end == n && !features {
+        if photometric && p_end == n {
             parts.push(format!("{} to {n}", [geometry.as_slice(), &["L_p"]].concat().join(" + ")));
         } else {
             if !geometry.is_empty() {
