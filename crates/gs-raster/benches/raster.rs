@@ -1,4 +1,5 @@
-//! Forward / backward throughput of the CPU rasterizer at 640×480 with 10k / 100k / 500k
+//! Forward / backward throughput of the CPU rasterizer at 640×480 (`GS_RASTER_BENCH_SIZE=WxH`
+//! for another size) with 10k / 100k / 500k
 //! Gaussians of a trained-like distribution (small flat anisotropic Gaussians on the surfaces
 //! of spheres and a ground plane, screen radius ≈ 2–10 px, mostly opaque), plus the naive
 //! per-pixel reference on a reduced case for the speed ratio.
@@ -8,7 +9,7 @@
 //! to its last contributor). the workspace `BENCHMARKS.md` records measured numbers.
 //!
 //! With the `wgpu` feature (default) the same scenes also run on the wgpu backend
-//! (`raster_wgpu_640x480`, skipped with a message when there is no adapter). On a machine
+//! (`raster_wgpu_WxH`, skipped with a message when there is no adapter). On a machine
 //! without a GPU that adapter is Mesa's lavapipe (software Vulkan on the CPU): those figures
 //! measure the kernels' CPU emulation, not GPU speed. `GS_RASTER_WGPU_REPORT=1` prints plain
 //! wall-clock timings (5 calls) instead of running criterion on the wgpu cases.
@@ -114,6 +115,20 @@ fn camera(w: u32, h: u32) -> Camera {
     .unwrap()
 }
 
+/// The image size: `GS_RASTER_BENCH_SIZE=WxH` (e.g. `1920x1080`, as `scripts/gpu-check.sh`
+/// asks), else 640×480, the size of the recorded CPU figures.
+fn bench_size() -> (u32, u32) {
+    let parsed = std::env::var("GS_RASTER_BENCH_SIZE").ok().and_then(|v| {
+        let (w, h) = v.split_once('x')?;
+        Some((w.trim().parse().ok()?, h.trim().parse().ok()?))
+    });
+    match parsed {
+        Some((w, h)) if (16..=8192).contains(&w) && (16..=8192).contains(&h) => (w, h),
+        Some(_) => panic!("GS_RASTER_BENCH_SIZE must be WxH with sides in 16..=8192"),
+        None => (640, 480),
+    }
+}
+
 /// Process CPU time (user + system) in seconds, from /proc/self/stat (Linux; 0 elsewhere).
 /// The bench machine is shared, so wall time overstates the cost; CPU time does not.
 fn cpu_seconds() -> f64 {
@@ -156,7 +171,7 @@ fn bench(c: &mut Criterion) {
         .build()
         .unwrap();
     let cfg = RasterConfig::default();
-    let (w, h) = (640u32, 480u32);
+    let (w, h) = bench_size();
     let cam = camera(w, h);
     let counts: Vec<usize> = std::env::var("GS_RASTER_BENCH_COUNTS")
         .ok()
@@ -172,7 +187,7 @@ fn bench(c: &mut Criterion) {
         ..RenderRequest::default()
     };
     let req_color = RenderRequest::default();
-    let mut group = c.benchmark_group("raster_640x480");
+    let mut group = c.benchmark_group(format!("raster_{w}x{h}"));
     group.sample_size(10);
     for &n in &counts {
         let g = scene(n, 7);
@@ -325,7 +340,7 @@ fn bench_wgpu(
         ..Default::default()
     };
     let report = std::env::var("GS_RASTER_WGPU_REPORT").is_ok();
-    let mut group = c.benchmark_group("raster_wgpu_640x480");
+    let mut group = c.benchmark_group(format!("raster_wgpu_{w}x{h}"));
     group.sample_size(10);
     for &n in counts {
         let g = scene(n, 7);

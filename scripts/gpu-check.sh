@@ -1,0 +1,142 @@
+#!/usr/bin/env bash
+# The whole GPU measurement in one call, from the prebuilt binaries that scripts/gpu-pack.sh
+# put in .gpu/ (the GPU machine reaches no registry and builds nothing). In order of value:
+#   1. the machine: GPU name, memory, driver; the wgpu adapter;
+#   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests);
+#   3. the rasterizer bench at 1920×1080 with 100k and 1M Gaussians, wgpu and 16 CPU threads;
+#   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
+#      on the CPU, with per-phase times, held-out PSNR and veils;
+#   5. synth-bunny, default settings, full resolution, on wgpu and on the CPU: training time,
+#      per-phase times, held-out PSNR, mesh Chamfer / F1 (object protocol).
+# Each step is skipped (and says so) when the time budget left cannot hold it, so the call ends
+# in time and the steps done still come back. Results: $OUT/gpu-check.md (one table per step)
+# and a log per step.
+#
+#   bash scripts/gpu-check.sh                 # on the device, carry .gpu and .gl
+#   GPU_CHECK_SMOKE=1 [GPU_CHECK_SKIP=parity,raster] bash scripts/gpu-check.sh
+#                                             # smoke test anywhere: tiny runs, lavapipe too
+set -uo pipefail
+cd "$(dirname "$0")/.."
+OUT="${OUT:-$PWD/gpu-check-out}"
+mkdir -p "$OUT"
+budget="${GPU_CHECK_BUDGET_S:-470}"
+smoke="${GPU_CHECK_SMOKE:-0}"
+start=$(date +%s)
+W="${TMPDIR:-/tmp}/gpu-check-runs"
+rm -rf "$W" && mkdir -p "$W/bin"
+B="$W/bin"
+for f in .gpu/bin/*.gz; do gunzip -c "$f" > "$B/$(basename "$f" .gz)" && chmod +x "$B/$(basename "$f" .gz)"; done
+summary="$OUT/gpu-check.md"
+export RAYON_NUM_THREADS="${RAYON_NUM_THREADS:-$(nproc)}"
+left() { echo $(( budget - ($(date +%s) - start) )); }
+note() { echo "$*" | tee -a "$summary"; }
+
+# The Vulkan loader travels as Debian packages (.gl, see scripts/gpu-pack.sh).
+if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 && ls .gl/*.deb >/dev/null 2>&1; then
+  for f in .gl/*.deb; do dpkg -x "$f" /; done
+  ldconfig
+fi
+icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+[ -f "$icd" ] && export VK_DRIVER_FILES="$icd"
+
+: > "$summary"
+note "# gpu-check $(date -u +%Y-%m-%dT%H:%MZ), binaries of $(tr '\n' ' ' < .gpu/commit 2>/dev/null)"
+note ""
+note "machine: $(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null || echo 'no nvidia-smi')," \
+  "$(nproc) host cores, RAYON_NUM_THREADS=$RAYON_NUM_THREADS, budget ${budget} s"
+
+# step NAME SECONDS CMD...: runs CMD (log in $OUT/NAME.log) when SECONDS fit in the budget left.
+step() {
+  local name="$1" need="$2"; shift 2
+  case ",${GPU_CHECK_SKIP:-}," in *",$name,"*) note ""; note "## $name: SKIPPED (GPU_CHECK_SKIP)"; return 1 ;; esac
+  if [ "$(left)" -lt "$need" ]; then
+    note ""; note "## $name: SKIPPED (needs ~${need} s, $(left) s left in the budget)"; return 1
+  fi
+  local t0; t0=$(date +%s)
+  "$@" > "$OUT/$name.log" 2>&1
+  local rc=$?
+  echo "$name: exit $rc in $(( $(date +%s) - t0 )) s" >> "$OUT/steps.txt"
+  return $rc
+}
+
+# 2. Parity on this GPU.
+step parity 60 env CI=true "$B/wgpu-parity" --test-threads 1; r=$?
+if [ -f "$OUT/parity.log" ]; then
+  if [ $r = 0 ]; then r=passed; else r=FAILED; fi
+  note ""; note "## wgpu parity: $r ($(grep -E '^test result' "$OUT/parity.log" | tail -1))"
+fi
+
+# 3. Rasterizer bench at 1920×1080.
+counts=100000,1000000; size=1920x1080; [ "$smoke" = 1 ] && counts=2000 && size=160x120
+if step raster 150 env GS_RASTER_WGPU_REPORT=1 GS_RASTER_CPU_REPORT=1 GS_RASTER_BENCH_SIZE=$size \
+    GS_RASTER_BENCH_COUNTS=$counts "$B/raster-bench" --bench raster_wgpu; then
+  note ""; note "## Rasterizer, $size, SH degree 3 (ms per call; wgpu: mean of 5 after a warm-up, CPU: of 10)"
+  grep -E "^(wgpu adapter|n=|wgpu n=)" "$OUT/raster.log" | sed 's/^/    /' >> "$summary"
+fi
+
+# train_job TAG BACKEND SCENE... : train + eval-images (+ mesh and eval-mesh for a GT mesh).
+train_job() {
+  local tag="$1" backend="$2" bin="$3"; shift 3
+  local run="$W/$tag"
+  local iters=(); [ "$smoke" = 1 ] && iters=(--iterations 60)
+  "$bin" train "$@" -o "$run" --eval --backend "$backend" "${iters[@]}" --quiet &&
+    "$bin" eval-images "$run" --no-lpips --backend "$backend" --json > "$run/eval.json" || return 1
+  local gt="${GT_MESH:-}"
+  if [ -n "$gt" ]; then
+    "$bin" mesh "$run" --backend "$backend" &&
+      "$bin" eval-mesh --pred "$run/mesh.ply" --gt "$gt" --crop-to-gt 0.05 --min-z 0.005 --json > "$run/eval_mesh_out.json"
+  fi
+}
+readme_need=150; bunny_need=260; [ "$smoke" = 1 ] && readme_need=20 && bunny_need=30
+
+# 4. README job: wgpu twice, CPU once (and the baseline binary, when packed).
+step readme_wgpu_1 "$readme_need" train_job readme_wgpu_1 wgpu "$B/vagsl"
+step readme_wgpu_2 "$readme_need" train_job readme_wgpu_2 wgpu "$B/vagsl"
+step readme_cpu "$readme_need" train_job readme_cpu cpu "$B/vagsl"
+[ -x "$B/vagsl-baseline" ] && step readme_wgpu_baseline "$readme_need" train_job readme_wgpu_baseline wgpu "$B/vagsl-baseline"
+if [ -f "$W/readme_wgpu_1/point_cloud.ply" ] && [ -f "$W/readme_wgpu_2/point_cloud.ply" ]; then
+  if cmp -s "$W/readme_wgpu_1/point_cloud.ply" "$W/readme_wgpu_2/point_cloud.ply"; then same="the same bytes"; else same="DIFFERENT bytes"; fi
+  note ""; note "two wgpu runs of the README job, one seed: point_cloud.ply has $same"
+fi
+
+# 5. synth-bunny at full resolution, default settings: wgpu first, then the CPU.
+bunny=.gpu/data/synth-bunny
+if [ -d "$bunny" ]; then
+  GT_MESH="$bunny/gt_mesh.ply" step bunny_wgpu "$bunny_need" train_job bunny_wgpu wgpu "$B/vagsl" "$bunny"
+  GT_MESH="$bunny/gt_mesh.ply" step bunny_cpu "$bunny_need" train_job bunny_cpu cpu "$B/vagsl" "$bunny"
+fi
+
+# The training table: one row per run that finished.
+python3 - "$W" >> "$summary" <<'EOF'
+import json, os, sys
+w = sys.argv[1]
+rows = []
+for tag in sorted(os.listdir(w)):
+    d = os.path.join(w, tag)
+    try:
+        rep = json.load(open(os.path.join(d, "report.json")))
+    except (OSError, ValueError):
+        continue
+    def load(name):
+        try:
+            return json.load(open(os.path.join(d, name)))
+        except (OSError, ValueError):
+            return None
+    ev, em = load("eval.json"), load("eval_mesh_out.json")
+    ph = rep.get("phase_seconds", [0, 0, 0, 0])
+    worst = min(ev["views"], key=lambda v: v["psnr"]) if ev and ev.get("views") else None
+    veils = sum(1 for v in ev["views"] if v.get("veil")) if ev else 0
+    rows.append("| {} | {:.1f} s | {:.1f} / {:.1f} / {:.1f} s | {} | {} | {} | {} | {} |".format(
+        tag, rep["train_seconds"], ph[0], ph[1], ph[3], rep["gaussians"],
+        f"{ev['psnr']:.2f} dB" if ev else "—",
+        f"{worst['name']} {worst['psnr']:.2f} dB" if worst else "—", veils,
+        f"{em['chamfer']:.5f} / {em['f1']:.3f}" if em else "—"))
+if rows:
+    print("\n## Training runs (train time; warm-up / L_p / refinement seconds; held-out PSNR without LPIPS)\n")
+    print("| run | train | warm-up / L_p / refine | Gaussians | held-out PSNR | worst view | veils | Chamfer / F1 |")
+    print("|---|---|---|---|---|---|---|---|")
+    print("\n".join(rows))
+EOF
+note ""
+note "total $(( $(date +%s) - start )) s"
+cat "$OUT/steps.txt" 2>/dev/null

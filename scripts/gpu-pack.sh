@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Packs what scripts/gpu-check.sh needs on a GPU machine that reaches no registry: stripped
+# release binaries (vagsl, the rasterizer bench, the wgpu parity tests), the synth-bunny scene
+# without its GT depth maps, and the Vulkan loader's Debian packages. Run it here, in the
+# repository root; it fills the ignored folders .gpu/ and .gl/, which travel with `carry`.
+#
+#   scripts/gpu-pack.sh [--baseline PATH_TO_OLD_VAGSL]
+#
+# --baseline also packs an older vagsl binary (.gpu/bin/vagsl-baseline): gpu-check then runs
+# the README job with it beside the new one on the same machine.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+baseline=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --baseline) baseline="$2"; shift 2 ;;
+    *) echo "gpu-pack: unknown argument $1" >&2; exit 2 ;;
+  esac
+done
+data="${VAGSL_TEST_DATA:-../shared}/data/synth-bunny"
+[ -d "$data/images" ] || { echo "gpu-pack: synth-bunny not found at $data (set VAGSL_TEST_DATA)" >&2; exit 1; }
+
+for p in /.gpu/ /.gl/; do grep -qxF "$p" .git/info/exclude 2>/dev/null || echo "$p" >> .git/info/exclude; done
+rm -rf .gpu && mkdir -p .gpu/bin .gpu/data
+
+# Binaries: cargo prints each test/bench executable's path as JSON; take the last of each name.
+# Built with --workspace, so the features are those `cargo test --workspace --release` builds
+# with (a -p build unifies other features and recompiles half the workspace).
+cargo build --release --workspace --bins
+exe() { cargo "$@" --workspace --message-format=json 2>/dev/null \
+  | python3 -c 'import sys,json
+p=[m["executable"] for m in map(json.loads,sys.stdin) if m.get("reason")=="compiler-artifact" and m.get("executable")]
+print(p[-1])'; }
+raster=$(exe bench --bench raster --no-run)
+parity=$(exe test --release --test wgpu_parity --no-run)
+strip -o .gpu/bin/vagsl target/release/vagsl
+strip -o .gpu/bin/raster-bench "$raster"
+strip -o .gpu/bin/wgpu-parity "$parity"
+[ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
+gzip -f .gpu/bin/*   # the tree that travels is capped at 64 MiB: 35 -> 20 MB
+git rev-parse --short HEAD > .gpu/commit
+git status --porcelain --untracked-files=no | grep -q . && echo "+uncommitted" >> .gpu/commit
+
+# synth-bunny without gt/ (27 MB of depth maps the check does not read).
+mkdir -p .gpu/data/synth-bunny
+cp -r "$data/images" "$data/sparse" "$data/masks" "$data/gt_mesh.ply" .gpu/data/synth-bunny/
+
+# The Vulkan loader (the device machine has the NVIDIA driver but no loader).
+if ! ls .gl/libvulkan1_*.deb >/dev/null 2>&1; then
+  mkdir -p .gl /tmp/amd64/partial
+  o='-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64'
+  apt-get $o update -qq
+  (cd .gl && apt-get $o download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2)
+fi
+du -sh .gpu .gl
+echo "gpu-pack: ready; run on the device: bash scripts/gpu-check.sh (carry .gpu and .gl)"
