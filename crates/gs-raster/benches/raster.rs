@@ -320,11 +320,7 @@ fn bench_wgpu(
     } else {
         ""
     };
-    eprintln!(
-        "wgpu adapter: {}{software}; native f32 atomics: {}",
-        r.adapter_description(),
-        r.native_f32_atomics()
-    );
+    eprintln!("wgpu adapter: {}{software}", r.adapter_description());
     let (w, h) = (cam.width as usize, cam.height as usize);
     let gc = Image::filled(w, h, 3, 0.01).unwrap();
     let g1 = Image::filled(w, h, 1, 0.01).unwrap();

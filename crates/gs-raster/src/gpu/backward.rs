@@ -1,9 +1,13 @@
 //! The wgpu backward: per-pixel channel gradients folded on the host (the CPU code), the
-//! reverse blend `raster_bwd` per band and window, then `project_bwd` per chunk of Gaussians,
-//! and the readback of the parameter gradients.
+//! reverse blend `raster_bwd` per band and window (one `ScreenGrad` partial per intersection),
+//! `grad_reduce` (each Gaussian's partials summed in a fixed order, so runs repeat bit for
+//! bit), then `project_bwd` per chunk of Gaussians, and the readback of the parameter
+//! gradients.
 
+use super::kernels::ScreenGrad;
 use super::{
-    BWD_WINDOW, CamUniform, Frame, GpuState, GpuTimings, PARAM_STRIDE, WgpuRasterizer, chunks,
+    BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, PARAM_STRIDE, WgpuRasterizer,
+    chunks,
 };
 use crate::cpu::project::CamParams;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
@@ -94,18 +98,24 @@ impl WgpuRasterizer {
         // checked, or it was just rebuilt): no second upload.
         let t0 = Instant::now();
         let bands = self.bands(cam)?;
+        let rec = std::mem::size_of::<ScreenGrad>() as u64;
+        let partial_bytes = frame.total as u64 * rec;
+        self.check_binding("the per-intersection gradients", partial_bytes)?;
         let (p, b) = (&mut self.pool, &self.bufs);
         p.ensure(b.bstate, npix * 36);
-        p.ensure(b.gacc, nn * 64 + 4);
+        p.ensure(b.partials, partial_bytes);
+        p.ensure(b.gacc, nn * rec + 4);
         p.ensure(b.gout, nn * gstride * 4 + 4);
         p.ensure(b.staging, nn * gstride * 4 + 4);
         self.upload_pixel_grads(cam, config, st, grads);
         let t1 = Instant::now();
         let mut enc = self.disp.encoder();
         let (p, b) = (&self.pool, &self.bufs);
+        // Intersections beyond their tile's last contributor get no partial: zeros.
         enc.encoder
-            .clear_buffer(p.buffer(b.gacc), 0, Some(nn * 64 + 4));
+            .clear_buffer(p.buffer(b.partials), 0, Some(partial_bytes));
         self.blend_backward(&mut enc, cam, &bands, frame)?;
+        self.reduce_partials(&mut enc, cam, g.len() as u32)?;
         self.project_backward(&mut enc, g, gstride)?;
         enc.encoder.copy_buffer_to_buffer(
             p.buffer(b.gout),
@@ -159,19 +169,18 @@ impl WgpuRasterizer {
         frame: Frame,
     ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
-        let tv = if frame.tiles_in_c { b.vals_c } else { b.vals_b };
         let windows = frame.max_last.div_ceil(BWD_WINDOW);
         for &(r0, rows, p0, bp) in bands {
             for wi in (0..windows).rev() {
                 d.make_room(enc, 1);
                 let binds = [
                     p.whole(b.ranges),
-                    p.whole(tv),
+                    p.whole(b.gids),
                     p.whole(b.splat),
                     p.range(b.final_t, p0 * 4, bp * 4),
                     p.range(b.last, p0 * 4, bp * 4),
                     p.range(b.pixgrad, p0 * 36, bp * 36),
-                    p.whole(b.gacc),
+                    p.whole(b.partials),
                     p.range(b.bstate, p0 * 36, bp * 36),
                 ];
                 let pass = PassUniform {
@@ -187,17 +196,43 @@ impl WgpuRasterizer {
         Ok(())
     }
 
+    /// `grad_reduce`: per depth-sorted Gaussian, its partials in emission order, in windows of
+    /// emission entries (no Gaussian has more intersections than there are tiles).
+    fn reduce_partials(&self, enc: &mut Encoder, cam: &CamParams, n: u32) -> Result<()> {
+        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let n_tiles = cam.tiles_x * cam.tiles_y;
+        for wi in 0..n_tiles.div_ceil(FWD_WINDOW) {
+            d.make_room(enc, 1);
+            let binds = [
+                p.whole(b.vals_a),
+                p.whole(b.counts),
+                p.whole(b.isect_pos),
+                p.whole(b.partials),
+                p.whole(b.gacc),
+            ];
+            let pass = PassUniform {
+                n,
+                shift: wi * FWD_WINDOW,
+                nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                ..Default::default()
+            };
+            d.dispatch_1d(enc, &k.grad_reduce, &binds, pass)?;
+        }
+        Ok(())
+    }
+
     /// `project_bwd` per chunk of Gaussians (records of `gstride` floats into `gout`).
     fn project_backward(&self, enc: &mut Encoder, g: &Gaussians, gstride: u64) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         let ncu = coeffs_for_degree(g.sh_degree) as u64;
+        let rec = std::mem::size_of::<ScreenGrad>() as u64;
         for (bb, m) in chunks(g.len() as u32) {
             d.make_room(enc, 1);
             let binds = [
                 p.range(b.params, bb * PARAM_STRIDE * 4, m * PARAM_STRIDE * 4),
                 p.range(b.sh, bb * ncu * 12, m * ncu * 12),
                 p.range(b.proj, bb * 20, m * 20),
-                p.range(b.gacc, bb * 64, m * 64),
+                p.range(b.gacc, bb * rec, m * rec),
                 p.range(b.gout, bb * gstride * 4, m * gstride * 4),
             ];
             let pass = PassUniform {

@@ -1,6 +1,6 @@
 //! The wgpu forward: projection, depth sort and intersection counts (first submission and a
-//! 32-byte readback), then emission, tile sort, tile ranges and the blend (second submission
-//! and the readback of the requested planes).
+//! 32-byte readback), then emission, tile sort, tile ranges, links and the blend (second
+//! submission and the readback of the requested planes).
 
 use super::{
     CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, PARAM_STRIDE, SPLAT_STRIDE, WgpuRasterizer, chunks,
@@ -121,7 +121,7 @@ impl WgpuRasterizer {
         }
         self.check_binding("the tile intersections", total * 4)?;
         let rb = Readback::new(request, nn, npix);
-        let tiles_in_c = self.blend(
+        self.blend(
             cam,
             request,
             &bands,
@@ -142,7 +142,6 @@ impl WgpuRasterizer {
             generation: self.generation,
             total: total as u32,
             max_last,
-            tiles_in_c,
         });
         Ok(out)
     }
@@ -226,9 +225,8 @@ impl WgpuRasterizer {
         Ok((head[0] as usize, head[2] as u64 | (head[3] as u64) << 32))
     }
 
-    /// Phase 2: emit the (tile, Gaussian) pairs, sort them by tile, find the tile ranges,
-    /// blend, and copy the outputs to the staging buffer; returns whether the tile-sorted
-    /// pairs ended in the `c` buffers.
+    /// Phase 2: emit the (tile, emission index) pairs, sort them by tile, find the tile ranges
+    /// and links, blend, and copy the outputs to the staging buffer.
     #[allow(clippy::too_many_arguments)]
     fn blend(
         &mut self,
@@ -239,20 +237,18 @@ impl WgpuRasterizer {
         visible: usize,
         total: u32,
         rb: &Readback,
-    ) -> Result<bool> {
+    ) -> Result<()> {
         let tot = total as u64;
         let (p, b) = (&mut self.pool, &self.bufs);
-        for k in [b.keys_b, b.vals_b, b.keys_c, b.vals_c] {
+        for k in [b.keys_b, b.vals_b, b.keys_c, b.vals_c, b.isect_gid, b.gids, b.isect_pos] {
             p.ensure(k, tot * 4 + 4);
         }
         self.sort.reserve(p, tot);
         p.ensure(b.staging, rb.bytes);
         let mut enc = self.disp.encoder();
-        let mut tiles_in_c = false;
         if total > 0 {
-            tiles_in_c = self.emit_and_sort(&mut enc, cam, n, total)?;
-            let lists = (visible, total, tiles_in_c);
-            self.blend_windows(&mut enc, cam, request, bands, n, lists)?;
+            self.emit_and_sort(&mut enc, cam, n, total)?;
+            self.blend_windows(&mut enc, cam, request, bands, n, (visible, total))?;
             self.copy_outputs(&mut enc, cam, request, bands, n, rb);
         }
         let (p, b) = (&self.pool, &self.bufs);
@@ -267,17 +263,18 @@ impl WgpuRasterizer {
             );
         }
         self.disp.submit(enc);
-        Ok(tiles_in_c)
+        Ok(())
     }
 
-    /// Emission windows, the stable tile sort and the tile ranges.
+    /// Emission windows, the stable tile sort, the tile ranges and the links (Gaussian ids in
+    /// tile-list order, list positions by emission index).
     fn emit_and_sort(
         &self,
         enc: &mut Encoder,
         cam: &CamParams,
         n32: u32,
         total: u32,
-    ) -> Result<bool> {
+    ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
         // No rectangle has more entries than there are tiles.
@@ -289,6 +286,7 @@ impl WgpuRasterizer {
                 p.whole(b.counts),
                 p.whole(b.keys_b),
                 p.whole(b.vals_b),
+                p.whole(b.isect_gid),
             ];
             let pass = PassUniform {
                 n: n32,
@@ -304,17 +302,19 @@ impl WgpuRasterizer {
         let tiles_in_c = self.sort.encode(d, enc, p, [bpair, cpair], total, bits)?;
         enc.encoder
             .clear_buffer(p.buffer(b.ranges), 0, Some(n_tiles * 8));
-        let tk = if tiles_in_c { b.keys_c } else { b.keys_b };
+        let (tk, tv) = if tiles_in_c { (b.keys_c, b.vals_c) } else { (b.keys_b, b.vals_b) };
         let pass = PassUniform {
             n: total,
             ..Default::default()
         };
         d.dispatch_1d(enc, &k.tile_ranges, &[p.whole(tk), p.whole(b.ranges)], pass)?;
-        Ok(tiles_in_c)
+        let links = [p.whole(tv), p.whole(b.isect_gid), p.whole(b.gids), p.whole(b.isect_pos)];
+        d.dispatch_1d(enc, &k.isect_link, &links, pass)?;
+        Ok(())
     }
 
     /// The forward blend, per band of tile rows and window of tile-list positions; `lists`
-    /// is (visible Gaussians, intersections, whether the tile lists are in the `c` buffers).
+    /// is (visible Gaussians, intersections).
     fn blend_windows(
         &self,
         enc: &mut Encoder,
@@ -322,7 +322,7 @@ impl WgpuRasterizer {
         request: &RenderRequest,
         bands: &[(u32, u32, u64, u64)],
         n: u32,
-        (visible, total, tiles_in_c): (usize, u32, bool),
+        (visible, total): (usize, u32),
     ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         if request.observed {
@@ -330,7 +330,6 @@ impl WgpuRasterizer {
             enc.encoder
                 .clear_buffer(p.buffer(b.observed), 0, Some(nn * 4 + 4));
         }
-        let tv = if tiles_in_c { b.vals_c } else { b.vals_b };
         // No tile list is longer than the visible Gaussians or the intersections.
         let longest = total.min(visible as u32).max(1);
         let windows = longest.div_ceil(FWD_WINDOW);
@@ -339,7 +338,7 @@ impl WgpuRasterizer {
                 d.make_room(enc, 1);
                 let binds = [
                     p.whole(b.ranges),
-                    p.whole(tv),
+                    p.whole(b.gids),
                     p.whole(b.splat),
                     p.range(b.acc, p0 * 32, bp * 32),
                     p.range(b.final_t, p0 * 4, bp * 4),

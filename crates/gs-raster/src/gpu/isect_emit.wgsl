@@ -1,5 +1,8 @@
-// Writes the (tile, Gaussian) pairs of each depth-sorted Gaussian at its scanned offset, so
-// that a stable sort by tile keeps every tile list in (depth, index) order.
+// Writes the (tile, emission index) pairs of each depth-sorted Gaussian at its scanned offset,
+// so that a stable sort by tile keeps every tile list in (depth, index) order, and the Gaussian
+// of each emission index. A Gaussian's intersections are the contiguous emission indices
+// [offsets[k], offsets[k + 1]) in row-major tile order: the fixed order in which `grad_reduce`
+// sums its per-intersection gradients.
 
 @compute @workgroup_size(256)
 fn isect_emit(ids: Ids) {
@@ -19,6 +22,7 @@ fn isect_emit(ids: Ids) {
     for (var j = pass_.shift; j < end; j++) {
         let o = offsets[k] + j;
         tile_keys[o] = (y0 + j / rw) * cam.tiles_x + x0 + j % rw;
-        tile_vals[o] = gid;
+        tile_vals[o] = o;
+        isect_gid[o] = gid;
     }
 }

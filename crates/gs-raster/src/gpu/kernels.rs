@@ -86,25 +86,32 @@ struct Spec<'a> {
     bindings: Vec<Binding<'a>>,
 }
 
-/// The storage-binding type of the gradient accumulators: native `atomic<f32>` or the u32
-/// compare-exchange fallback.
-fn gacc_type(native_atomics: bool) -> &'static str {
-    if native_atomics {
-        "array<atomic<f32>>"
-    } else {
-        "array<atomic<u32>>"
+gs_gpu::wgsl_struct! {
+    /// The screen-space gradient of one Gaussian (WGSL `struct ScreenGrad`): one tile's share
+    /// (a per-intersection partial of `raster_bwd`) or, summed over its tiles in a fixed
+    /// order by `grad_reduce`, the whole of it (read by `project_bwd`). 64 bytes.
+    pub(crate) struct ScreenGrad as "ScreenGrad" {
+        /// dL/d(x, y) of the projected centre, pixels.
+        mean2d: [f32; 2],
+        /// Σ |dL/dx|, Σ |dL/dy| over pixels (the densification statistic).
+        mean2d_abs: [f32; 2],
+        /// dL/d of the conic's a, b (the off-diagonal, counted once), c.
+        conic_a: f32,
+        conic_b: f32,
+        conic_c: f32,
+        /// dL/d opacity (after the sigmoid and antialiasing compensation).
+        opacity: f32,
+        /// dL/d of the blend channels 0..4: colour r, g, b and normal x.
+        channels_lo: [f32; 4],
+        /// dL/d of the blend channels 4..8: normal y, z, distance D, depth sum.
+        channels_hi: [f32; 4],
     }
 }
 
 /// Every kernel of the rasterizer (the scan and sort live in gs-gpu).
-fn specs(native_atomics: bool) -> Vec<Spec<'static>> {
+fn specs() -> Vec<Spec<'static>> {
     use Binding as B;
-    let (f, u, au) = ("array<f32>", "array<u32>", "array<atomic<u32>>");
-    let gacc = if native_atomics {
-        include_str!("gacc_native.wgsl")
-    } else {
-        include_str!("gacc_cas.wgsl")
-    };
+    let (f, u, au, sg) = ("array<f32>", "array<u32>", "array<atomic<u32>>", "array<ScreenGrad>");
     let spec = |entry, sources: &[&'static str], bindings: &[Binding<'static>]| Spec {
         entry,
         sources: sources.to_vec(),
@@ -132,7 +139,7 @@ fn specs(native_atomics: bool) -> Vec<Spec<'static>> {
                 B::read("params", f),
                 B::read("sh", f),
                 B::read("proj", u),
-                B::read("gacc", f),
+                B::read("gacc", sg),
                 B::write("gout", f),
             ],
         ),
@@ -157,12 +164,23 @@ fn specs(native_atomics: bool) -> Vec<Spec<'static>> {
                 B::read("offsets", u),
                 B::write("tile_keys", u),
                 B::write("tile_vals", u),
+                B::write("isect_gid", u),
             ],
         ),
         spec(
             "tile_ranges",
             &[include_str!("tile_ranges.wgsl")],
             &[B::read("tile_keys", u), B::write("ranges", u)],
+        ),
+        spec(
+            "isect_link",
+            &[include_str!("isect_link.wgsl")],
+            &[
+                B::read("eidx", u),
+                B::read("isect_gid", u),
+                B::write("gids", u),
+                B::write("isect_pos", u),
+            ],
         ),
         spec(
             "raster_fwd",
@@ -180,7 +198,7 @@ fn specs(native_atomics: bool) -> Vec<Spec<'static>> {
         ),
         spec(
             "raster_bwd",
-            &[include_str!("raster_bwd.wgsl"), gacc],
+            &[include_str!("raster_bwd.wgsl")],
             &[
                 B::read("ranges", u),
                 B::read("gids", u),
@@ -188,16 +206,28 @@ fn specs(native_atomics: bool) -> Vec<Spec<'static>> {
                 B::read("final_t", f),
                 B::read("last", u),
                 B::read("pixgrad", f),
-                B::write("gacc", gacc_type(native_atomics)),
+                B::write("partials", sg),
                 B::write("bstate", f),
+            ],
+        ),
+        spec(
+            "grad_reduce",
+            &[include_str!("grad_reduce.wgsl")],
+            &[
+                B::read("depth_ids", u),
+                B::read("offsets", u),
+                B::read("isect_pos", u),
+                B::read("partials", sg),
+                B::write("gacc", sg),
             ],
         ),
     ]
 }
 
-/// The full source list of a spec: the generated camera struct, common.wgsl, its own.
-fn sources<'a>(cam_decl: &'a str, spec: &Spec<'a>) -> Vec<&'a str> {
-    let mut s = vec![cam_decl, COMMON];
+/// The full source list of a spec: the generated camera and gradient structs, common.wgsl,
+/// its own.
+fn sources<'a>(decls: &'a str, spec: &Spec<'a>) -> Vec<&'a str> {
+    let mut s = vec![decls, COMMON];
     s.extend(spec.sources.iter().copied());
     s
 }
@@ -209,17 +239,24 @@ pub(crate) struct Kernels {
     pub isect_count: Kernel,
     pub isect_emit: Kernel,
     pub tile_ranges: Kernel,
+    pub isect_link: Kernel,
     pub raster_fwd: Kernel,
     pub raster_bwd: Kernel,
+    pub grad_reduce: Kernel,
+}
+
+/// The generated WGSL declarations every kernel starts with (`Cam`, `ScreenGrad`).
+fn decls() -> String {
+    CamUniform::wgsl_decl() + &ScreenGrad::wgsl_decl()
 }
 
 impl Kernels {
-    /// Compiles every kernel (gradient accumulation per the context's f32-atomics feature).
+    /// Compiles every kernel.
     pub fn new(ctx: &GpuContext) -> gs_gpu::Result<Self> {
-        let cam_decl = CamUniform::wgsl_decl();
-        let mut k = specs(ctx.native_f32_atomics())
+        let decls = decls();
+        let mut k = specs()
             .into_iter()
-            .map(|s| Kernel::new(ctx, s.entry, &sources(&cam_decl, &s), &s.bindings));
+            .map(|s| Kernel::new(ctx, s.entry, &sources(&decls, &s), &s.bindings));
         let mut next = || k.next().expect("one kernel per spec");
         Ok(Self {
             project: next()?,
@@ -227,8 +264,10 @@ impl Kernels {
             isect_count: next()?,
             isect_emit: next()?,
             tile_ranges: next()?,
+            isect_link: next()?,
             raster_fwd: next()?,
             raster_bwd: next()?,
+            grad_reduce: next()?,
         })
     }
 }
@@ -238,20 +277,20 @@ mod tests {
     use super::*;
     use gs_gpu::{PassUniform, check_layout, kernel_source};
 
-    /// Every kernel's full source (exactly what the device compiles) parses, and its `Cam`
-    /// and `Pass` structs have the Rust offsets and sizes (naga's layouter against
-    /// `offset_of!` / `size_of`), for both gradient-accumulation variants.
+    /// Every kernel's full source (exactly what the device compiles) parses, and its `Cam`,
+    /// `ScreenGrad` and `Pass` structs have the Rust offsets and sizes (naga's layouter
+    /// against `offset_of!` / `size_of`).
     #[test]
     fn host_and_wgsl_struct_layouts_agree_in_every_kernel() {
-        let cam_decl = CamUniform::wgsl_decl();
-        for native in [false, true] {
-            for s in specs(native) {
-                let src = kernel_source(&sources(&cam_decl, &s), &s.bindings);
-                check_layout::<CamUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-                check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            }
+        let decls = decls();
+        for s in specs() {
+            let src = kernel_source(&sources(&decls, &s), &s.bindings);
+            check_layout::<CamUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<ScreenGrad>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
         }
         assert_eq!(std::mem::size_of::<CamUniform>(), 144);
+        assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);
     }
 
     /// A field added to the WGSL side only (a hand-written `Cam`) is caught.

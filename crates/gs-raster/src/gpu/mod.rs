@@ -9,18 +9,21 @@
 //!    index order, so ties keep the CPU's (depth, index) order.
 //! 3. `isect_count` (tiles per sorted Gaussian + an exact 64-bit total) and its `scan`; the
 //!    totals are read back (8 + 4 bytes) to size the intersection buffers and check the cap.
-//! 4. `isect_emit` writes (tile, id) pairs in depth order, a stable radix sort on the tile key
-//!    (⌈log₂ tiles / 4⌉ passes) groups them per tile, `tile_ranges` finds each tile's list.
+//! 4. `isect_emit` writes (tile, emission index) pairs in depth order and each emission index's
+//!    Gaussian, a stable radix sort on the tile key (⌈log₂ tiles / 4⌉ passes) groups them per
+//!    tile, `tile_ranges` finds each tile's list, `isect_link` turns the sorted emission indices
+//!    into Gaussian ids (what the blends read) and records each emission index's list position.
 //! 5. `raster_fwd`: one workgroup per 16×16 tile, one thread per pixel, front to back; writes
 //!    the eight accumulators channel-planar, T_final, last contributor, observed counts and
 //!    the pair counters. Only the planes the request needs are read back.
 //!
 //! [`WgpuRasterizer::backward`] uploads the per-pixel channel gradients (folded on the host
 //! with the CPU code), runs `raster_bwd` (one workgroup of 128 threads per tile, reverse
-//! traversal, per-Gaussian workgroup reduction, one global atomic add per gradient component:
-//! native `atomic<f32>` when the adapter has `SHADER_FLOAT32_ATOMIC`, else a compare-exchange
-//! loop on `atomic<u32>`) and `project_bwd` (chunked like `project`), and reads back only the
-//! parameter gradients (SH only up to the active degree).
+//! traversal, per-Gaussian workgroup reduction written as that intersection's `ScreenGrad`
+//! partial), `grad_reduce` (per Gaussian, its partials summed in emission order) and
+//! `project_bwd` (chunked like `project`), and reads back only the parameter gradients (SH
+//! only up to the active degree). No float atomics anywhere: every sum has a fixed order, so
+//! the same inputs give the same bits on every run.
 //!
 //! The device context, buffer pool, dispatch, readback, prefix scan and radix sort come from
 //! gs-gpu; this module keeps the rasterizer's kernels (kernels.rs) and their orchestration
@@ -68,9 +71,6 @@ static NEXT_ID: AtomicU64 = AtomicU64::new(1);
 /// Options of [`WgpuRasterizer::with_options`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct WgpuOptions {
-    /// Use the u32 compare-exchange loop for gradient accumulation even when the adapter has
-    /// native f32 atomics (tests exercise both paths with it).
-    pub force_cas_atomics: bool,
     /// Refuse CPU (software) adapters such as lavapipe; `Backend::Auto` sets this.
     pub require_hardware: bool,
     /// Assume a smaller maximum storage-binding size than the adapter's (bytes; `None` = the
@@ -109,6 +109,9 @@ struct Buffers {
     vals_b: BufId,
     keys_c: BufId,
     vals_c: BufId,
+    isect_gid: BufId,
+    gids: BufId,
+    isect_pos: BufId,
     counts: BufId,
     counters: BufId,
     ranges: BufId,
@@ -118,6 +121,7 @@ struct Buffers {
     observed: BufId,
     pixgrad: BufId,
     bstate: BufId,
+    partials: BufId,
     gacc: BufId,
     gout: BufId,
     staging: BufId,
@@ -138,6 +142,9 @@ impl Buffers {
             vals_b: b("vals_b"),
             keys_c: b("keys_c"),
             vals_c: b("vals_c"),
+            isect_gid: b("isect_gid"),
+            gids: b("gids"),
+            isect_pos: b("isect_pos"),
             counts: b("counts"),
             counters: b("counters"),
             ranges: b("ranges"),
@@ -147,6 +154,7 @@ impl Buffers {
             observed: b("observed"),
             pixgrad: b("pixgrad"),
             bstate: b("bstate"),
+            partials: b("partials"),
             gacc: b("gacc"),
             gout: b("gout"),
             staging: pool.add_staging("staging"),
@@ -161,8 +169,6 @@ struct Frame {
     total: u32,
     /// Largest last-contributor count of any pixel (bounds the backward windows).
     max_last: u32,
-    /// Whether the tile-sorted intersections ended in the `c` pair (else `b`).
-    tiles_in_c: bool,
 }
 
 /// The wgpu rasterizer: created once (adapter, device, pipelines), then `render` /
@@ -211,7 +217,6 @@ impl std::fmt::Debug for WgpuRasterizer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("WgpuRasterizer")
             .field("adapter", &self.adapter_description())
-            .field("native_f32_atomics", &self.native_f32_atomics())
             .finish()
     }
 }
@@ -245,7 +250,8 @@ impl WgpuRasterizer {
     pub fn with_options(opts: WgpuOptions) -> Result<Self> {
         let ctx = GpuContext::new(&GpuOptions {
             require_hardware: opts.require_hardware,
-            disable_f32_atomics: opts.force_cas_atomics,
+            // No kernel uses float atomics (sums have a fixed order).
+            disable_f32_atomics: true,
             max_storage_binding: opts.max_storage_binding,
         })?;
         let kernels = Kernels::new(&ctx)?;
@@ -275,11 +281,6 @@ impl WgpuRasterizer {
     /// Whether the adapter is a CPU (software) implementation such as lavapipe.
     pub fn is_software(&self) -> bool {
         self.ctx.is_software()
-    }
-
-    /// Whether gradients accumulate with native f32 atomics (else the u32 CAS loop).
-    pub fn native_f32_atomics(&self) -> bool {
-        self.ctx.native_f32_atomics()
     }
 
     /// Where the latest render and backward spent their wall time (host clock): what the

@@ -1,5 +1,6 @@
 // Backward of the projection, one Gaussian per thread (chunked like `project`): reads the
-// accumulated 2D gradients (16 per Gaussian) and writes the parameter gradients.
+// summed screen-space gradients (`ScreenGrad`, per Gaussian) and writes the parameter
+// gradients.
 // Output record per Gaussian: mean (3), log-scale (3), quaternion (4), opacity logit (1),
 // mean2d (2, NDC), mean2d_abs (2, NDC), SH (3 * nc).
 
@@ -77,10 +78,15 @@ fn project_bwd(ids: Ids) {
     if (proj[i * 5u + 4u] == 0u) {
         return;
     }
-    var sg: array<f32, 16>;
+    let r = gacc[i];
+    var sg = array<f32, 16>(
+        r.mean2d.x, r.mean2d.y, r.conic_a, r.conic_b, r.conic_c, r.opacity,
+        r.channels_lo.x, r.channels_lo.y, r.channels_lo.z, r.channels_lo.w,
+        r.channels_hi.x, r.channels_hi.y, r.channels_hi.z, r.channels_hi.w,
+        r.mean2d_abs.x, r.mean2d_abs.y,
+    );
     var nonzero = false;
     for (var k = 0u; k < 16u; k++) {
-        sg[k] = gacc[i * 16u + k];
         nonzero = nonzero || sg[k] != 0.0;
     }
     if (!nonzero) {

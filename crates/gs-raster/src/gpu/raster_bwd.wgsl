@@ -1,8 +1,11 @@
 // Backward blend: one workgroup of 128 threads per 16x16 tile, each thread owning pixels
 // (x, y) and (x, y + 8). The tile list is walked back to front from the largest last
 // contributor (3DGS reverse traversal from T_final); per Gaussian the 16 gradient components
-// of the tile's pixels are reduced in workgroup memory and added to the global accumulators
-// with one atomic per component (native f32 atomics or a u32 compare-exchange loop).
+// of the tile's pixels are reduced in workgroup memory (in a fixed order) and written as the
+// `ScreenGrad` partial of that intersection, at its tile-list position; `grad_reduce` then
+// sums each Gaussian's partials in a fixed order. No float atomics: the result repeats bit
+// for bit. List positions at or beyond a tile's largest last contributor are never visited:
+// their partials stay as cleared (zeros).
 // Components: xy (0, 1), conic (2..5), opacity (5), features (6..14), |xy| (14, 15).
 //
 // Like the forward, the traversal runs in windows of list positions [pass_.shift, pass_.nb),
@@ -168,11 +171,23 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             for (var j = 0u; j < 8u; j++) {
                 s += red[li * 128u + j * 16u];
             }
-            if (s != 0.0) {
-                add_grad(gid * 16u + li, s);
-            }
+            red[li * 128u] = s;
         }
         workgroupBarrier();
+        // Only thread 0 writes red[c * 128] in the next iteration, so it may read the sums
+        // after the barrier without another one.
+        if (li == 0u) {
+            partials[start + k] = ScreenGrad(
+                vec2<f32>(red[0], red[128]),
+                vec2<f32>(red[14u * 128u], red[15u * 128u]),
+                red[2u * 128u],
+                red[3u * 128u],
+                red[4u * 128u],
+                red[5u * 128u],
+                vec4<f32>(red[6u * 128u], red[7u * 128u], red[8u * 128u], red[9u * 128u]),
+                vec4<f32>(red[10u * 128u], red[11u * 128u], red[12u * 128u], red[13u * 128u]),
+            );
+        }
     }
     for (var q = 0u; q < 2u; q++) {
         if (valid[q]) {

@@ -9,11 +9,7 @@ use gs_raster::{OutputGradients, WgpuOptions, WgpuRasterizer};
 pub fn gpu(opts: WgpuOptions) -> Option<WgpuRasterizer> {
     match WgpuRasterizer::with_options(opts) {
         Ok(r) => {
-            eprintln!(
-                "wgpu adapter: {} (native f32 atomics: {})",
-                r.adapter_description(),
-                r.native_f32_atomics()
-            );
+            eprintln!("wgpu adapter: {}", r.adapter_description());
             Some(r)
         }
         Err(e) => {
