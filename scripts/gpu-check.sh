@@ -73,6 +73,12 @@ if step raster 150 env GS_RASTER_WGPU_REPORT=1 GS_RASTER_CPU_REPORT=1 GS_RASTER_
   note ""; note "## Rasterizer, $size, SH degree 3 (ms per call; wgpu: mean of 5 after a warm-up, CPU: of 10)"
   grep -E "^(wgpu adapter|n=|wgpu n=)" "$OUT/raster.log" | sed 's/^/    /' >> "$summary"
 fi
+# The previous commit's bench beside it (gpu-pack.sh --baseline-bench), wgpu rows only.
+if [ -x "$B/raster-bench-baseline" ] && step raster_baseline 60 env GS_RASTER_WGPU_REPORT=1 \
+    GS_RASTER_BENCH_SIZE=$size GS_RASTER_BENCH_COUNTS=$counts "$B/raster-bench-baseline" --bench raster_wgpu; then
+  note ""; note "## Rasterizer, the baseline binary ($(cat .gpu/baseline 2>/dev/null)), same runs"
+  grep -E "^wgpu n=" "$OUT/raster_baseline.log" | sed 's/^/    /' >> "$summary"
+fi
 
 # train_job TAG BACKEND SCENE... : train + eval-images (+ mesh and eval-mesh for a GT mesh).
 train_job() {
@@ -87,7 +93,7 @@ train_job() {
       "$bin" eval-mesh --pred "$run/mesh.ply" --gt "$gt" --crop-to-gt 0.05 --min-z 0.005 --json > "$run/eval_mesh_out.json"
   fi
 }
-readme_need=150; bunny_need=260; [ "$smoke" = 1 ] && readme_need=20 && bunny_need=30
+readme_need=70; bunny_need=230; [ "$smoke" = 1 ] && readme_need=20 && bunny_need=30
 
 # 4. README job: wgpu twice, CPU once (and the baseline binary, when packed).
 step readme_wgpu_1 "$readme_need" train_job readme_wgpu_1 wgpu "$B/vagsl"

@@ -4,16 +4,19 @@
 # without its GT depth maps, and the Vulkan loader's Debian packages. Run it here, in the
 # repository root; it fills the ignored folders .gpu/ and .gl/, which travel with `carry`.
 #
-#   scripts/gpu-pack.sh [--baseline PATH_TO_OLD_VAGSL]
+#   scripts/gpu-pack.sh [--baseline PATH_TO_OLD_VAGSL] [--baseline-bench OLD_RASTER_BENCH NAME]
 #
 # --baseline also packs an older vagsl binary (.gpu/bin/vagsl-baseline): gpu-check then runs
-# the README job with it beside the new one on the same machine.
+# the README job with it beside the new one on the same machine. --baseline-bench packs an
+# older raster bench (plain or .gz, built from commit NAME): gpu-check runs its wgpu rows
+# right after the new ones, so a speed-up is a ratio measured on one machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-baseline=""
+baseline=""; bench_base=""; bench_name=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --baseline) baseline="$2"; shift 2 ;;
+    --baseline-bench) bench_base="$2"; bench_name="$3"; shift 3 ;;
     *) echo "gpu-pack: unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -37,6 +40,10 @@ strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
 [ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
+if [ -n "$bench_base" ]; then
+  case "$bench_base" in *.gz) gunzip -c "$bench_base" > .gpu/bin/raster-bench-baseline ;; *) strip -o .gpu/bin/raster-bench-baseline "$bench_base" ;; esac
+  echo "$bench_name" > .gpu/baseline
+fi
 gzip -f .gpu/bin/*   # the tree that travels is capped at 64 MiB: 35 -> 20 MB
 git rev-parse --short HEAD > .gpu/commit
 git status --porcelain --untracked-files=no | grep -q . && echo "+uncommitted" >> .gpu/commit
