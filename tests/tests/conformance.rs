@@ -1,13 +1,13 @@
 //! Conformance with the independent reference values of synth-bunny (issue 11):
 //! `shared/data/synth-bunny/reference/values.json`, computed by a PyTorch implementation of
-//! method-spec.md on maps built from the exact ground truth of view 0008 with sources 0007,
+//! docs/method.md on maps built from the exact ground truth of view 0008 with sources 0007,
 //! 0009 and 0027 (its README §1 describes the construction, §2 the edge rules, §6 the
 //! tolerances).
 //!
 //! The inputs are rebuilt exactly as README §1 says (GT normal → camera-space Ñ, D = −Ñ·x,
 //! A = 1, the sources' GT depths as their plane depths) and every value is computed through the
 //! public APIs of gs-core (source-view rule), gs-io (COLMAP, PNG, `.npy`, `.npz`), gs-losses,
-//! gs-mvs and gs-features — nothing here re-implements a formula of the spec.
+//! gs-mvs and gs-features — nothing here re-implements a formula of docs/method.md.
 //!
 //! Tolerances (README §6): the f64 kernels at its f64 recommendations (counts exact, |V| of L_p
 //! ±2, losses 1e-9 relative, gradient norms 1e-7, probes 1e-6 relative or 1e-12 absolute); the
@@ -252,7 +252,7 @@ fn inputs_and_source_views() {
     t.close("plane depth vs GT, max rel. error", max, num(&j["input_maps"]["z_plane_rel_err_vs_gt_with_1e-8"]["max"]), 1e-6, 0.0);
     t.close("plane depth vs GT, mean rel. error", mean_err, num(&j["input_maps"]["z_plane_rel_err_vs_gt_with_1e-8"]["mean"]), 1e-6, 0.0);
 
-    // Source views (method-spec §7) over all 40 views.
+    // Source views (docs/method.md §Schedule) over all 40 views.
     let cams: Vec<&Camera> = b.scene.views.iter().map(|v| &v.camera).collect();
     t.close("scene extent r_ext", scene_extent(&cams), num(&j["scene_extent_r"]), 1e-9, 0.0);
     let rule = NeighbourRule::default();
@@ -276,7 +276,7 @@ fn inputs_and_source_views() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Visibility and L_p (method-spec §5.4, §6)
+// Visibility and L_p (docs/method.md §L_p, §Visibility)
 // ---------------------------------------------------------------------------------------------
 
 struct Run<T> {
@@ -480,7 +480,7 @@ fn photometric_f32() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// L_f (method-spec §5.5) with VGG16 conv2_2 features
+// L_f (docs/method.md §L_f) with VGG16 conv2_2 features
 // ---------------------------------------------------------------------------------------------
 
 /// The network from the shared float32 `.npz` (the reference's weights, exactly).
@@ -653,7 +653,7 @@ fn feature_alignment_f32_trainer_path() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Single-view terms (method-spec §5.1–5.3)
+// Single-view terms (docs/method.md §L_I, §L_nc, §L_ns)
 // ---------------------------------------------------------------------------------------------
 
 /// Ĩ = the 5×5 box blur of I (replicate border) × 0.95 (README §2: the "rendered" image).

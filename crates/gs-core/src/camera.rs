@@ -4,7 +4,7 @@
 //! (`x_c = R·x_w + t`), looks along +z with x right and y down, and uses
 //! continuous pixel coordinates in which the centre of the top-left pixel is
 //! `(0.5, 0.5)`: pixel `(i, j)` (column `i`, row `j`) has its centre at
-//! `(i + 0.5, j + 0.5)` (design.md §2). Poses are kept in f64 so that scenes far
+//! `(i + 0.5, j + 0.5)` (docs/architecture.md §Conventions). Poses are kept in f64 so that scenes far
 //! from the origin keep their precision; hot paths take the f32 views.
 
 use crate::error::{CoreError, Result};
@@ -234,7 +234,7 @@ impl Camera {
     }
 
     /// Relative pose from this (reference) camera to `source`: `(R_rs, t_rs)` with
-    /// `R_rs = R_s R_rᵀ`, `t_rs = t_s − R_rs t_r`, so `x_s = R_rs x_r + t_rs` (method-spec §5.4).
+    /// `R_rs = R_s R_rᵀ`, `t_rs = t_s − R_rs t_r`, so `x_s = R_rs x_r + t_rs` (docs/method.md §L_p).
     pub fn relative_pose_to(&self, source: &Camera) -> (DMat3, DVec3) {
         let r_rs = source.rotation * self.rotation.transpose();
         let t_rs = source.translation - r_rs * self.translation;

@@ -1,4 +1,4 @@
-//! The scene extent r (method-spec §1): 1.1 × the largest distance of a camera centre from the
+//! The scene extent r (docs/method.md §Inputs): 1.1 × the largest distance of a camera centre from the
 //! mean centre, as 3DGS, made robust to bad input (issue #21, D5/D6).
 //!
 //! r scales the position learning rate and the densification thresholds, so one

@@ -3,7 +3,7 @@
 //! Parameters are stored raw (what the optimiser updates): means, log-scales, quaternions
 //! `(w, x, y, z)` (not necessarily normalised), opacity logits and SH coefficients
 //! `[N][16][3]` with the DC term first. Activations: `exp` for scales, `sigmoid` for opacity,
-//! normalisation for quaternions (design.md §2).
+//! normalisation for quaternions (docs/architecture.md §Conventions).
 
 use crate::error::{CoreError, Result};
 use crate::sh::{MAX_SH_DEGREE, SH_C0, SH_COEFFS};
@@ -202,7 +202,7 @@ impl Gaussians {
         m * m.transpose()
     }
 
-    /// Unoriented normal: the rotation axis of the smallest scale (method-spec §2); the caller
+    /// Unoriented normal: the rotation axis of the smallest scale (docs/method.md §Rendering); the caller
     /// flips it to face the camera.
     pub fn normal(&self, i: usize) -> Vec3 {
         let k = smallest_axis(self.log_scales[i]);

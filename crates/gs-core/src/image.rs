@@ -2,7 +2,7 @@
 //!
 //! Values are linear-in-file in `[0, 1]` (8-bit files read as value/255, no gamma
 //! conversion, as every 3DGS implementation does). Continuous coordinates follow the
-//! pixel-centre-at-0.5 convention of design.md §2.
+//! pixel-centre-at-0.5 convention of docs/architecture.md §Conventions.
 
 use crate::error::{CoreError, Result};
 

@@ -7,7 +7,7 @@
 use crate::error::{CoreError, Result};
 use rayon::prelude::*;
 
-/// Adam hyper-parameters shared by all groups (method-spec §3: β = (0.9, 0.999), ε = 1e-15).
+/// Adam hyper-parameters shared by all groups (docs/method.md §Parameters: β = (0.9, 0.999), ε = 1e-15).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AdamConfig {
     /// First-moment decay β1.

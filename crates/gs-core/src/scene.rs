@@ -2,7 +2,7 @@
 //!
 //! gs-io builds a [`Scene`] from a COLMAP model (undistorted to PINHOLE, optionally
 //! downscaled); gs-synth builds the built-in scene. The scene extent and the source-view
-//! candidates of method-spec §1 and §7 live here so every crate computes them the same way.
+//! candidates of docs/method.md §Inputs and §Schedule live here so every crate computes them the same way.
 
 use crate::camera::Camera;
 use crate::error::Result;
@@ -46,7 +46,7 @@ pub struct Scene {
     pub held_out: Option<Vec<String>>,
 }
 
-/// Parameters of the source-view candidate rule of method-spec §7.
+/// Parameters of the source-view candidate rule of docs/method.md §Schedule.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NeighbourRule {
     /// Maximum angle between optical axes, degrees (30).
@@ -98,7 +98,7 @@ impl Scene {
         self.views.iter().map(|v| &v.camera).collect()
     }
 
-    /// Scene extent r of method-spec §1, robust to outlier and coincident cameras
+    /// Scene extent r of docs/method.md §Inputs, robust to outlier and coincident cameras
     /// ([`crate::extent`]).
     pub fn extent(&self) -> f64 {
         self.extent_report().radius

@@ -2,7 +2,7 @@
 //! backward.
 //!
 //! Colour of a Gaussian seen along unit direction `d = (μ − C)/‖μ − C‖` is
-//! `c = Σ_k b_k(d)·sh_k + 0.5`, clamped at 0 (method-spec §2). [`sh_basis`] gives the `b_k`,
+//! `c = Σ_k b_k(d)·sh_k + 0.5`, clamped at 0 (docs/method.md §Rendering). [`sh_basis`] gives the `b_k`,
 //! [`sh_basis_jacobian`] their derivatives w.r.t. `d`, and [`eval_sh`] / [`eval_sh_backward`]
 //! the colour and its gradients w.r.t. the coefficients and the direction.
 
@@ -121,7 +121,7 @@ pub fn eval_sh_backward(
     (g_coeffs, g_dir)
 }
 
-/// Gaussian colour of method-spec §2: `max(eval_sh + 0.5, 0)` and, per channel, whether it
+/// Gaussian colour of docs/method.md §Rendering: `max(eval_sh + 0.5, 0)` and, per channel, whether it
 /// was clamped (the backward passes zero gradient there).
 pub fn sh_to_color(degree: u32, coeffs: &[[f32; 3]; SH_COEFFS], d: [f32; 3]) -> ([f32; 3], [bool; 3]) {
     let raw = eval_sh(degree, coeffs, d);

@@ -1,5 +1,5 @@
 //! Per-training-image feature cache: F = f(I) is computed once from the GT image and kept in
-//! memory for the whole run (method-spec §5.5).
+//! memory for the whole run (docs/method.md §L_f).
 //!
 //! Budget per 800×600 image: conv2_2 400·300·128·4 B = 61.4 MB in f32, 30.7 MB in f16;
 //! conv3_3 200·150·256·4 B = 30.7 MB (f16 15.4 MB). [`ExtractOptions::bytes_per_image`] gives
@@ -19,7 +19,7 @@ pub struct FeatureCache {
 
 impl FeatureCache {
     /// An empty cache for `views` views (nothing computed until asked: a map is only built when
-    /// L_f is active, design.md §5).
+    /// L_f is active, docs/architecture.md §Economy).
     pub fn new(views: usize, options: ExtractOptions) -> Self {
         Self { options, maps: vec![None; views] }
     }

@@ -1,4 +1,4 @@
-//! Feature maps F = f(I) (method-spec §5.5): `[H'][W'][C]` row-major, sampled bilinearly at
+//! Feature maps F = f(I) (docs/method.md §L_f): `[H'][W'][C]` row-major, sampled bilinearly at
 //! IMAGE pixel coordinates with the pixel-centre convention, with the gradient w.r.t. (u, v)
 //! that L_f needs to push the reprojected position p_s' (and so the plane depth z_r).
 
@@ -26,7 +26,7 @@ enum Storage {
 ///
 /// Feature pixel `k` covers image pixels `[stride·k, stride·(k+1))`; its centre sits at image
 /// coordinate `stride·(k + 0.5)`, i.e. feature coordinate `u / stride` with feature-pixel centres
-/// at `k + 0.5` — the same pixel-centre convention as images (design.md §2).
+/// at `k + 0.5` — the same pixel-centre convention as images (docs/architecture.md §Conventions).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FeatureMap {
     width: usize,
@@ -255,10 +255,10 @@ fn axis(f: f32, n: usize) -> (usize, usize, f32, bool) {
     (i0, (i0 + 1).min(n - 1), f - i, true)
 }
 
-/// The norm floor of method-spec §5.5: cos(a, b) = a·b / (max(‖a‖, ε)·max(‖b‖, ε)).
+/// The norm floor of docs/method.md §L_f: cos(a, b) = a·b / (max(‖a‖, ε)·max(‖b‖, ε)).
 pub const COSINE_EPS: f32 = 1e-8;
 
-/// cos(a, b) = a·b / (max(‖a‖, 1e-8)·max(‖b‖, 1e-8)) (method-spec §5.5), accumulated in f64.
+/// cos(a, b) = a·b / (max(‖a‖, 1e-8)·max(‖b‖, 1e-8)) (docs/method.md §L_f), accumulated in f64.
 pub fn cosine(a: &[f32], b: &[f32]) -> f32 {
     cosine_parts(a, b).0
 }

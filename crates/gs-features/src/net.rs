@@ -8,7 +8,7 @@ use crate::map::{FeatureMap, StoragePrecision};
 use crate::weights::VggWeights;
 use gs_core::Image;
 
-/// Which VGG16 activation serves as F (method-spec §5.5).
+/// Which VGG16 activation serves as F (docs/method.md §L_f).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FeatureLevel {

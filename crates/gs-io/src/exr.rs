@@ -1,6 +1,6 @@
 //! Float OpenEXR depth and normal maps (via the `exr` crate).
 //!
-//! Channel naming: a 1-channel [`Image`] (depth = camera z, design.md) is written as the single
+//! Channel naming: a 1-channel [`Image`] (depth = camera z, docs/architecture.md §Conventions) is written as the single
 //! f32 channel **`Z`** (the OpenEXR convention for depth); a 3-channel image (normals) as
 //! f32 `R G B`; a 4-channel image as `R G B A`. Compression: ZIP (lossless), one layer.
 //!

@@ -6,7 +6,7 @@
 //! too), `SCENE/images/<name>`
 //! (PNG/JPEG, 8- or 16-bit, grey or RGB(A); values / 255 or / 65535, no gamma; alpha dropped)
 //! and optional `SCENE/masks/<stem>.png`. Every image is undistorted to PINHOLE like
-//! `colmap image_undistorter` ([`crate::undistort`]), then downscaled (method-spec §1:
+//! `colmap image_undistorter` ([`crate::undistort`]), then downscaled (docs/method.md §Inputs:
 //! `-r 1|2|4|8`, a target width, or by default to at most 1600 px wide) with an area filter.
 //! Images are decoded in parallel with rayon.
 
@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 /// Default maximum width of the [`Resolution::Auto`] rule (3DGS/PGSR).
 pub const AUTO_MAX_WIDTH: u32 = 1600;
 
-/// Output resolution of the loaded views (method-spec §1).
+/// Output resolution of the loaded views (docs/method.md §Inputs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Resolution {
     /// Downscale images wider than [`AUTO_MAX_WIDTH`] to that width; keep smaller ones.

@@ -1,5 +1,5 @@
 //! PGSR's normalised image gradient ∇I, its backward, the edge term L1(∇Ĩ, ∇I) and the edge weight
-//! δ = (1 − ∇I)² (method-spec §5.1–5.2).
+//! δ = (1 − ∇I)² (docs/method.md §L_I, §L_nc).
 //!
 //! For interior pixels g = max(g_x, g_y) with g_x = mean_c |I(x+1,y) − I(x−1,y)| and g_y likewise
 //! vertically; then g ← (g − min)/(max − min + 1e-6) with min and max over the interior (treated

@@ -1,4 +1,4 @@
-//! The edge-aware image loss L_I = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L1(∇Ĩ, ∇I) (method-spec §5.1)
+//! The edge-aware image loss L_I = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L1(∇Ĩ, ∇I) (docs/method.md §L_I)
 //! over `gs_core::Image` buffers, and the per-view [`EdgeGuide`] (∇I and δ of the ground truth).
 
 use crate::error::{LossError, Result};
@@ -43,7 +43,7 @@ pub struct ImageLossConfig {
     pub beta1: f32,
     /// β2, weight of the edge term (paper: 0.03).
     pub beta2: f32,
-    /// Whether the edge term is on (off during the colour-only warm-up, method-spec §7).
+    /// Whether the edge term is on (off during the colour-only warm-up, docs/method.md §Schedule).
     pub edge: bool,
 }
 

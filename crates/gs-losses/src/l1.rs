@@ -1,4 +1,4 @@
-//! L1 = mean over pixels and channels of |Ĩ − I| (method-spec §5.1), with its backward.
+//! L1 = mean over pixels and channels of |Ĩ − I| (docs/method.md §L_I), with its backward.
 
 use crate::real::{Real, ordered_sum};
 use rayon::prelude::*;

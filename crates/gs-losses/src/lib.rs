@@ -3,8 +3,8 @@
 //! Every loss is a forward/backward pair over `gs_core::Image` buffers (row-major `[H][W][C]` f32):
 //!
 //! - [`image_loss`]: L_I = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L1(∇Ĩ, ∇I) and ∂L_I/∂Ĩ
-//!   (method-spec §5.1; SSIM with the 3DGS 11×11 Gaussian window, zero-padded statistics).
-//! - [`normal_losses`]: L_nc (§5.2) and L_ns (§5.3) from the plane depth z and the rendered
+//!   (docs/method.md §L_I; SSIM with the 3DGS 11×11 Gaussian window, zero-padded statistics).
+//! - [`normal_losses`]: L_nc (§L_nc) and L_ns (§L_ns) from the plane depth z and the rendered
 //!   normal Ñ, with ∂/∂z and ∂/∂Ñ (the caller chains ∂/∂z into Ñ and D).
 //! - [`EdgeGuide`]: ∇I and δ = (1 − ∇I)² of a ground-truth image, computed once per view.
 //! - Metrics: [`psnr`], [`ssim_metric`], [`Lpips`] (AlexNet, v0.1, bundled f16 weights).

@@ -1,5 +1,5 @@
 //! LPIPS (Zhang et al. 2018), AlexNet backbone, linear heads v0.1 — the image metric of
-//! method-spec §9.
+//! docs/method.md §Metrics.
 //!
 //! The weights (torchvision ImageNet AlexNet convs + LPIPS v0.1 heads, from
 //! `shared/weights/lpips_alex_v0.1.npz`) are bundled in `weights/lpips_alex_v0.1.f16.bin`: conv

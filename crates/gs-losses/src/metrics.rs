@@ -1,4 +1,4 @@
-//! Image metrics for evaluation (method-spec §9): PSNR and SSIM; LPIPS lives in [`crate::lpips`].
+//! Image metrics for evaluation (docs/method.md §Metrics): PSNR and SSIM; LPIPS lives in [`crate::lpips`].
 
 use crate::error::{LossError, Result};
 use crate::real::{Dims, ordered_sum};

@@ -1,11 +1,11 @@
-//! Depth normal N̂ from the plane depth (method-spec §5.2) and its backward into the depth map.
+//! Depth normal N̂ from the plane depth (docs/method.md §L_nc) and its backward into the depth map.
 //!
-//! P(i, j) = z(i, j)·K⁻¹(i + 0.5, j + 0.5, 1)ᵀ (pixel centres, design.md §2);
+//! P(i, j) = z(i, j)·K⁻¹(i + 0.5, j + 0.5, 1)ᵀ (pixel centres, docs/architecture.md §Conventions);
 //! N̂(i, j) = A(i, j) · normalise(cross(P(i+1, j) − P(i−1, j), P(i, j−1) − P(i, j+1))) with
 //! normalise(n) = n / max(‖n‖, 1e-12). With x right and y down (COLMAP), this cross product points
 //! towards the camera (negative z) for any surface seen from the front, so no flip is applied.
 //! N̂ = 0 on the image border. The alpha A is a constant (no gradient). Depth holes (z = 0) are
-//! not special-cased: they produce the literal spec value (and a zero normal where every
+//! not special-cased: they produce the formula's literal value (and a zero normal where every
 //! neighbour is 0).
 
 use crate::real::Real;

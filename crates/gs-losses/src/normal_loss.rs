@@ -1,4 +1,4 @@
-//! Edge-aware normal consistency L_nc (method-spec §5.2) and normal smoothing L_ns (§5.3), with
+//! Edge-aware normal consistency L_nc (docs/method.md §L_nc) and normal smoothing L_ns (§L_ns), with
 //! gradients into the rendered normal Ñ and, through the depth normal N̂, into the plane depth z.
 
 use crate::error::{LossError, Result};
@@ -11,7 +11,7 @@ use rayon::prelude::*;
 /// Direction of the L_ns gate on the rendered normals, `[‖Ñ_k − Ñ_p‖₁ ? τ]`.
 ///
 /// The paper writes the Iverson bracket without a comparison. [`NsGate::Above`] (the default,
-/// method-spec §5.3) acts where the rendered normals jump by more than τ; [`NsGate::Below`]
+/// docs/method.md §L_ns) acts where the rendered normals jump by more than τ; [`NsGate::Below`]
 /// (`--ns-gate below`) acts where they are already smooth (difference below τ).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -28,7 +28,7 @@ gs_core::named_choices!(NsGate, "L_ns gate", { NsGate::Above => "above", NsGate:
 /// Which neighbour pairs L_ns sums over.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum NsPairs {
-    /// Only pairs with both pixels off the image border (default, method-spec §5.3: N̂ is 0 on
+    /// Only pairs with both pixels off the image border (default, docs/method.md §L_ns: N̂ is 0 on
     /// the border by construction, so border pairs would add a spurious ‖N̂_k‖₁).
     #[default]
     Interior,

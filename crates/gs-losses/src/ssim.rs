@@ -1,4 +1,4 @@
-//! SSIM with the 3DGS window (11×11 Gaussian, σ = 1.5, C1 = 0.01², C2 = 0.03²; method-spec §5.1),
+//! SSIM with the 3DGS window (11×11 Gaussian, σ = 1.5, C1 = 0.01², C2 = 0.03²; docs/method.md §L_I),
 //! forward and analytic backward, computed with separable convolutions.
 //!
 //! **Border handling.** The local statistics μ, σ² and σ_12 are zero-padded 'same' convolutions,

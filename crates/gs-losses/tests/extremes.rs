@@ -1,4 +1,4 @@
-//! design.md §4 extremes: constant, saturated and 1×1 images, all-zero depth, NaN-free outputs,
+//! The extremes of docs/architecture.md §Extremes: constant, saturated and 1×1 images, all-zero depth, NaN-free outputs,
 //! and clear errors for invalid input.
 
 use gs_core::{Image, Intrinsics};
@@ -154,7 +154,7 @@ fn metrics_definitions() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: 4000×3000 images")]
 fn losses_finite_at_4000x3000() {
-    // design.md §4.5: the largest image size, a saturated/textured pair and a tilted plane.
+    // docs/architecture.md §Extremes (5): the largest image size, a saturated/textured pair and a tilted plane.
     let (w, h) = (4000, 3000);
     let r = Image::from_vec(w, h, 3, (0..w * h * 3).map(|i| ((i * 31) % 97) as f32 / 96.0).collect()).unwrap();
     let g = Image::from_vec(w, h, 3, (0..w * h * 3).map(|i| ((i / 3) % 2) as f32).collect()).unwrap();

@@ -1,4 +1,4 @@
-//! Multi-view feature alignment L_f (method-spec §5.5): sampling, cosine and backward, against
+//! Multi-view feature alignment L_f (docs/method.md §L_f): sampling, cosine and backward, against
 //! the [`FeatureMaps`] trait (implemented here for gs-features' VGG maps and for
 //! [`GridFeatureMaps`]; tests use synthetic ones).
 //!
@@ -237,7 +237,7 @@ fn check_inputs<T: Real>(
     Ok(())
 }
 
-/// L_f over `sources` with υ and ω computed from the plane depths (method-spec §5.5, §6).
+/// L_f over `sources` with υ and ω computed from the plane depths (docs/method.md §L_f, §Visibility).
 pub fn feature_loss<T: Real>(
     reference: &FeatureReference<'_, T>,
     sources: &[FeatureSource<'_, T>],

@@ -1,5 +1,5 @@
 //! Shared geometry: map views, the bilinear sampling convention, the reference→source pose and
-//! the per-pixel plane homography H_rs = K_s (R_rs − t_rs Ñᵀ/D) K_r⁻¹ (method-spec §5.4).
+//! the per-pixel plane homography H_rs = K_s (R_rs − t_rs Ñᵀ/D) K_r⁻¹ (docs/method.md §L_p).
 
 use crate::error::{MvsError, Result};
 use crate::real::Real;
@@ -103,7 +103,7 @@ pub fn sample_bilinear<T: Real>(data: &[T], width: usize, height: usize, u: T, v
     sample_bilinear_grad(data, width, height, u, v).0
 }
 
-/// The plane-induced homography H_rs = K_s (R_rs − t_rs nᵀ/d) K_r⁻¹ of method-spec §5.4 for a
+/// The plane-induced homography H_rs = K_s (R_rs − t_rs nᵀ/d) K_r⁻¹ of docs/method.md §L_p for a
 /// plane `{x : n·x + d = 0}` in reference-camera coordinates (rendered normal Ñ, unnormalised,
 /// and rendered distance D = −Ñ·x). It maps homogeneous reference pixels `(u, v, 1)` to
 /// homogeneous source pixels.

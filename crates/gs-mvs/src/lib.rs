@@ -1,11 +1,11 @@
 //! # gs-mvs
 //!
-//! The VA-GS multi-view terms (method-spec §5.4, §5.5, §6): the photometric alignment L_p
+//! The VA-GS multi-view terms (docs/method.md §L_p, §L_f, §Visibility): the photometric alignment L_p
 //! (per-pixel plane homography, 7×7 NCC on grey GT images, weighted by the visibility υ and the
 //! occlusion weight ω, averaged per source, **summed** over sources) and the feature alignment
 //! L_f (cosine of feature vectors at reprojected points, **averaged** over sources), each with
 //! its exact backward pass into the reference view's rendered maps (Ñ, D for L_p; plane depth
-//! z for L_f). Source views are chosen per §7 by [`SourceViewSelector`]. The loss weights
+//! z for L_f). Source views are chosen per docs/method.md §Schedule by [`SourceViewSelector`]. The loss weights
 //! λ3 = 0.15 and λ4 = 1.0 are applied by the caller.
 //!
 //! All kernels are generic over [`Real`] (`f32` for training, `f64` for gradient checks and

@@ -1,4 +1,4 @@
-//! Multi-view photometric alignment L_p (method-spec §5.4) with its exact backward pass.
+//! Multi-view photometric alignment L_p (docs/method.md §L_p) with its exact backward pass.
 //!
 //! For every reference pixel p_r whose whole patch lies inside the reference image and whose
 //! weight υ_rs·ω is positive, the patch of the grey GT reference image (exact pixel values) is
@@ -236,7 +236,7 @@ fn patch_geometry<T: Real>(
     Ok((PairGeometry::new(&up(reference.camera, sr)?, &up(source.camera, ss)?), sr))
 }
 
-/// L_p over `sources` with υ and ω computed from the plane depths (method-spec §5.4, §6).
+/// L_p over `sources` with υ and ω computed from the plane depths (docs/method.md §L_p, §Visibility).
 /// An empty source list gives L_p = 0 and zero gradients (views with no neighbours).
 pub fn photometric_loss<T: Real>(
     reference: &PhotometricReference<'_, T>,

@@ -1,4 +1,4 @@
-//! Source-view selection (method-spec §7): candidates per view precomputed once with
+//! Source-view selection (docs/method.md §Schedule): candidates per view precomputed once with
 //! [`gs_core::source_view_candidates`] (axis within 30°, centre distance in (0.01·r, 1.5·r),
 //! nearest 8), then N = 3 per iteration, top-N or random-N (seeded).
 
@@ -8,7 +8,7 @@ use gs_core::{Camera, NeighbourRule, Rng, source_view_candidates};
 /// How the N source views are drawn from a view's candidates each iteration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SourceSelection {
-    /// N distinct candidates at random (seeded) — method-spec §7's default.
+    /// N distinct candidates at random (seeded) — the default of docs/method.md §Schedule.
     #[default]
     RandomN,
     /// The N nearest candidates (by centre distance), every iteration.

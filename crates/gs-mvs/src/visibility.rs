@@ -1,4 +1,4 @@
-//! Visibility υ_rs and occlusion weight ω (method-spec §6), shared by L_p and L_f.
+//! Visibility υ_rs and occlusion weight ω (docs/method.md §Visibility), shared by L_p and L_f.
 //!
 //! For a reference pixel p_r with plane depth z_r: x_r = z_r·K_r⁻¹p̄_r, p_s' = π(K_s(R_rs x_r +
 //! t_rs)). υ = 1 iff z_r > 0, the source-camera z is > 0 and 0 < p_s' < (W_s, H_s) (all strict).
@@ -122,7 +122,7 @@ pub(crate) fn visibility_at<T: Real>(
 }
 
 /// Computes υ_rs and ω for every reference pixel from the reference plane depth `z_r` and the
-/// source's rendered plane depth (method-spec §6). Maps must match their cameras' sizes
+/// source's rendered plane depth (docs/method.md §Visibility). Maps must match their cameras' sizes
 /// (1 channel each). Deterministic and parallel over rows.
 pub fn compute_visibility<T: Real>(
     reference: &Camera,

@@ -1,4 +1,4 @@
-//! υ/ω on a scene with a known occluder, and the extremes of design.md §4 for L_p.
+//! υ/ω on a scene with a known occluder, and the extremes of docs/architecture.md §Extremes for L_p.
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Image, Intrinsics, NeighbourRule, Rng};

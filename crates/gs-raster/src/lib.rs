@@ -2,7 +2,7 @@
 //!
 //! The differentiable 3D Gaussian splatting tile rasterizer of vagsl (CPU backend, plus a wgpu
 //! backend behind the default `wgpu` feature), with the
-//! PGSR / VA-GS geometry channels of method-spec §2: colour, accumulated alpha A, rendered
+//! PGSR / VA-GS geometry channels of docs/method.md §Rendering: colour, accumulated alpha A, rendered
 //! camera-space normal Ñ, rendered distance D, unbiased plane depth z = D / (−Ñ·K⁻¹p̄),
 //! expected depth, per-Gaussian radii and "observed" counts — and the exact backward of all of
 //! them into means, log-scales, quaternions, opacity logits and SH coefficients, plus the
@@ -52,8 +52,8 @@
 //!   the CPU otherwise. Built without the feature, `Backend::Wgpu` is a
 //!   [`RasterError::BackendUnavailable`] error and `auto` is the CPU.
 //!
-//! ## Conventions (one choice per row of rasterizer-anchors.md §0)
-//! - Pixel (i, j) is blended at its centre (i + 0.5, j + 0.5) (design.md §2).
+//! ## Conventions (one choice per row of the table in docs/method.md §Rendering)
+//! - Pixel (i, j) is blended at its centre (i + 0.5, j + 0.5) (docs/architecture.md §Conventions).
 //! - α = min(0.99, o·G); α < 1/255 skipped (tested as σ > ln(o·255), the identical decision
 //!   everywhere); a pixel stops when T·(1−α) < 1e-4 and that Gaussian is not blended; the
 //!   gradient through the 0.99 cap is zero (gsplat). Near 0.01, far 1e10, t_z ≤ near culled.

@@ -1267,12 +1267,12 @@ fn cloud(n: usize, seed: u64) -> Gaussians {
 #[cfg_attr(debug_assertions, ignore = "release only: 4000×3000 and 2 million Gaussians")]
 fn extremes_4000x3000_image_and_two_million_gaussians() {
     let cfg = RasterConfig::default();
-    // design.md §4.5: a 4000×3000 image, every channel, forward and backward.
+    // docs/architecture.md §Extremes (5): a 4000×3000 image, every channel, forward and backward.
     let big = camera(4000, 3000, 3500.0);
     let out = render_and_backward_finite(&cloud(20_000, 91), &big, &cfg);
     assert_eq!(out.color.as_ref().unwrap().width(), 4000);
     assert!(out.stats.visible > 10_000, "{:?}", out.stats);
-    // design.md §4.6: 2 million Gaussians at 640×480, every channel, forward and backward.
+    // docs/architecture.md §Extremes (6): 2 million Gaussians at 640×480, every channel, forward and backward.
     let cam = camera(640, 480, 560.0);
     let many = cloud(2_000_000, 92);
     let out = render_and_backward_finite(&many, &cam, &cfg);

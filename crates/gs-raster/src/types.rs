@@ -59,7 +59,7 @@ pub type Result<T> = std::result::Result<T, RasterError>;
 /// Rasterizer settings; the same values must be passed to [`render`](crate::render) and [`backward`](crate::backward).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RasterConfig {
-    /// Near plane: Gaussians with camera z ≤ near are culled (method-spec §2: 0.01).
+    /// Near plane: Gaussians with camera z ≤ near are culled (docs/method.md §Rendering: 0.01).
     pub near: f32,
     /// Far plane: camera z > far is culled.
     pub far: f32,

@@ -248,7 +248,7 @@ fn parity_across_projection_chunks_and_long_tile_lists() {
     parity(&mut r, "long list", &g, &cam, &cfg);
 }
 
-/// design.md §4 extremes (scales, quaternions, opacities, positions, edge-on planes, one
+/// The extremes of docs/architecture.md §Extremes (scales, quaternions, opacities, positions, edge-on planes, one
 /// Gaussian) mixed into an ordinary scene: same outputs and gradients, all finite.
 #[test]
 fn parity_design_md_extremes() {

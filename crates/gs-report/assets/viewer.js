@@ -1,6 +1,6 @@
 // vagsl report viewer: WebGL2 renderer of the trained Gaussians and of the mesh.
 //
-// It draws a scene view the way gs-raster does (method-spec §2): camera-space mean
+// It draws a scene view the way gs-raster does (docs/method.md §Rendering): camera-space mean
 // t = R μ + t_c, culled at z ≤ 0.01; Σ' = J R Σ Rᵀ Jᵀ + 0.3 px² with t_x/t_z and t_y/t_z
 // clamped to ±1.3·tan(fov/2); α = min(0.99, o·exp(−½ dᵀΣ'⁻¹d)), skipped below 1/255; colour
 // max(SH(d) + 0.5, 0) along d = (μ − C)/‖μ − C‖; blended in depth order over the background.

@@ -31,7 +31,7 @@ fn b64_u32(v: &[u32]) -> String {
 }
 
 /// The splats as the viewer reads them: per Gaussian the mean, activated opacity and world
-/// covariance Σ = R S Sᵀ Rᵀ (method-spec §2), and the SH coefficients up to the model's degree.
+/// covariance Σ = R S Sᵀ Rᵀ (docs/method.md §Rendering), and the SH coefficients up to the model's degree.
 #[derive(Debug, Clone, Serialize)]
 pub struct SplatData {
     /// Number of Gaussians.

@@ -19,7 +19,7 @@ const PAGE: &str = include_str!("../assets/page.js");
 /// JPEG quality of the view images (visually lossless at this size).
 const JPEG_QUALITY: u8 = 92;
 
-/// Image scores of one view (method-spec §9).
+/// Image scores of one view (docs/method.md §Metrics).
 #[derive(Debug, Clone, Serialize)]
 pub struct ViewScores {
     /// PSNR, dB.

@@ -603,7 +603,7 @@ fn closest_on_segment(a: DVec3, b: DVec3, p: DVec3) -> DVec3 {
 
 /// The world-space ray through continuous pixel coordinates `(u, v)` of `camera`:
 /// `(origin = C, direction = Rᵀ K⁻¹ (u, v, 1)ᵀ)`. The direction's camera-space z is 1, so the
-/// ray parameter of a hit is its camera-space depth z (design.md §2).
+/// ray parameter of a hit is its camera-space depth z (docs/architecture.md §Conventions).
 pub fn pixel_ray(camera: &Camera, u: f64, v: f64) -> (DVec3, DVec3) {
     (
         camera.center(),

@@ -1,6 +1,6 @@
 //! Time of one training iteration on synth-bunny (480×360, 35 training views), initialised
 //! from its 7,000 SfM points: the colour warm-up (L1 + D-SSIM, comparable to plain 3DGS and
-//! to OpenSplat's 0.39 s/iteration at 7k Gaussians, design.md §6), the L_p phase (edge, L_nc,
+//! to OpenSplat's 0.39 s/iteration at 7k Gaussians, docs/architecture.md §Targets), the L_p phase (edge, L_nc,
 //! L_ns, L_p with 3 source renders) and the L_f phase (VGG features cached beforehand).
 //! Densification is off so the Gaussian count stays fixed. Needs ../shared/data/synth-bunny.
 

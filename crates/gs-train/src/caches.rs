@@ -1,6 +1,6 @@
 //! Per-view data derived once from the training photographs and reused every time a view is
-//! the reference or a source: the edge guide (∇I, δ; method-spec §5.1–5.3), the grey image of
-//! L_p (§5.4) and the VGG16 feature map F of L_f (§5.5). Built lazily, indexed by training slot.
+//! the reference or a source: the edge guide (∇I, δ; docs/method.md §L_I, §L_nc, §L_ns), the grey image of
+//! L_p (§L_p) and the VGG16 feature map F of L_f (§L_f). Built lazily, indexed by training slot.
 
 use crate::error::{Result, TrainError};
 use gs_core::{Image, Scene};

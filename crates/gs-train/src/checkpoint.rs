@@ -1,4 +1,4 @@
-//! Versioned, checksummed training checkpoints (design.md §3): the configuration (JSON), the
+//! Versioned, checksummed training checkpoints (docs/architecture.md §Errors): the configuration (JSON), the
 //! Gaussians, the Adam moments, the densification statistics, the exposure corrections, the
 //! wall time spent so far and the memo of source-view plane depths, little-endian, followed by
 //! a CRC-32 of everything before it. Written atomically (temporary file + rename).

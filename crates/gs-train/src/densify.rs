@@ -1,4 +1,4 @@
-//! Adaptive density control (method-spec §4, PGSR/AbsGS): screen-space gradient statistics,
+//! Adaptive density control (docs/method.md §Densification, PGSR/AbsGS): screen-space gradient statistics,
 //! clone / split / prune, opacity reset and the multi-view trim, applied to the Gaussians and
 //! the optimiser's moments together so rows never fall out of step.
 

@@ -1,4 +1,4 @@
-//! Image metrics of a trained model on chosen views (method-spec §9): PSNR, SSIM and
+//! Image metrics of a trained model on chosen views (docs/method.md §Metrics): PSNR, SSIM and
 //! LPIPS-alex, on whole images or on the object inside each view's mask.
 
 use crate::error::{Result, TrainError};
@@ -15,7 +15,7 @@ pub struct ViewMetrics {
     pub name: String,
     /// PSNR, dB.
     pub psnr: f64,
-    /// SSIM (method-spec §5.1 window).
+    /// SSIM (the window of docs/method.md §L_I).
     pub ssim: f64,
     /// LPIPS-alex v0.1 (when computed).
     pub lpips: Option<f64>,

@@ -5,7 +5,7 @@
 //! Training views do not remove it on their own: where it is faint, the images barely change,
 //! and where it is outside every training frustum, no gradient reaches it. A held-out view
 //! looking through it sees a veil. The rule reasons about free space from the training views'
-//! own renders (rendered plane depth D and alpha A of method-spec §2):
+//! own renders (rendered plane depth D and alpha A of docs/method.md §Rendering):
 //!
 //! - For Gaussian i with centre μᵢ and training view v where μᵢ projects inside the image in
 //!   front of the near plane, at depth z, onto a pixel that renders a surface (A ≥ `min_alpha`,

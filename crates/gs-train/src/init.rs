@@ -1,4 +1,4 @@
-//! Initial Gaussians (method-spec §3): from the sparse SfM points with the 3DGS k-nearest-
+//! Initial Gaussians (docs/method.md §Parameters): from the sparse SfM points with the 3DGS k-nearest-
 //! neighbour scale, or random points in the cameras' bounding cube / on an enclosing sphere.
 
 use crate::config::InitMode;
@@ -12,7 +12,7 @@ use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use rayon::prelude::*;
 use std::num::NonZero;
 
-/// Initial opacity of every Gaussian (method-spec §3).
+/// Initial opacity of every Gaussian (docs/method.md §Parameters).
 pub const INITIAL_OPACITY: f32 = 0.1;
 /// Floor of the squared kNN distance (3DGS `clamp_min(dist2, 1e-7)`).
 pub const MIN_SQUARED_DISTANCE: f64 = 1e-7;

@@ -1,6 +1,6 @@
 //! # gs-train
 //!
-//! The VA-GS training pipeline (method-spec §3–§8) composed from the vagsl crates. The data
+//! The VA-GS training pipeline (docs/method.md §Parameters to §TSDF) composed from the vagsl crates. The data
 //! path of one iteration:
 //!
 //! 1. [`plan`]: a pure [`StepPlan`] from the [`TrainConfig`] and the iteration — view, source

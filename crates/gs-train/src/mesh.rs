@@ -1,4 +1,4 @@
-//! Surface extraction (method-spec §8), one path for every depth source: depth maps (a trained
+//! Surface extraction (docs/method.md §TSDF), one path for every depth source: depth maps (a trained
 //! model's rendered plane depths, or given maps such as ground truth) are fused into a TSDF,
 //! marching cubes extracts the surface and the clean-up keeps the components ≥ 50 triangles
 //! (or the largest). One default-voxel rule ([`default_voxel`]): the world size of one pixel
@@ -25,7 +25,7 @@ pub struct MeshOptions {
     /// Rendered plane depths where the rendered alpha is below this are not fused.
     pub min_alpha: f32,
     /// Optional single-view filter: drop depths whose depth normal is more than this many
-    /// degrees from the viewing ray (method-spec §8: 80).
+    /// degrees from the viewing ray (docs/method.md §TSDF: 80).
     pub max_normal_angle_deg: Option<f64>,
     /// Keep only the largest connected component (else every component ≥ 50 triangles).
     pub largest_component_only: bool,

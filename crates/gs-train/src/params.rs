@@ -1,4 +1,4 @@
-//! The typed layout of the trained parameters (method-spec §3): which per-Gaussian arrays Adam
+//! The typed layout of the trained parameters (docs/method.md §Parameters): which per-Gaussian arrays Adam
 //! optimises, their row widths and learning rates. The optimiser (gs-core's [`Adam`]) keys
 //! its groups by name; every name comes from [`Param::name`] here (checkpoints store them).
 

@@ -1,5 +1,5 @@
 //! The step plan: a pure function of the configuration, the split and the iteration that says
-//! what one iteration does (method-spec §7) — which view, which source views, which channels
+//! what one iteration does (docs/method.md §Schedule) — which view, which source views, which channels
 //! to render, which loss terms with which weights, the means' learning rate, and which density
 //! control runs after it. An executor carries it out ([`crate::Trainer::step`] on the CPU
 //! reference path); the plan itself touches no state, so it can be inspected and tested alone.
@@ -20,7 +20,7 @@ use gs_raster::RenderRequest;
 const STREAM_VIEW_ORDER: u64 = 1 << 40;
 const STREAM_ITERATION: u64 = 2 << 40;
 
-/// Which density control (method-spec §4) runs after the iteration.
+/// Which density control (docs/method.md §Densification) runs after the iteration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RefinePlan {
     /// Accumulate this view's screen-space gradients into the densification statistics.

@@ -1,4 +1,4 @@
-//! Density control (method-spec §4) as its own call after a step, as brush separates `step`
+//! Density control (docs/method.md §Densification) as its own call after a step, as brush separates `step`
 //! and `refine`: clone / split / prune on the accumulated statistics, opacity reset and the
 //! multi-view trim, each when the [`StepPlan`] says so.
 

@@ -1,4 +1,4 @@
-//! The SH degree of each iteration (method-spec §3): the paper's schedule, or under
+//! The SH degree of each iteration (docs/method.md §Parameters): the paper's schedule, or under
 //! [`ShPolicy::Adaptive`] only while the newest band pays on the training views.
 
 use crate::config::ShPolicy;

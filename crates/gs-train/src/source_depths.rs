@@ -1,4 +1,4 @@
-//! Source-view plane depths of L_p and L_f (method-spec §6): the visibility υ_rs and weight ω
+//! Source-view plane depths of L_p and L_f (docs/method.md §Visibility): the visibility υ_rs and weight ω
 //! of a reference pixel need the source view's rendered plane depth D_s, which carries no
 //! gradient. Rendering it for every source of every iteration costs N forward passes per
 //! iteration (3 in `standard`, about a quarter of an L_p iteration at full resolution). Every

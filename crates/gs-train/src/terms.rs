@@ -1,4 +1,4 @@
-//! The loss-term contract (method-spec §5): every term of L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p
+//! The loss-term contract (docs/method.md §Losses): every term of L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p
 //! + λ4·L_f reads the rendered view, records its unweighted value(s) in [`LossValues`] and adds
 //! its weighted gradient into the renderer's output-gradient buffers ([`GradientBuffers`]).
 //! The weights come from one place (the [`LossWeights`] of the step plan: the configuration's,

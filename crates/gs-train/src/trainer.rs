@@ -1,4 +1,4 @@
-//! The VA-GS training driver (method-spec §3–§7): [`Trainer::step`] plans an iteration
+//! The VA-GS training driver (docs/method.md §Parameters to §Schedule): [`Trainer::step`] plans an iteration
 //! ([`crate::plan`]), sets the SH degree ([`crate::sh_policy`]), executes the plan
 //! ([`Trainer::execute`]: render, loss terms, backward, Adam) and then runs the density control
 //! ([`Trainer::refine`]).
@@ -138,7 +138,7 @@ fn check_state(config: &TrainConfig, state: &TrainState, views: usize) -> Result
 }
 
 impl<'s> Trainer<'s> {
-    /// A fresh run: initial Gaussians from the scene (method-spec §3), one optimiser group per
+    /// A fresh run: initial Gaussians from the scene (docs/method.md §Parameters), one optimiser group per
     /// [`crate::Param`], empty statistics. `train_views` index `scene.views`.
     pub fn new(scene: &'s Scene, train_views: Vec<usize>, config: TrainConfig) -> Result<Self> {
         config.validate()?;

@@ -118,7 +118,7 @@ pub fn filter_components(mesh: &TriangleMesh, filter: ComponentFilter) -> Result
     Ok(remove_unreferenced_vertices(&TriangleMesh { triangles, ..mesh.clone() }))
 }
 
-/// The standard clean-up after marching cubes (method-spec §8): keep the components selected by
+/// The standard clean-up after marching cubes (docs/method.md §TSDF): keep the components selected by
 /// `filter`, then drop degenerate triangles and unreferenced vertices.
 pub fn clean_mesh(mesh: &TriangleMesh, filter: ComponentFilter) -> Result<TriangleMesh> {
     Ok(remove_unreferenced_vertices(&remove_degenerate_triangles(&filter_components(mesh, filter)?)))

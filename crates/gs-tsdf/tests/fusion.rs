@@ -1,5 +1,5 @@
 //! Fusion + marching cubes on analytic scenes: geometry, topology, orientation, determinism
-//! and the extremes of design.md §4.
+//! and the extremes of docs/architecture.md §Extremes.
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Image, Intrinsics, TriangleMesh};

@@ -1,4 +1,4 @@
-//! `vagsl eval-images`: PSNR / SSIM / LPIPS of a run's held-out views (method-spec §9).
+//! `vagsl eval-images`: PSNR / SSIM / LPIPS of a run's held-out views (docs/method.md §Metrics).
 
 use crate::run_dir::{OpenRun, write_json};
 use anyhow::Result;

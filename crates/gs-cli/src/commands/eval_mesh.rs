@@ -1,5 +1,5 @@
 //! `vagsl eval-mesh`: accuracy, completeness, Chamfer and F1 of a mesh against a ground truth
-//! (method-spec §9), with area-weighted sampling and kd-tree distances (gs-tsdf).
+//! (docs/method.md §Metrics), with area-weighted sampling and kd-tree distances (gs-tsdf).
 
 use anyhow::{Context, Result, bail};
 use gs_core::TriangleMesh;

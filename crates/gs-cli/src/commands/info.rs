@@ -22,7 +22,7 @@ pub struct ModelCount {
     pub example_params: Vec<f64>,
 }
 
-/// Source-view neighbour statistics (method-spec §7 candidate rule).
+/// Source-view neighbour statistics (the candidate rule of docs/method.md §Schedule).
 #[derive(Debug, Serialize)]
 pub struct NeighbourStats {
     /// Fewest candidates of a view.

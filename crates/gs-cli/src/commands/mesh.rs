@@ -1,4 +1,4 @@
-//! `vagsl mesh`: TSDF fusion of a trained run's rendered plane depths (method-spec §8).
+//! `vagsl mesh`: TSDF fusion of a trained run's rendered plane depths (docs/method.md §TSDF).
 
 use crate::run_dir::{OpenRun, SceneSource, load_scene, write_json};
 use anyhow::{Result, bail};

@@ -78,7 +78,7 @@ fn mesh_shaded(bvh: &gs_synth::Bvh, camera: &gs_core::Camera) -> Result<Image> {
     Ok(out)
 }
 
-/// World-space normal map encoded (n + 1)/2 (design.md §2), 0 where nothing was rendered.
+/// World-space normal map encoded (n + 1)/2 (docs/architecture.md §Conventions), 0 where nothing was rendered.
 pub(crate) fn world_normal_png(camera: &gs_core::Camera, normal: &Image) -> Result<Image> {
     let r_t = camera.rotation.transpose();
     let mut out = Image::new(normal.width(), normal.height(), 3)?;

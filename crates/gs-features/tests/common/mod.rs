@@ -14,7 +14,7 @@ pub fn fixture(name: &str) -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures")).join(name)
 }
 
-/// An 8-bit RGB PNG as value/255 (design.md §2, no gamma conversion).
+/// An 8-bit RGB PNG as value/255 (docs/architecture.md §Conventions, no gamma conversion).
 pub fn load_rgb(path: &std::path::Path) -> Image {
     let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgb8();
     let (w, h) = img.dimensions();

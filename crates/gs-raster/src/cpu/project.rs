@@ -1,4 +1,4 @@
-//! Per-Gaussian projection (EWA splatting, method-spec §2) and its backward.
+//! Per-Gaussian projection (EWA splatting, docs/method.md §Rendering) and its backward.
 //!
 //! Forward: camera-space mean t = R_c μ + t_c, near/far cull, Jacobian J at t with t_x/t_z and
 //! t_y/t_z clamped to ±1.3·tan(fov/2), Σ' = J R_c Σ R_cᵀ Jᵀ (formed as V Vᵀ with

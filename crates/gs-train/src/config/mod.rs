@@ -1,5 +1,5 @@
-//! Training configuration: presets, the phase schedule of method-spec §7, learning rates (§3),
-//! densification (§4) and loss switches for ablations. Serialised to `OUT/config.json`.
+//! Training configuration: presets, the phase schedule of docs/method.md §Schedule, learning rates (§Parameters),
+//! densification (§Densification) and loss switches for ablations. Serialised to `OUT/config.json`.
 
 use serde::{Deserialize, Serialize};
 
@@ -13,7 +13,7 @@ pub use file::{SettingsFile, parse_settings_file};
 pub use resolution::CoarseToFine;
 
 
-/// Named settings for typical scenes (method-spec §4, §7).
+/// Named settings for typical scenes (docs/method.md §Densification, §Schedule).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
@@ -48,7 +48,7 @@ gs_core::named_choices!(Preset, "preset", {
     Preset::Mip360 => "mip360",
 });
 
-/// Which initial Gaussians (method-spec §3).
+/// Which initial Gaussians (docs/method.md §Parameters).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum InitMode {
@@ -102,7 +102,7 @@ pub const LAMBDA_P: f32 = 0.15;
 /// λ4 of the paper: weight of L_f.
 pub const LAMBDA_F: f32 = 1.0;
 
-/// Loss weights (method-spec §5); the defaults are the paper's, owned by the loss crates.
+/// Loss weights (docs/method.md §Losses); the defaults are the paper's, owned by the loss crates.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LossWeights {
     /// β1, D-SSIM weight in L_I.
@@ -136,7 +136,7 @@ impl Default for LossWeights {
     }
 }
 
-/// Adam learning rates (method-spec §3); positions are multiples of the scene extent r.
+/// Adam learning rates (docs/method.md §Parameters); positions are multiples of the scene extent r.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LearningRates {
     /// Means, at iteration 0, times r.
@@ -161,7 +161,7 @@ impl Default for LearningRates {
     }
 }
 
-/// Densification and pruning (method-spec §4, PGSR defaults). Iteration values are those of
+/// Densification and pruning (docs/method.md §Densification, PGSR defaults). Iteration values are those of
 /// the 20,000-iteration schedule; [`TrainConfig::scaled`] rescales them.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct DensifyConfig {
@@ -489,7 +489,7 @@ impl TrainConfig {
         }
     }
 
-    /// The losses active at 1-based iteration `it` (method-spec §7).
+    /// The losses active at 1-based iteration `it` (docs/method.md §Schedule).
     pub fn phase(&self, it: u64) -> Phase {
         let l = &self.losses;
         let geometry = it > self.warmup_end;

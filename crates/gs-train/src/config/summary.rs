@@ -47,7 +47,7 @@ impl TrainConfig {
         s
     }
 
-    /// The terms after the colour warm-up and the iteration each one ends at (method-spec §7):
+    /// The terms after the colour warm-up and the iteration each one ends at (docs/method.md §Schedule):
     /// edge, L_nc and L_ns run to the last iteration; L_p to `photometric_end`, L_f from there
     /// to `features_end` (with L_p when `overlap_mv`).
     fn phases_after_warmup(&self) -> String {
