@@ -40,7 +40,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod error;
-pub mod features;
+pub mod feature_alignment;
 pub mod geometry;
 pub mod photometric;
 pub mod real;
@@ -52,7 +52,7 @@ pub mod visibility;
 mod testutil;
 
 pub use error::{MvsError, Result};
-pub use features::{
+pub use feature_alignment::{
     FeatureMaps, FeatureOutput, FeatureReference, FeatureSource, FeatureSourceStats,
     GridFeatureMaps, feature_loss, feature_loss_with_weights,
 };
