@@ -8,9 +8,11 @@ fn shared(rel: &str) -> PathBuf {
     gs_testdata::root().join("data").join(rel)
 }
 
-/// A file of the small built-in scene folder (PNG photos and masks of 120 × 90).
+/// A file of a two-view built-in scene folder (PNG photos and masks of 240 × 180; large enough
+/// that a mask cut to 5 % still holds the PNG header).
 fn builtin(rel: &str) -> PathBuf {
-    gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small()).join(rel)
+    let opts = gs_synth::BuiltinOptions { width: 240, height: 180, views: 2, supersample: 1, points: 100, ..Default::default() };
+    gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &opts).join(rel)
 }
 
 /// `src` copied to `dir/name`, cut to `fraction` of its bytes.
@@ -53,7 +55,7 @@ fn truncated_png_photos_and_masks_are_refused() {
             let e = decode(&p).map(|_| ()).unwrap_err().to_string();
             assert!(e.contains(&format!("cut{k}.png")) && e.contains("truncated PNG"), "{fraction}: {e}");
         }
-        assert_eq!(decode(&src).unwrap().width(), 120);
+        assert_eq!(decode(&src).unwrap().width(), 240);
     }
 }
 

@@ -74,7 +74,12 @@ pub fn skip_or_fail(test: &str, why: &str, how: &str) {
 /// which fills in the test's name.
 pub fn needs(test: &str, needs: &[&str]) -> bool {
     let root = root();
-    let missing: Vec<&str> = needs.iter().copied().filter(|n| !root.join(n).exists()).collect();
+    let mut missing: Vec<&str> = Vec::new();
+    for &n in needs {
+        if !root.join(n).exists() && !missing.contains(&n) {
+            missing.push(n);
+        }
+    }
     if missing.is_empty() {
         return true;
     }

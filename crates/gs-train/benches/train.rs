@@ -7,7 +7,6 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use gs_train::{TrainConfig, Trainer};
-use std::path::Path;
 
 fn bench(c: &mut Criterion) {
     if !gs_testdata::needs!("data/synth-bunny") {
