@@ -47,8 +47,10 @@ use std::sync::{Mutex, OnceLock};
 const REF: &str = "0008";
 const SOURCES: [&str; 3] = ["0007", "0009", "0027"];
 
+/// A path in the shared test data (`VAGSL_TEST_DATA`, see gs-testdata); each test checks with
+/// `needs!` that what it reads is there.
 fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/")).join(rel)
+    gs_testdata::root().join(rel)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -91,7 +93,6 @@ fn bunny() -> &'static Bunny {
     static B: OnceLock<Bunny> = OnceLock::new();
     B.get_or_init(|| {
         let dir = shared("data/synth-bunny");
-        assert!(dir.exists(), "{} not found (the tests read ../shared beside the clone)", dir.display());
         let json: Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join("reference/values.json")).unwrap()).unwrap();
         let scene = load_scene(&dir, &LoadOptions::default()).unwrap();
@@ -231,6 +232,9 @@ impl Table {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn inputs_and_source_views() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let b = bunny();
     let j = reference_json();
     let mut t = Table::new("inputs and source views (README §1)");
@@ -441,6 +445,9 @@ fn compare_photometric_gradients(t: &mut Table, key: &str, s: f64) {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn photometric_f64() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let mut t = Table::new("υ, ω and L_p in f64 (README §6 f64 tolerances)");
     let exact = compare_photometric::<f64>(&mut t, "exact", 1.0, None, (1e-9, 0, 1e-9), "f64");
     compare_photometric::<f64>(&mut t, "perturbed", 1.02, Some(&exact), (1e-9, 0, 1e-9), "f64");
@@ -459,6 +466,9 @@ fn photometric_f64() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn photometric_gradients_f64() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let mut t = Table::new("∂L_p/∂Ñ and ∂L_p/∂D in f64");
     compare_photometric_gradients(&mut t, "exact", 1.0);
     compare_photometric_gradients(&mut t, "perturbed", 1.02);
@@ -469,6 +479,9 @@ fn photometric_gradients_f64() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn photometric_f32() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     // f32 (the trainer's type) against the float64 values: README §6's f32 tolerances on the
     // summed L_p (3e-6 exact, 2e-4 at ×1.02). Per source, f32 inputs alone move L_p by up to
     // 6.5e-6 (exact) and 2.9e-4 (×1.02, where one φ < 1 flip changes |V|) — the reference's own
@@ -559,6 +572,9 @@ fn run_features<T: Real, M: FeatureMaps<T>>(
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn feature_alignment() {
+    if !gs_testdata::needs!("data/synth-bunny", "weights/vgg16_imagenet_conv1_1-conv3_3.npz") {
+        return;
+    }
     let b = bunny();
     let j = reference_json();
     let mut t = Table::new("VGG16 conv2_2 features and L_f (f32 features from the shared weights, f64 loss)");
@@ -617,6 +633,9 @@ fn feature_alignment() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn feature_alignment_bundled_f16_weights() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     // What users run by default: the bundled VGG16 with kernels rounded to f16 (3.5 MB instead
     // of 7 MB). It moves conv2_2 by ≤ 2.6e-4 of the map's maximum (gs-features README); here it
     // must keep L_f within 1e-4 relative of the reference.
@@ -633,6 +652,9 @@ fn feature_alignment_bundled_f16_weights() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn feature_alignment_f32_trainer_path() {
+    if !gs_testdata::needs!("data/synth-bunny", "weights/vgg16_imagenet_conv1_1-conv3_3.npz") {
+        return;
+    }
     // The trainer's path: f32 plane depths and gs-features' `FeatureMap` fed to L_f as they are.
     // README §6 f32 tolerances on L_f: 1e-5 relative at the exact geometry, 1e-4 at ×1.02. Per
     // source at ×1.02 only ~1,000 pixels are valid and one φ < 1 flip in f32 changes |V| by one
@@ -688,6 +710,9 @@ const NORMAL_CASES: [(&str, f64); 2] = [("a_gt_normal", 0.0), ("b_rotated_5deg_a
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn single_view_f64() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let b = bunny();
     let (w, h) = b.size();
     let k = b.camera(REF).intrinsics;
@@ -757,6 +782,9 @@ fn single_view_f64() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: cargo test --release")]
 fn single_view_f32_api() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     // The f32 `Image` entry points the trainer calls, at README §6's f32 tolerances.
     let b = bunny();
     let (w, h) = b.size();

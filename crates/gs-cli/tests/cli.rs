@@ -1,10 +1,18 @@
-//! End-to-end tests of the `vagsl` binary on the shared scenes.
+//! End-to-end tests of the `vagsl` binary on the shared scenes (skipped without them) and the
+//! built-in scene.
 
 use std::path::PathBuf;
 use std::process::Command;
 
+/// A scene of the shared test data (`VAGSL_TEST_DATA`, see gs-testdata).
 fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    gs_testdata::root().join("data").join(rel)
+}
+
+/// The small built-in scene written as a scene folder (12 views of 120 × 90, 1,500 points),
+/// cached under target/.
+fn builtin_dir() -> PathBuf {
+    gs_testdata::builtin::scene_dir(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small())
 }
 
 fn vagsl(args: &[&str]) -> (bool, String, String) {
@@ -21,6 +29,9 @@ fn info_json(scene: &str) -> serde_json::Value {
 
 #[test]
 fn info_counts_dtu_scan24() {
+    if !gs_testdata::needs!("data/dtu-scan24") {
+        return;
+    }
     let s = info_json("dtu-scan24");
     assert_eq!(s["cameras"], 49);
     assert_eq!(s["images"], 49);
@@ -40,6 +51,9 @@ fn info_counts_dtu_scan24() {
 
 #[test]
 fn info_counts_fox_with_distortion() {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     let s = info_json("fox");
     assert_eq!(s["cameras"], 1);
     assert_eq!(s["images"], 50);
@@ -59,6 +73,9 @@ fn info_counts_fox_with_distortion() {
 
 #[test]
 fn info_counts_synth_bunny_and_its_extent() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let s = info_json("synth-bunny");
     assert_eq!(s["cameras"], 1);
     assert_eq!(s["images"], 40);
@@ -72,6 +89,9 @@ fn info_counts_synth_bunny_and_its_extent() {
 
 #[test]
 fn info_text_output_is_readable() {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     let path = shared("fox");
     let (ok, stdout, _) = vagsl(&["info", path.to_str().unwrap()]);
     assert!(ok);
@@ -94,7 +114,7 @@ fn convert_round_trips_text_binary_text() {
     let dir = tempfile::tempdir().unwrap();
     let bin = dir.path().join("bin");
     let txt = dir.path().join("txt");
-    let src = shared("synth-bunny/sparse/0");
+    let src = builtin_dir().join("sparse/0");
     let (ok, _, e) = vagsl(&["convert", src.to_str().unwrap(), "--to", "bin", "-o", bin.to_str().unwrap()]);
     assert!(ok, "{e}");
     assert!(bin.join("images.bin").is_file());

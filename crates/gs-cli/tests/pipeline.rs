@@ -10,8 +10,15 @@ fn vagsl(args: &[&str]) -> (bool, String, String) {
     (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
+/// A scene of the shared test data (`VAGSL_TEST_DATA`, see gs-testdata).
 fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    gs_testdata::root().join("data").join(rel)
+}
+
+/// The small built-in scene written as a scene folder (12 views of 120 × 90, 1,500 points),
+/// cached under target/.
+fn builtin_dir() -> PathBuf {
+    gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small())
 }
 
 fn json(p: &Path) -> serde_json::Value {
@@ -168,7 +175,7 @@ fn bad_inputs_are_clear_errors() {
     let (ok, _, err) = vagsl(&["train", "-o", o, "--ncc-scale", "5"]);
     assert!(!ok && err.contains("ncc_scale"), "{err}");
     // Grey images wider than the photos would only be upsampled: refused.
-    let (ok, _, err) = vagsl(&["train", shared("fox").to_str().unwrap(), "-o", o, "-r", "1", "--ncc-scale", "2"]);
+    let (ok, _, err) = vagsl(&["train", builtin_dir().to_str().unwrap(), "-o", o, "-r", "1", "--ncc-scale", "2"]);
     assert!(!ok && err.contains("--ncc-scale 2") && err.contains("wider than the originals"), "{err}");
     let (ok, _, err) = vagsl(&["train", "-o", o, "--sh-policy", "adaptive", "--sh-min-gain", "1.5"]);
     assert!(!ok && err.contains("sh_min_gain"), "{err}");
@@ -188,6 +195,9 @@ fn bad_inputs_are_clear_errors() {
 
 #[test]
 fn trains_on_a_real_distorted_scene() {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     // fox: OPENCV with distortion, 50 photos; undistorted and downscaled on load, with L_p's
     // grey images loaded again at twice the training width (--ncc-scale 2).
     let dir = tempfile::tempdir().unwrap();
@@ -207,6 +217,9 @@ fn trains_on_a_real_distorted_scene() {
 
 #[test]
 fn mesh_from_given_depth_maps_matches_the_open3d_floor() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     // synth-bunny's exact GT depth maps fused by `vagsl mesh --depth-dir`, scored by
     // `vagsl eval-mesh` with the object protocol. Open3D 0.19's raw mesh gives Chamfer 0.0057,
     // F1 0.945 (gs-tsdf's own test matches it); `vagsl mesh` also drops components under 50
@@ -258,6 +271,9 @@ fn mesh_from_given_depth_maps_matches_the_open3d_floor() {
 
 #[test]
 fn the_mesh_curve_scores_each_point_against_the_ground_truth() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     // `train --track-gt`: at each of the 10 scoring points the model is meshed and scored with
     // the object protocol; the curve must fall as training goes (SfM points → a surface).
     let dir = tempfile::tempdir().unwrap();

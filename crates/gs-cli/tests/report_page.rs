@@ -24,9 +24,9 @@ fn run_dir() -> &'static Path {
         let dir = tempfile::tempdir().unwrap().keep();
         let out = dir.join("run");
         let o = out.to_str().unwrap();
-        // Any ground-truth mesh exercises the mesh curve (synth-bunny's: the numbers are
-        // large, the plot is what is checked).
-        let gt = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/synth-bunny/gt_mesh.ply"));
+        // The built-in scene's own ground-truth mesh (its objects), as gs-testdata writes it.
+        let scene = gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small());
+        let gt = scene.join("gt_mesh.ply");
         let gt = gt.to_str().unwrap();
         let (ok, stdout, err) = vagsl(&["train", "-o", o, "--iterations", "300", "--preset", "fast", "--eval", "--quiet", "--track-gt", gt]);
         assert!(ok, "{err}");
@@ -145,11 +145,9 @@ fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
 fn the_viewer_at_a_scene_camera_matches_vagsl_render() {
     let Some(chrome) = chromium() else {
         // `.ci/run` installs Chromium, so in CI its absence is a failure, not a skip.
-        assert!(std::env::var("CI").as_deref() != Ok("true"), "CI=true but no Chromium: .ci/run installs Debian's chromium");
-        // Straight to stderr: libtest captures eprintln! of a passing test, and the skip must be seen.
-        let _ = writeln!(
-            std::io::stderr(),
-            "SKIPPED: no Chromium found (install Debian's `chromium`, or set CHROMIUM=PATH): the report page was not tested in a browser"
+        gs_testdata::skip_or_fail!(
+            "no Chromium found: the report page was not tested in a browser",
+            "install Debian's `chromium`, or set CHROMIUM=PATH"
         );
         return;
     };

@@ -85,8 +85,11 @@ fn a_failed_start_leaves_no_folder() {
     assert!(!ok && err.contains("not a folder"), "{err}");
 }
 
-fn shared(rel: &str) -> std::path::PathBuf {
-    std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+/// The built-in scene with `views` views of 120 × 90 written as a scene folder, cached under
+/// target/.
+fn builtin_dir(views: usize) -> std::path::PathBuf {
+    let opts = gs_synth::BuiltinOptions { views, ..gs_testdata::builtin::small() };
+    gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &opts)
 }
 
 fn copy_dir(from: &Path, to: &Path) {
@@ -115,17 +118,17 @@ fn config_of(run: &Path) -> serde_json::Value {
 fn a_run_keeps_its_scene_wherever_it_is_opened_from() {
     let dir = tempfile::tempdir().unwrap();
     let here = dir.path().join("here");
-    copy_dir(&shared("fox"), &here.join("fox"));
+    copy_dir(&builtin_dir(12), &here.join("scene"));
     let run = dir.path().join("run");
     let r = run.to_str().unwrap();
     // The scene is typed relative to the working folder; config.json keeps it absolute.
     let (ok, err) =
-        vagsl_in(&here, &["train", "fox", "-o", r, "--width", "40", "--eval", "--iterations", "4", "--backend", "cpu", "--quiet"]);
+        vagsl_in(&here, &["train", "scene", "-o", r, "--width", "40", "--eval", "--iterations", "4", "--backend", "cpu", "--quiet"]);
     assert!(ok, "{err}");
     let cfg = config_of(&run);
     let stored = std::path::PathBuf::from(cfg["scene"]["path"].as_str().unwrap());
-    assert_eq!(stored, here.join("fox").canonicalize().unwrap());
-    assert_eq!(cfg["fingerprint"]["views"], 50);
+    assert_eq!(stored, here.join("scene").canonicalize().unwrap());
+    assert_eq!(cfg["fingerprint"]["views"], 12);
     // Reopened from another folder.
     let renders = dir.path().join("renders");
     let render = |extra: &[&str]| {
@@ -138,7 +141,7 @@ fn a_run_keeps_its_scene_wherever_it_is_opened_from() {
 
     // The scene moved: the error says so and how to point at it; --scene does.
     let moved = dir.path().join("elsewhere");
-    std::fs::rename(here.join("fox"), &moved).unwrap();
+    std::fs::rename(here.join("scene"), &moved).unwrap();
     let (ok, err) = render(&[]);
     assert!(!ok && err.contains(stored.to_str().unwrap()) && err.contains("--scene PATH"), "{err}");
     let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
@@ -146,15 +149,15 @@ fn a_run_keeps_its_scene_wherever_it_is_opened_from() {
 
     // Another scene is refused, by its fingerprint.
     let mut images = std::fs::read_to_string(moved.join("sparse/0/images.txt")).unwrap();
-    let pose = images.lines().find(|l| l.contains(".jpg")).unwrap().to_string();
+    let pose = images.lines().find(|l| l.contains(".png")).unwrap().to_string();
     let mut fields: Vec<String> = pose.split_whitespace().map(String::from).collect();
     fields[5] = format!("{}", fields[5].parse::<f64>().unwrap() + 0.01);
     images = images.replacen(&pose, &fields.join(" "), 1);
     std::fs::write(moved.join("sparse/0/images.txt"), images).unwrap();
     let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
     assert!(!ok && err.contains("is not the scene the run in") && err.contains("differ in image names, sizes or cameras"), "{err}");
-    let (ok, err) = render(&["--scene", shared("synth-bunny").to_str().unwrap()]);
-    assert!(!ok && err.contains("it has 40 views, the run's scene had 50"), "{err}");
+    let (ok, err) = render(&["--scene", builtin_dir(8).to_str().unwrap()]);
+    assert!(!ok && err.contains("it has 8 views, the run's scene had 12"), "{err}");
 
     // A configuration from before fingerprints opens unchecked.
     let mut cfg = config_of(&run);
@@ -173,7 +176,7 @@ fn the_builtin_scene_is_fingerprinted_and_needs_no_folder() {
     let cfg = config_of(&run);
     assert_eq!(cfg["scene"]["path"], serde_json::Value::Null);
     assert_eq!(cfg["fingerprint"]["views"], 32);
-    let (ok, _, err) = vagsl(&["render", run.to_str().unwrap(), "--backend", "cpu", "--scene", shared("fox").to_str().unwrap()]);
+    let (ok, _, err) = vagsl(&["render", run.to_str().unwrap(), "--backend", "cpu", "--scene", builtin_dir(12).to_str().unwrap()]);
     assert!(!ok && err.contains("built-in scene, which has no folder"), "{err}");
 }
 
@@ -270,8 +273,8 @@ fn resume_refuses_options_it_would_ignore_or_that_change_the_run() {
     assert!(!ok && err.contains("--iterations, --seed would be ignored"), "{err}");
     let (ok, err) = resume(&run, &["--width", "50"]);
     assert!(!ok && err.contains("these options would change it: --width 50 (the run's: none)"), "{err}");
-    let fox = shared("fox");
-    let (ok, err) = resume(&run, &[fox.to_str().unwrap()]);
+    let scene = builtin_dir(12);
+    let (ok, err) = resume(&run, &[scene.to_str().unwrap()]);
     assert!(!ok && err.contains("(the run's: the built-in scene)") && err.contains("SCENE"), "{err}");
     assert_eq!(read(&run.join("config.json")), config, "a refused resume rewrote config.json");
 

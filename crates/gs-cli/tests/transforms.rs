@@ -4,9 +4,6 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
-}
 
 fn vagsl(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_vagsl")).args(args).output().expect("run vagsl");
@@ -17,27 +14,34 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// synth-bunny converted to transforms.json in `dir/bunny` (photos linked, not copied).
-fn convert_bunny(dir: &Path) -> PathBuf {
-    let out = dir.join("bunny");
-    let (ok, stdout, err) = vagsl(&["convert", s(&shared("synth-bunny")), "--to", "transforms", "-o", s(&out)]);
+/// The small built-in scene as a COLMAP scene folder (12 views of 120 × 90, 1,500 points),
+/// cached under target/.
+fn builtin_dir() -> PathBuf {
+    gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small())
+}
+
+/// The built-in scene folder converted to transforms.json in `dir/scene` (photos linked, not
+/// copied).
+fn convert_scene(dir: &Path) -> PathBuf {
+    let out = dir.join("scene");
+    let (ok, stdout, err) = vagsl(&["convert", s(&builtin_dir()), "--to", "transforms", "-o", s(&out)]);
     assert!(ok, "{err}");
-    assert!(stdout.contains("40 frames") && stdout.contains("7000 points"), "{stdout}");
+    assert!(stdout.contains("12 frames") && stdout.contains("1500 points"), "{stdout}");
     assert!(out.join("transforms.json").is_file() && out.join("sparse_pc.ply").is_file());
     assert!(out.join("images").symlink_metadata().unwrap().file_type().is_symlink(), "photos are linked");
     out
 }
 
 #[test]
-fn converted_bunny_reports_the_same_scene_and_converts_back() {
+fn a_converted_scene_reports_the_same_scene_and_converts_back() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = convert_bunny(dir.path());
+    let scene = convert_scene(dir.path());
     let info = |p: &Path| -> serde_json::Value {
         let (ok, stdout, err) = vagsl(&["info", s(p), "--json"]);
         assert!(ok, "{err}");
         serde_json::from_str(&stdout).unwrap()
     };
-    let (a, b) = (info(&shared("synth-bunny")), info(&scene));
+    let (a, b) = (info(&builtin_dir()), info(&scene));
     assert!(b["format"].as_str().unwrap().starts_with("transforms.json"), "{}", b["format"]);
     for key in ["images", "image_files_found", "points", "resolutions", "camera_models", "neighbours"] {
         assert_eq!(a[key], b[key], "{key}");
@@ -47,7 +51,7 @@ fn converted_bunny_reports_the_same_scene_and_converts_back() {
     // Back to a COLMAP text model inside the transforms scene (its default place).
     let (ok, stdout, err) = vagsl(&["convert", s(&scene), "--to", "text"]);
     assert!(ok, "{err}");
-    assert!(stdout.contains("1 cameras, 40 images, 7000 points"), "{stdout}");
+    assert!(stdout.contains("1 cameras, 12 images, 1500 points"), "{stdout}");
     assert!(scene.join("sparse/0/images.txt").is_file());
     // The folder now holds both layouts: COLMAP wins.
     assert_eq!(info(&scene)["format"], "text");
@@ -76,7 +80,7 @@ fn info_and_convert_name_the_problem_of_a_bad_transforms_file() {
 #[test]
 fn trains_end_to_end_on_a_converted_transforms_scene() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = convert_bunny(dir.path());
+    let scene = convert_scene(dir.path());
     // Without points (no ply_file_path) training starts from random points.
     let json_path = scene.join("transforms.json");
     let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
@@ -84,12 +88,12 @@ fn trains_end_to_end_on_a_converted_transforms_scene() {
     std::fs::write(&json_path, json.to_string()).unwrap();
     let out = dir.path().join("run");
     let (ok, _, err) = vagsl(&[
-        "train", s(&scene), "-o", s(&out), "--iterations", "30", "-r", "4", "--eval", "--backend", "cpu", "--quiet",
+        "train", s(&scene), "-o", s(&out), "--iterations", "30", "-r", "2", "--eval", "--backend", "cpu", "--quiet",
     ]);
     assert!(ok, "{err}");
     assert!(out.join("point_cloud.ply").is_file());
     let config: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("config.json")).unwrap()).unwrap();
-    assert_eq!(config["test_views"].as_array().unwrap().len(), 5, "every 8th of 40 views held out");
+    assert_eq!(config["test_views"].as_array().unwrap().len(), 2, "every 8th of 12 views held out");
     let (ok, stdout, err) = vagsl(&["eval-images", s(&out), "--no-lpips"]);
     assert!(ok, "{err}");
     assert!(stdout.contains("PSNR"), "{stdout}");

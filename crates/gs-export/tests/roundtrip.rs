@@ -1,6 +1,7 @@
-//! Each format round-trips real data within its stated quantisation: Gaussians built on the
-//! fox scene's COLMAP points (positions and colours from the photos; scales, rotations,
-//! opacities and SH drawn around them, plus extreme values), and the synth-bunny mesh.
+//! Each format round-trips scene data within its stated quantisation: Gaussians built on the
+//! built-in scene's sparse points (positions on its surfaces, colours from its textures; scales,
+//! rotations, opacities and SH drawn around them, plus extreme values), and its objects'
+//! ground-truth mesh (the folder gs-testdata writes, cached under target/).
 //! The maxima measured are printed (`--nocapture`).
 
 use gs_core::gaussians::sigmoid;
@@ -9,13 +10,15 @@ use gs_core::{Gaussians, Rng, TriangleMesh};
 use gs_export::{ExportError, Format, read_gaussians, read_mesh, write_gaussians, write_mesh, write_order};
 use std::path::PathBuf;
 
-fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+/// A file of the built-in scene folder with 12,000 sparse points (as many as a small capture).
+fn builtin(rel: &str) -> PathBuf {
+    let opts = gs_synth::BuiltinOptions { points: 12_000, ..gs_testdata::builtin::small() };
+    gs_testdata::builtin::scene_dir(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")), &opts).join(rel)
 }
 
-/// The fox scene's sparse points as degree-3 Gaussians, plus four with extreme parameters.
-fn fox_gaussians() -> Gaussians {
-    let model = gs_io::read_model(&shared("fox/sparse/0")).unwrap();
+/// The built-in scene's sparse points as degree-3 Gaussians, plus four with extreme parameters.
+fn scene_gaussians() -> Gaussians {
+    let model = gs_io::read_model(&builtin("sparse/0")).unwrap();
     let mut rng = Rng::new(7);
     let mut g = Gaussians::default();
     for p in model.points3d.values() {
@@ -97,13 +100,13 @@ fn check_rotation(max: &mut Max, g: &Gaussians, b: &Gaussians, i: usize, tol: f3
 
 #[test]
 fn ply_is_lossless() {
-    let g = fox_gaussians();
+    let g = scene_gaussians();
     assert_eq!(round_trip(Format::Ply, &g), g);
 }
 
 #[test]
 fn splat_round_trip() {
-    let g = fox_gaussians();
+    let g = scene_gaussians();
     let b = round_trip(Format::Splat, &g);
     assert_eq!(b.sh_degree, 0);
     let mut max = Max::default();
@@ -127,7 +130,7 @@ fn splat_round_trip() {
 
 #[test]
 fn spz_round_trip() {
-    let g = fox_gaussians();
+    let g = scene_gaussians();
     let fb = gs_export::spz::fractional_bits(&g).unwrap();
     let b = round_trip(Format::Spz, &g);
     assert_eq!(b.sh_degree, 3);
@@ -153,7 +156,7 @@ fn spz_round_trip() {
 
 #[test]
 fn compressed_ply_round_trip() {
-    let g = fox_gaussians();
+    let g = scene_gaussians();
     let b = round_trip(Format::CompressedPly, &g);
     assert_eq!(b.sh_degree, 3);
     let mut max = Max::default();
@@ -189,7 +192,7 @@ fn compressed_ply_round_trip() {
 #[test]
 fn lower_sh_degrees_round_trip() {
     for degree in [0, 1, 2] {
-        let mut g = fox_gaussians();
+        let mut g = scene_gaussians();
         g.sh_degree = degree;
         let keep = (degree as usize + 1).pow(2);
         g.sh.iter_mut().for_each(|s| s[keep..].iter_mut().for_each(|c| *c = [0.0; 3]));
@@ -201,9 +204,9 @@ fn lower_sh_degrees_round_trip() {
     }
 }
 
-/// The synth-bunny ground-truth mesh, with colours from its positions when `colors`.
-fn bunny(colors: bool) -> TriangleMesh {
-    let mut m = gs_io::read_mesh_ply(&shared("synth-bunny/gt_mesh.ply")).unwrap();
+/// The built-in scene's ground-truth object mesh, with colours from its positions when `colors`.
+fn object_mesh(colors: bool) -> TriangleMesh {
+    let mut m = gs_io::read_mesh_ply(&builtin("gt_mesh.ply")).unwrap();
     let (lo, hi) = m.bounds().unwrap();
     m.colors = colors.then(|| {
         m.positions.iter().map(|p| [0, 1, 2].map(|k| ((p[k] - lo[k]) / (hi[k] - lo[k]) * 255.0).round() as u8)).collect()
@@ -220,7 +223,7 @@ fn corners(m: &TriangleMesh) -> Vec<([u32; 3], Option<[u8; 3]>)> {
 fn meshes_round_trip_exactly() {
     let dir = tempfile::tempdir().unwrap();
     for colors in [true, false] {
-        let m = bunny(colors);
+        let m = object_mesh(colors);
         for format in [Format::MeshPly, Format::Obj, Format::Glb] {
             let path = dir.path().join(format!("mesh.{}", format.name()));
             write_mesh(format, &path, &m).unwrap();
@@ -255,7 +258,7 @@ fn formats_from_names_and_extensions() {
 #[test]
 fn failed_writes_leave_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    let g = fox_gaussians();
+    let g = scene_gaussians();
     let missing = dir.path().join("no/such/folder/model.spz");
     let e = write_gaussians(Format::Spz, &missing, &g).unwrap_err().to_string();
     assert!(e.contains("model.spz"), "{e}");
@@ -272,7 +275,7 @@ fn failed_writes_leave_nothing() {
     let empty = TriangleMesh::default();
     let e = write_mesh(Format::Glb, &path.with_extension("glb"), &empty).unwrap_err().to_string();
     assert!(e.contains("no triangles"), "{e}");
-    assert!(write_mesh(Format::Spz, &path, &bunny(false)).is_err());
+    assert!(write_mesh(Format::Spz, &path, &object_mesh(false)).is_err());
     assert_eq!(std::fs::read(&path).unwrap(), b"old");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "only far.spz");
 }
@@ -281,13 +284,13 @@ fn failed_writes_leave_nothing() {
 #[test]
 fn damaged_files_are_errors() {
     let dir = tempfile::tempdir().unwrap();
-    let mut g = fox_gaussians();
+    let mut g = scene_gaussians();
     g.retain(&(0..g.len()).map(|i| i < 600).collect::<Vec<_>>()).unwrap();
     let mut rng = Rng::new(3);
     for format in [Format::Splat, Format::Spz, Format::CompressedPly, Format::Glb] {
         let good = dir.path().join(format!("good.{}", format.name()));
         if format.is_mesh() {
-            write_mesh(format, &good, &bunny(true)).unwrap();
+            write_mesh(format, &good, &object_mesh(true)).unwrap();
         } else {
             write_gaussians(format, &good, &g).unwrap();
         }

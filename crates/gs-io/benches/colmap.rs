@@ -1,4 +1,5 @@
-//! COLMAP parsing (text and binary) of the fox model, and undistortion of a fox image.
+//! COLMAP parsing (text and binary) of the fox model, and undistortion of a fox image (fox from
+//! the shared test data; prints SKIPPED without it).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use gs_io::colmap::{parse_images_bin, read_binary, read_text, write_binary, write_images_bin};
@@ -6,11 +7,15 @@ use gs_io::undistort::{UndistortMap, UndistortOptions, undistort_camera};
 use std::hint::black_box;
 use std::path::Path;
 
-fn fox() -> &'static Path {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/fox"))
+/// fox in the shared test data (`VAGSL_TEST_DATA`, see gs-testdata).
+fn fox() -> std::path::PathBuf {
+    gs_testdata::root().join("data/fox")
 }
 
 fn bench(c: &mut Criterion) {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     let model = read_text(&fox().join("sparse/0")).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     write_binary(&model, tmp.path()).unwrap();

@@ -9,7 +9,7 @@ use gs_io::colmap::{
 use std::path::{Path, PathBuf};
 
 fn shared(rel: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    gs_testdata::root().join("data").join(rel)
 }
 
 fn fixture(rel: &str) -> PathBuf {
@@ -46,6 +46,9 @@ fn round_trip(dir: &Path) -> ColmapModel {
 
 #[test]
 fn dtu_counts_and_round_trip() {
+    if !gs_testdata::needs!("data/dtu-scan24") {
+        return;
+    }
     let m = round_trip(&shared("dtu-scan24/sparse/0"));
     assert_eq!((m.cameras.len(), m.images.len(), m.points3d.len()), (49, 49, 6885));
     assert_eq!(m.num_observations(), 37099);
@@ -58,6 +61,9 @@ fn dtu_counts_and_round_trip() {
 
 #[test]
 fn fox_counts_and_round_trip() {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     let m = round_trip(&shared("fox/sparse/0"));
     assert_eq!((m.cameras.len(), m.images.len(), m.points3d.len()), (1, 50, 12187));
     assert_eq!(m.num_observations(), 81316);
@@ -78,6 +84,9 @@ fn fox_counts_and_round_trip() {
 
 #[test]
 fn synth_bunny_counts_and_round_trip() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let m = round_trip(&shared("synth-bunny/sparse/0"));
     assert_eq!((m.cameras.len(), m.images.len(), m.points3d.len()), (1, 40, 7000));
     let cam = &m.cameras[&1];

@@ -5,7 +5,14 @@ use gs_io::scene::{LoadOptions, decode_mask, decode_rgb, load_scene};
 use std::path::{Path, PathBuf};
 
 fn shared(rel: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    gs_testdata::root().join("data").join(rel)
+}
+
+/// A file of a two-view built-in scene folder (PNG photos and masks of 240 × 180; large enough
+/// that a mask cut to 5 % still holds the PNG header).
+fn builtin(rel: &str) -> PathBuf {
+    let opts = gs_synth::BuiltinOptions { width: 240, height: 180, views: 2, supersample: 1, points: 100, ..Default::default() };
+    gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &opts).join(rel)
 }
 
 /// `src` copied to `dir/name`, cut to `fraction` of its bytes.
@@ -19,6 +26,9 @@ fn cut_copy(src: &Path, dir: &Path, name: &str, fraction: f64) -> PathBuf {
 
 #[test]
 fn truncated_jpeg_photos_are_refused() {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     let src = shared("fox/images/0001.jpg");
     let dir = tempfile::tempdir().unwrap();
     // The lenient decoder alone accepts a cut JPEG: this is what the check guards against.
@@ -37,21 +47,21 @@ fn truncated_jpeg_photos_are_refused() {
 fn truncated_png_photos_and_masks_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     for (src, decode) in [
-        (shared("synth-bunny/images/0000.png"), decode_rgb as fn(&Path) -> gs_io::Result<gs_core::Image>),
-        (shared("synth-bunny/masks/0000.png"), decode_mask),
+        (builtin("images/0000.png"), decode_rgb as fn(&Path) -> gs_io::Result<gs_core::Image>),
+        (builtin("masks/0000.png"), decode_mask),
     ] {
         for (k, fraction) in [0.05, 0.3, 0.5, 0.99].into_iter().enumerate() {
             let p = cut_copy(&src, dir.path(), &format!("cut{k}.png"), fraction);
             let e = decode(&p).map(|_| ()).unwrap_err().to_string();
             assert!(e.contains(&format!("cut{k}.png")) && e.contains("truncated PNG"), "{fraction}: {e}");
         }
-        assert_eq!(decode(&src).unwrap().width(), 480);
+        assert_eq!(decode(&src).unwrap().width(), 240);
     }
 }
 
 #[test]
 fn corrupt_png_data_is_refused() {
-    let src = shared("synth-bunny/images/0000.png");
+    let src = builtin("images/0000.png");
     let mut bytes = std::fs::read(&src).unwrap();
     // Flip bytes inside the compressed data: the chunk checksum no longer matches.
     let mid = bytes.len() / 2;
@@ -68,6 +78,9 @@ fn corrupt_png_data_is_refused() {
 /// A scene whose photo was cut short fails to load, naming the photo.
 #[test]
 fn scene_with_a_truncated_photo_fails_to_load() {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path();
     std::fs::create_dir_all(scene.join("sparse")).unwrap();

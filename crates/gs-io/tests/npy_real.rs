@@ -1,27 +1,29 @@
-//! `.npy` reading on the synth-bunny ground truth, round trips and rejected layouts.
+//! `.npy` reading on the built-in scene's ground truth (written by gs-testdata), round trips,
+//! rejected layouts, and the shared VGG16 `.npz`.
 
 use gs_core::Image;
 use gs_io::npy::parse_npy;
 use gs_io::{IoError, read_npy, write_npy};
 use std::path::{Path, PathBuf};
 
+/// A ground-truth file of the small built-in scene folder (120 × 90).
 fn gt(name: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/synth-bunny/gt")).join(name)
+    gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small()).join("gt").join(name)
 }
 
 #[test]
-fn synth_bunny_depth_is_positive_where_hit() {
+fn ground_truth_depth_is_positive_where_hit() {
     let d = read_npy(&gt("depth_0000.npy")).unwrap();
-    assert_eq!((d.width(), d.height(), d.channels()), (480, 360, 1));
+    assert_eq!((d.width(), d.height(), d.channels()), (120, 90, 1));
     assert!(d.data().iter().all(|v| v.is_finite() && *v >= 0.0));
     let hits = d.data().iter().filter(|v| **v > 0.0).count();
     assert!(hits > d.data().len() / 2, "only {hits} pixels hit");
 }
 
 #[test]
-fn synth_bunny_normals_are_unit() {
+fn ground_truth_normals_are_unit() {
     let n = read_npy(&gt("normal_0000.npy")).unwrap();
-    assert_eq!((n.width(), n.height(), n.channels()), (480, 360, 3));
+    assert_eq!((n.width(), n.height(), n.channels()), (120, 90, 3));
     let mut unit = 0;
     for px in n.data().chunks_exact(3) {
         let len = (px[0] * px[0] + px[1] * px[1] + px[2] * px[2]).sqrt();
@@ -92,11 +94,14 @@ fn rejected_layouts_are_clear() {
 }
 
 fn weights(name: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/weights")).join(name)
+    gs_testdata::root().join("weights").join(name)
 }
 
 #[test]
 fn npz_reads_the_shared_vgg16_weights() {
+    if !gs_testdata::needs!("weights/vgg16_imagenet_conv1_1-conv3_3.npz") {
+        return;
+    }
     let arrays = gs_io::read_npz(&weights("vgg16_imagenet_conv1_1-conv3_3.npz")).unwrap();
     let names: Vec<&str> = arrays.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(names.len(), 16);
@@ -111,6 +116,9 @@ fn npz_reads_the_shared_vgg16_weights() {
 
 #[test]
 fn npz_truncated_or_not_a_zip_is_a_clear_error() {
+    if !gs_testdata::needs!("weights/vgg16_imagenet_conv1_1-conv3_3.npz") {
+        return;
+    }
     let bytes = std::fs::read(weights("vgg16_imagenet_conv1_1-conv3_3.npz")).unwrap();
     let p = Path::new("w.npz");
     let msg = gs_io::npy::parse_npz(&bytes[..100_000], p).unwrap_err().to_string();

@@ -6,7 +6,7 @@ use gs_io::{read_mesh_ply, write_mesh_ply};
 use std::path::PathBuf;
 
 fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/synth-bunny")).join(rel)
+    gs_testdata::root().join("data/synth-bunny").join(rel)
 }
 
 fn random_mesh(nv: usize, nt: usize, colours: bool, seed: u64) -> TriangleMesh {
@@ -58,6 +58,9 @@ fn invalid_mesh_is_not_written() {
 
 #[test]
 fn reads_the_synth_bunny_ground_truth_meshes() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let bunny = read_mesh_ply(&shared("gt_mesh.ply")).unwrap();
     assert_eq!(bunny.positions.len(), 35_947);
     assert_eq!(bunny.triangles.len(), 69_451);

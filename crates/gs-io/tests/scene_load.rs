@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 fn shared(rel: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    gs_testdata::root().join("data").join(rel)
 }
 
 fn only(names: &[&str]) -> LoadOptions {
@@ -17,6 +17,9 @@ fn only(names: &[&str]) -> LoadOptions {
 
 #[test]
 fn synth_bunny_views_images_masks_points() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let scene = load_scene(&shared("synth-bunny"), &only(&["0003.png", "0001.png"])).unwrap();
     // Sorted by name, PINHOLE 480x360 unchanged (no distortion, below 1600 px).
     let names: Vec<&str> = scene.views.iter().map(|v| v.name.as_str()).collect();
@@ -50,6 +53,9 @@ fn synth_bunny_views_images_masks_points() {
 
 #[test]
 fn downscaling_factors_and_target_width() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let opts = LoadOptions { resolution: Resolution::Factor(2), masks: MaskPolicy::Ignore, ..only(&["0000.png"]) };
     let s = load_scene(&shared("synth-bunny"), &opts).unwrap();
     let v = &s.views[0];
@@ -70,6 +76,9 @@ fn downscaling_factors_and_target_width() {
 /// A target width beyond the photos is refused, naming the photo, before anything is upscaled.
 #[test]
 fn a_width_beyond_the_photos_is_refused() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let opts = LoadOptions { resolution: Resolution::Width(3000), ..only(&["0000.png"]) };
     let e = load_scene(&shared("synth-bunny"), &opts).unwrap_err().to_string();
     assert!(e.contains("0000.png") && e.contains("3000 px is wider than the photo (480 × 360 px"), "{e}");
@@ -81,6 +90,9 @@ fn a_width_beyond_the_photos_is_refused() {
 /// `pycolmap.undistort_camera` gives, see colmap_undistort.rs).
 #[test]
 fn fox_is_undistorted_to_pinhole() {
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
     let s = load_scene(&shared("fox"), &only(&["0001.jpg", "0002.jpg"])).unwrap();
     for v in &s.views {
         assert_eq!((v.camera.width, v.camera.height), (533, 948));
@@ -233,6 +245,9 @@ fn missing_image_and_mask_files() {
 
 #[test]
 fn model_summary_of_the_datasets() {
+    if !gs_testdata::needs!("data/dtu-scan24", "data/fox") {
+        return;
+    }
     let s = model_summary(&shared("dtu-scan24")).unwrap();
     assert_eq!((s.cameras.len(), s.num_images, s.num_points, s.num_observations), (49, 49, 6885, 37099));
     assert!((s.mean_reprojection_error.unwrap() - 0.4994026631792447).abs() < 1e-9);
@@ -248,6 +263,9 @@ fn model_summary_of_the_datasets() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn full_scenes_load() {
+    if !gs_testdata::needs!("data/dtu-scan24", "data/fox", "data/synth-bunny") {
+        return;
+    }
     for (name, n, size) in [("dtu-scan24", 49, (800, 600)), ("fox", 50, (533, 948)), ("synth-bunny", 40, (480, 360))] {
         let t = std::time::Instant::now();
         let s = load_scene(&shared(name), &LoadOptions::default()).unwrap();

@@ -11,16 +11,16 @@ use gs_io::{SceneLayout, read_scene_model};
 use std::path::{Path, PathBuf};
 
 fn shared(rel: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    gs_testdata::root().join("data").join(rel)
 }
 
 /// `scene`'s COLMAP model written as transforms.json into a temporary folder whose `images`
 /// links to the scene's photos.
-fn converted(scene: &str) -> (tempfile::TempDir, ColmapModel) {
-    let model = read_model(&shared(scene).join("sparse/0")).unwrap();
+fn converted(scene: &Path) -> (tempfile::TempDir, ColmapModel) {
+    let model = read_model(&scene.join("sparse/0")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     write_transforms(&model, dir.path(), "images").unwrap();
-    std::os::unix::fs::symlink(shared(scene).join("images"), dir.path().join("images")).unwrap();
+    std::os::unix::fs::symlink(scene.join("images"), dir.path().join("images")).unwrap();
     (dir, model)
 }
 
@@ -63,8 +63,9 @@ fn model_difference(a: &ColmapModel, b: &ColmapModel) -> f64 {
     worst
 }
 
-fn check_round_trip(scene: &str, load_images: bool) {
-    let (dir, model) = converted(scene);
+fn check_round_trip(path: &Path, load_images: bool) {
+    let scene = path.file_name().unwrap().to_string_lossy();
+    let (dir, model) = converted(path);
     let sm = read_scene_model(dir.path(), None).unwrap();
     assert!(matches!(sm.layout, SceneLayout::Transforms(_)));
     let d_model = model_difference(&model, &sm.model);
@@ -79,7 +80,7 @@ fn check_round_trip(scene: &str, load_images: bool) {
     let mut d_views = 0.0f64;
     if load_images {
         let opts = LoadOptions { masks: MaskPolicy::Ignore, ..Default::default() };
-        let a = load_scene(&shared(scene), &opts).unwrap();
+        let a = load_scene(path, &opts).unwrap();
         let b = load_scene(dir.path(), &opts).unwrap();
         assert_eq!(a.views.len(), b.views.len());
         for (va, vb) in a.views.iter().zip(&b.views) {
@@ -100,19 +101,34 @@ fn check_round_trip(scene: &str, load_images: bool) {
 }
 
 #[test]
+fn the_builtin_scene_converts_to_transforms_and_back() {
+    let dir = gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small());
+    check_round_trip(&dir, true);
+}
+
+#[test]
 fn synth_bunny_converts_to_transforms_and_back() {
-    check_round_trip("synth-bunny", true);
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
+    check_round_trip(&shared("synth-bunny"), true);
 }
 
 #[test]
 fn fox_with_opencv_distortion_converts_to_transforms_and_back() {
-    check_round_trip("fox", true);
+    if !gs_testdata::needs!("data/fox") {
+        return;
+    }
+    check_round_trip(&shared("fox"), true);
 }
 
 #[test]
 fn dtu_with_a_camera_per_image_converts_to_transforms_and_back() {
+    if !gs_testdata::needs!("data/dtu-scan24") {
+        return;
+    }
     // 49 cameras: intrinsics written per frame.
-    check_round_trip("dtu-scan24", false);
+    check_round_trip(&shared("dtu-scan24"), false);
 }
 
 /// A Blender-synthetic-style scene: 8×6 PNGs, `camera_angle_x` = 90° (f = 4 px), frames

@@ -1,5 +1,6 @@
-//! LPIPS-alex v0.1 with the bundled f16 weights against the published and reference values of
-//! `shared/weights/README.md`.
+//! LPIPS-alex v0.1 with the bundled f16 weights against the published and reference values
+//! listed with the shared reference images (`weights/README.md` of the shared test data, found
+//! through `VAGSL_TEST_DATA`; without them those tests print SKIPPED).
 
 mod common;
 
@@ -7,23 +8,19 @@ use common::shared;
 use gs_core::Image;
 use gs_losses::{LossError, Lpips};
 
-fn load(rel: &str) -> Option<Image> {
-    let p = shared(&format!("weights/{rel}"));
-    assert!(p.exists(), "{} not found (the tests read ../shared beside the clone)", p.display());
-    let (w, h, v) = common::load_rgb(&p);
-    Some(Image::from_vec(w, h, 3, v).unwrap())
+/// A shared reference image (`weights/REL`); the test checked with `needs!` that it exists.
+fn load(rel: &str) -> Image {
+    let (w, h, v) = common::load_rgb(&shared(&format!("weights/{rel}")));
+    Image::from_vec(w, h, 3, v).unwrap()
 }
 
 #[test]
 fn upstream_examples_give_published_values() {
-    let m = Lpips::bundled().unwrap();
-    let (Some(r), Some(p0), Some(p1)) = (
-        load("ref/upstream/ex_ref.png"),
-        load("ref/upstream/ex_p0.png"),
-        load("ref/upstream/ex_p1.png"),
-    ) else {
+    if !gs_testdata::needs!("weights/ref/upstream/ex_ref.png", "weights/ref/upstream/ex_p0.png", "weights/ref/upstream/ex_p1.png") {
         return;
-    };
+    }
+    let m = Lpips::bundled().unwrap();
+    let (r, p0, p1) = (load("ref/upstream/ex_ref.png"), load("ref/upstream/ex_p0.png"), load("ref/upstream/ex_p1.png"));
     let d0 = m.distance(&r, &p0).unwrap();
     let d1 = m.distance(&r, &p1).unwrap();
     // Published (PerceptualSimilarity issue #120): 0.722 and 0.138; f32 reference 0.721881, 0.137566.
@@ -47,14 +44,11 @@ fn upstream_examples_give_published_values() {
 
 #[test]
 fn reference_pairs_256() {
-    let m = Lpips::bundled().unwrap();
-    let (Some(a), Some(b), Some(c)) = (
-        load("ref/img1_astronaut.png"),
-        load("ref/img2_chelsea.png"),
-        load("ref/img3_astronaut_blur1.png"),
-    ) else {
+    if !gs_testdata::needs!("weights/ref/img1_astronaut.png", "weights/ref/img2_chelsea.png", "weights/ref/img3_astronaut_blur1.png") {
         return;
-    };
+    }
+    let m = Lpips::bundled().unwrap();
+    let (a, b, c) = (load("ref/img1_astronaut.png"), load("ref/img2_chelsea.png"), load("ref/img3_astronaut_blur1.png"));
     let d1 = m.distance(&a, &b).unwrap();
     let d2 = m.distance(&a, &c).unwrap();
     assert!((d1 - 0.712265).abs() < 1e-3, "pair 1: {d1}");

@@ -2,18 +2,17 @@
 //! from its 7,000 SfM points: the colour warm-up (L1 + D-SSIM, comparable to plain 3DGS and
 //! to OpenSplat's 0.39 s/iteration at 7k Gaussians, docs/architecture.md §Targets), the L_p phase (edge, L_nc,
 //! L_ns, L_p with 3 source renders) and the L_f phase (VGG features cached beforehand).
-//! Densification is off so the Gaussian count stays fixed. Needs ../shared/data/synth-bunny.
+//! Densification is off so the Gaussian count stays fixed. Needs synth-bunny from the shared test
+//! data (`VAGSL_TEST_DATA`, see gs-testdata); prints SKIPPED without it.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use gs_train::{TrainConfig, Trainer};
-use std::path::Path;
 
 fn bench(c: &mut Criterion) {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/synth-bunny");
-    if !dir.exists() {
-        eprintln!("skipping: {} not found", dir.display());
+    if !gs_testdata::needs!("data/synth-bunny") {
         return;
     }
+    let dir = gs_testdata::root().join("data/synth-bunny");
     let scene = gs_io::load_scene(&dir, &Default::default()).expect("synth-bunny loads");
     let (train, _) = scene.split(true);
     let mut group = c.benchmark_group("train_iteration_synth_bunny_480x360_7k");

@@ -8,6 +8,9 @@ use gs_tsdf::{EvalOptions, TsdfConfig, TsdfVolume, evaluate_meshes};
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: fuses 40 views of 480x360")]
 fn bunny_gt_depth_at_voxel_0008_matches_open3d() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let dir = common::bunny_dir();
     let views = common::bunny_views();
     assert_eq!(views.len(), 40);

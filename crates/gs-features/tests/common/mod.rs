@@ -5,9 +5,9 @@
 use gs_core::{Camera, Image, Intrinsics};
 use std::path::PathBuf;
 
-/// `/work/shared` seen from the crate (the repo and shared folder are siblings, also on CI).
+/// The shared test data (`VAGSL_TEST_DATA`, see gs-testdata).
 pub fn shared() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared"))
+    gs_testdata::root()
 }
 
 pub fn fixture(name: &str) -> PathBuf {

@@ -4,9 +4,9 @@
 use gs_core::Rng;
 use std::path::PathBuf;
 
-/// Path of a file under /work/shared (the repo's sibling `shared/` folder).
+/// Path of a file in the shared test data (`VAGSL_TEST_DATA`, see gs-testdata).
 pub fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/")).join(rel)
+    gs_testdata::root().join(rel)
 }
 
 /// Uniform random values in [lo, hi).

@@ -5,9 +5,9 @@
 use gs_core::{Camera, Image, Intrinsics, TriangleMesh};
 use std::path::{Path, PathBuf};
 
-/// `../shared/data/synth-bunny` relative to the repository root.
+/// synth-bunny in the shared test data (`VAGSL_TEST_DATA`, see gs-testdata).
 pub fn bunny_dir() -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/synth-bunny")).to_path_buf()
+    gs_testdata::root().join("data/synth-bunny")
 }
 
 /// Reads a little-endian float32 C-order 2-D `.npy` as a 1-channel image.
