@@ -41,14 +41,15 @@ pub struct MeshArgs {
     /// pixel with a depth).
     #[arg(long)]
     pub min_alpha: Option<f32>,
-    /// Fuse every depth, not only those the neighbouring views confirm (the multi-view depth
-    /// consistency filter is on by default: floating sheets one view's depth holds and its
-    /// neighbours see through are not fused).
+    /// Fuse only the depths that neighbouring views confirm (a multi-view depth consistency
+    /// filter: a floating sheet that one view's depth holds and its neighbours see through is
+    /// not fused). Off by default: on exact depths it drops the strips that fewer than two
+    /// neighbours see (BENCHMARKS.md).
     #[arg(long)]
-    pub no_depth_filter: bool,
-    /// Neighbouring views that must confirm a depth (default 2; a view with fewer neighbours
-    /// needs all of them).
-    #[arg(long, conflicts_with = "no_depth_filter")]
+    pub depth_filter: bool,
+    /// Neighbouring views that must confirm a depth under --depth-filter (default 2; a view
+    /// with fewer neighbours needs all of them).
+    #[arg(long, requires = "depth_filter")]
     pub depth_filter_views: Option<usize>,
     /// Keep only the largest connected component.
     #[arg(long)]
@@ -61,7 +62,7 @@ pub struct MeshArgs {
     #[arg(long, conflicts_with = "no_simplify")]
     pub triangles: Option<usize>,
     /// Simplify while the surface moves at most this multiple of the pixel footprint
-    /// (default 0.5).
+    /// (default 0.25).
     #[arg(long, conflicts_with_all = ["no_simplify", "triangles"])]
     pub simplify_error: Option<f64>,
     /// Keep the mesh as marching cubes made it (no simplification).
@@ -126,13 +127,11 @@ fn options(args: &MeshArgs) -> Result<MeshOptions> {
     {
         bail!("--simplify-error {e}: a multiple of the pixel footprint is a finite number ≥ 0");
     }
-    let consistency = match (args.no_depth_filter, d.consistency) {
-        (true, _) | (_, None) => None,
-        (false, Some(c)) => match args.depth_filter_views {
-            Some(0) => bail!("--depth-filter-views 0: at least one view must confirm a depth (--no-depth-filter turns the filter off)"),
-            Some(k) => Some(gs_tsdf::ConsistencyConfig { min_views: k, ..c }),
-            None => Some(c),
-        },
+    let consistency = match (args.depth_filter, args.depth_filter_views) {
+        (false, _) => d.consistency,
+        (true, Some(0)) => bail!("--depth-filter-views 0: at least one view must confirm a depth"),
+        (true, Some(k)) => Some(gs_tsdf::ConsistencyConfig { min_views: k, ..d.consistency.unwrap_or_default() }),
+        (true, None) => Some(d.consistency.unwrap_or_default()),
     };
     let simplify = match (args.no_simplify, args.triangles, args.simplify_error) {
         (true, _, _) => Simplify::Off,
