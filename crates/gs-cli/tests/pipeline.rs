@@ -63,6 +63,39 @@ fn builtin_scene_end_to_end() {
     assert!(voxel >= extent / 1024.0 && voxel <= extent / 256.0, "voxel {voxel}, scene extent {extent}");
     assert!((voxel / footprint - 1.0).abs() < 0.25 || voxel == extent / 256.0, "voxel {voxel}, footprint {footprint}");
     assert!(!err.contains("finer than a training pixel"), "{err}");
+    // mesh.json records what the filters and the simplification did, with their settings.
+    assert_eq!(mr["min_alpha"], serde_json::json!(0.5), "{mr}");
+    assert!(mr["pixels_below_min_alpha"].is_u64(), "{mr}");
+    assert!(mr["components"]["min_share"].as_f64().unwrap() > 0.0, "{mr}");
+    let c = &mr["components"];
+    assert!(c["removed"].as_u64().unwrap() < c["components"].as_u64().unwrap(), "{mr}");
+    assert!(mr["depth_filter"].is_null(), "off by default: {mr}");
+    let simp = &mr["simplification"];
+    assert_eq!(simp["triangles_after"], mr["triangles"], "{mr}");
+    assert!(simp["triangles_before"].as_u64().unwrap() > mr["triangles"].as_u64().unwrap(), "{mr}");
+    let bound = simp["error_bound"].as_f64().unwrap();
+    assert!((bound / footprint - gs_train::DEFAULT_SIMPLIFY_ERROR).abs() < 1e-9, "{mr}");
+    assert!(simp["error"].as_f64().unwrap() <= bound, "{mr}");
+    // The depth filter on, the simplification off, every component of 50 triangles kept.
+    let plain = out.join("plain.ply");
+    let (ok, stdout, err) = vagsl(&[
+        "mesh", o, "-o", plain.to_str().unwrap(), "--depth-filter", "--no-simplify", "--min-component-share", "0",
+    ]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("not confirmed by 2 neighbouring views"), "{stdout}");
+    let pr = json(&out.join("plain.json"));
+    assert!(pr["simplification"].is_null(), "{pr}");
+    let f = &pr["depth_filter"];
+    assert_eq!(f["min_views"], 2, "{pr}");
+    assert!(f["pixels_checked"].as_u64().unwrap() > f["pixels_dropped"].as_u64().unwrap(), "{pr}");
+    assert_eq!(pr["components"]["min_share"], serde_json::json!(0.0), "{pr}");
+    // A triangle count is an upper bound.
+    let (ok, _, err) = vagsl(&["mesh", o, "-o", plain.to_str().unwrap(), "--triangles", "500"]);
+    assert!(ok, "{err}");
+    assert!(gs_io::read_mesh_ply(&plain).unwrap().triangles.len() <= 500);
+    assert!(json(&out.join("plain.json"))["simplification"]["error_bound"].is_null());
+    let (ok, _, err) = vagsl(&["mesh", o, "--min-alpha", "2"]);
+    assert!(!ok && err.contains("between 0 and 1"), "{err}");
     let mesh_path = out.join("mesh.ply");
     let (ok, _, err) = vagsl(&["render", o, "--split", "test", "--mesh", mesh_path.to_str().unwrap()]);
     assert!(ok, "{err}");
@@ -227,9 +260,10 @@ fn mesh_from_given_depth_maps_matches_the_open3d_floor() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = dir.path().join("gt_fused.ply");
     let bunny = shared("synth-bunny");
+    // The raw fusion, without simplification.
     let (ok, stdout, err) = vagsl(&[
         "mesh", bunny.to_str().unwrap(), "--depth-dir", bunny.join("gt").to_str().unwrap(),
-        "--voxel-size", "0.008", "--depth-trunc", "20", "-o", mesh.to_str().unwrap(),
+        "--voxel-size", "0.008", "--depth-trunc", "20", "-o", mesh.to_str().unwrap(), "--no-simplify",
     ]);
     assert!(ok, "{err}");
     assert!(stdout.contains("40 depth maps"), "{stdout}");
@@ -250,6 +284,7 @@ fn mesh_from_given_depth_maps_matches_the_open3d_floor() {
     let (ok, stdout, err) = vagsl(&[
         "mesh", bunny.to_str().unwrap(), "--depth-dir", bunny.join("gt").to_str().unwrap(),
         "--voxel-size", "0.008", "--depth-trunc", "20", "-o", boxed.to_str().unwrap(), "--bounds", &bounds,
+        "--no-simplify",
     ]);
     assert!(ok, "{err}");
     let triangles = |s: &str| s.split(" triangles").next().unwrap().rsplit(' ').next().unwrap().parse::<u64>().unwrap();

@@ -58,7 +58,10 @@ pub use error::{Result, TrainError};
 pub use evaluate::{ImageMetrics, VEIL_MIN_COVER, Veil, ViewMetrics, evaluate_images, find_veil, score_view};
 pub use exposure::{Exposure, ExposureParams};
 pub use floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
-pub use mesh::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, MeshReport, default_voxel, extract_mesh, fuse_mesh};
+pub use mesh::{
+    ComponentCleanup, DEFAULT_COMPONENT_SHARE, DEFAULT_SIMPLIFY_ERROR, DepthFilterReport, DepthSource, FINE_VOXEL_FRACTION, MIN_COMPONENT_TRIANGLES,
+    MeshOptions, MeshReport, Simplify, SimplifyApplied, default_voxel, extract_mesh, fuse_mesh,
+};
 pub use model::TrainedModel;
 pub use params::Param;
 pub use plan::{RefinePlan, StepPlan, plan_step};

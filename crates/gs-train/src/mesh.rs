@@ -1,16 +1,23 @@
 //! Surface extraction (docs/method.md §TSDF), one path for every depth source: depth maps (a trained
 //! model's rendered plane depths, or given maps such as ground truth) are fused into a TSDF,
-//! marching cubes extracts the surface and the clean-up keeps the components ≥ 50 triangles
-//! (or the largest). One default-voxel rule ([`default_voxel`]): the world size of one pixel
+//! marching cubes extracts the surface, the clean-up keeps the components that hold a share of
+//! the mesh (or the largest) and quadric-error simplification removes the triangles the
+//! accuracy does not need (docs/method.md §meshing). Before fusing, pixels whose rendered
+//! opacity is low and depths that the neighbouring views do not confirm
+//! ([`gs_tsdf::filter_depths`]) are dropped, so floating sheets are not fused into surfaces.
+//! One default-voxel rule ([`default_voxel`]): the world size of one pixel
 //! at the fused surfaces, measured on up to [`FOOTPRINT_PROBES`] evenly spaced views of the
 //! fusion itself, clamped to [r/1024, r/256] with r the extent of *all* the scene's cameras
 //! (r/512 when nothing is fused), so holding out views (`--eval`) does not change the clamp.
 
 use crate::error::{Result, TrainError};
 use crate::model::TrainedModel;
-use gs_core::{Image, Scene, TriangleMesh, View};
+use gs_core::{Camera, Image, NeighbourRule, Scene, TriangleMesh, View, source_view_candidates};
 use gs_raster::{Rasterizer, RenderRequest};
-use gs_tsdf::{BlockCensus, ComponentFilter, MemoryEstimate, TsdfConfig, TsdfError, TsdfVolume, clean_mesh, format_bytes};
+use gs_tsdf::{
+    BlockCensus, ComponentFilter, ComponentReport, ConsistencyConfig, ConsistencyReport, MemoryEstimate, SimplifyReport,
+    SimplifyTarget, TsdfConfig, TsdfError, TsdfVolume, clean_mesh, filter_depths, format_bytes, simplify_mesh,
+};
 use serde::Serialize;
 
 /// Options of [`fuse_mesh`] (Open3D's names).
@@ -27,8 +34,19 @@ pub struct MeshOptions {
     /// Optional single-view filter: drop depths whose depth normal is more than this many
     /// degrees from the viewing ray (docs/method.md §TSDF: 80).
     pub max_normal_angle_deg: Option<f64>,
-    /// Keep only the largest connected component (else every component ≥ 50 triangles).
+    /// Multi-view depth consistency before fusion: each view's depths are checked against its
+    /// neighbours (the L_p source-view rule, [`NeighbourRule::default`]); `None`: off, the
+    /// default (measured on synth-bunny's exact depths it drops 9.6 % of them, the strips
+    /// fewer than two neighbours see, and costs 3.5 % Chamfer; BENCHMARKS.md).
+    pub consistency: Option<ConsistencyConfig>,
+    /// Keep only the largest connected component (else the components of
+    /// [`MeshOptions::min_component_share`]).
     pub largest_component_only: bool,
+    /// Components with fewer than this share of the mesh's triangles (or fewer than
+    /// [`MIN_COMPONENT_TRIANGLES`]) are removed; 0 keeps every component above that floor.
+    pub min_component_share: f64,
+    /// Simplification of the cleaned mesh.
+    pub simplify: Simplify,
     /// Fuse only where the view's mask is set (object scenes with masks).
     pub use_masks: bool,
     /// Block cap of the TSDF.
@@ -49,13 +67,75 @@ impl Default for MeshOptions {
             depth_trunc: None,
             min_alpha: 0.5,
             max_normal_angle_deg: None,
+            consistency: None,
             largest_component_only: false,
+            min_component_share: DEFAULT_COMPONENT_SHARE,
+            simplify: Simplify::FootprintError(DEFAULT_SIMPLIFY_ERROR),
             use_masks: false,
             max_blocks: TsdfConfig::default().max_blocks,
             bounds: None,
             max_memory: None,
         }
     }
+}
+
+/// How [`fuse_mesh`] simplifies the cleaned mesh ([`gs_tsdf::simplify_mesh`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Simplify {
+    /// The mesh as marching cubes made it.
+    Off,
+    /// Edge collapses while the error stays within this multiple of the pixel footprint
+    /// ([`MeshReport::pixel_footprint`]; the voxel when there is none).
+    FootprintError(f64),
+    /// At most this many triangles.
+    Triangles(usize),
+}
+
+/// The absolute floor of the component clean-up, triangles.
+pub const MIN_COMPONENT_TRIANGLES: usize = 50;
+
+/// Default [`MeshOptions::min_component_share`].
+pub const DEFAULT_COMPONENT_SHARE: f64 = 0.001;
+
+/// Default [`Simplify::FootprintError`] multiple.
+pub const DEFAULT_SIMPLIFY_ERROR: f64 = 0.25;
+
+/// The depth filter's settings and what it dropped (`mesh.json`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DepthFilterReport {
+    /// The settings applied.
+    #[serde(flatten)]
+    pub settings: ConsistencyConfig,
+    /// What it did.
+    #[serde(flatten)]
+    pub result: ConsistencyReport,
+    /// Seconds spent.
+    pub seconds: f64,
+}
+
+/// The component clean-up's rule and what it removed (`mesh.json`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ComponentCleanup {
+    /// `None` when only the largest component is kept.
+    pub min_share: Option<f64>,
+    /// The absolute floor, triangles.
+    pub min_triangles: usize,
+    /// What was removed.
+    #[serde(flatten)]
+    pub result: ComponentReport,
+}
+
+/// The simplification's settings and result (`mesh.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SimplifyApplied {
+    /// What was asked.
+    pub target: Simplify,
+    /// What meshoptimizer did.
+    #[serde(flatten)]
+    pub result: SimplifyReport,
+    /// Seconds spent.
+    pub seconds: f64,
 }
 
 /// Numbers of a mesh extraction.
@@ -75,8 +155,18 @@ pub struct MeshReport {
     pub tsdf_bytes: usize,
     /// Vertices of the cleaned mesh.
     pub vertices: usize,
-    /// Triangles of the cleaned mesh.
+    /// Triangles of the cleaned (and simplified) mesh.
     pub triangles: usize,
+    /// The minimum rendered opacity of a fused pixel (`None` for given depth maps).
+    pub min_alpha: Option<f32>,
+    /// Pixels with a depth but a rendered opacity below `min_alpha`, not fused.
+    pub pixels_below_min_alpha: u64,
+    /// The multi-view depth filter (`None`: off).
+    pub depth_filter: Option<DepthFilterReport>,
+    /// The component clean-up.
+    pub components: ComponentCleanup,
+    /// The simplification (`None`: off).
+    pub simplification: Option<SimplifyApplied>,
     /// Seconds spent rendering (or reading) the depth maps.
     pub render_seconds: f64,
     /// Seconds spent fusing and extracting.
@@ -137,49 +227,67 @@ pub enum DepthSource<'a> {
     Given(&'a mut dyn FnMut(&View) -> Result<Image>),
 }
 
+/// One view's depth map ready to fuse, with its rendered colour (`None`: the photograph).
+struct Fetched {
+    view: usize,
+    depth: Image,
+    color: Option<Image>,
+}
+
+/// Running totals of the fetching.
+#[derive(Default)]
+struct FetchStats {
+    seconds: f64,
+    below_alpha: u64,
+}
+
 impl DepthSource<'_> {
-    /// The depth map (and colour) of `view` (index `i`) to fuse.
-    fn depth_of(&mut self, i: usize, view: &View, min_alpha: f32) -> Result<(Image, Option<Image>)> {
-        match self {
+    /// The depth map (and colour) of view `i` to fuse.
+    fn fetch(&mut self, scene: &Scene, i: usize, min_alpha: f32, stats: &mut FetchStats) -> Result<Fetched> {
+        let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
+        let t0 = std::time::Instant::now();
+        let fetched = match self {
             DepthSource::Rendered { model, rasterizer } => {
                 let req = RenderRequest { color: true, alpha: true, plane_depth: true, ..RenderRequest::default() };
                 let out = model.render(rasterizer, i, &req)?;
                 let mut depth = out.plane_depth.expect("requested");
                 for (d, a) in depth.data_mut().iter_mut().zip(out.alpha.expect("requested").data()) {
                     if *a < min_alpha {
+                        stats.below_alpha += u64::from(*d > 0.0);
                         *d = 0.0;
                     }
                 }
-                Ok((depth, out.color))
+                Fetched { view: i, depth, color: out.color }
             }
-            DepthSource::Given(read) => Ok((read(view)?, None)),
-        }
+            DepthSource::Given(read) => Fetched { view: i, depth: read(view)?, color: None },
+        };
+        stats.seconds += t0.elapsed().as_secs_f64();
+        Ok(fetched)
     }
 }
 
 /// Fuses the depth maps of `views` (indices into `scene.views`) from `source` into a TSDF, runs
-/// marching cubes and the clean-up (components ≥ 50 triangles or the largest, degenerate and
-/// unreferenced elements removed).
+/// marching cubes, the clean-up (components of [`MeshOptions::min_component_share`] or the
+/// largest, degenerate and unreferenced elements removed) and the simplification. With
+/// [`MeshOptions::consistency`] every view's depth map is held until all are filtered.
 pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, opts: &MeshOptions) -> Result<(TriangleMesh, MeshReport)> {
     if views.is_empty() {
         return Err(TrainError::InvalidScene("no views to fuse into a mesh".into()));
     }
-    let (mut render_s, mut fuse_s) = (0.0, 0.0);
+    if let Some(i) = views.iter().find(|&&i| i >= scene.views.len()) {
+        return Err(TrainError::InvalidScene(format!("view index {i} out of range")));
+    }
+    let mut stats = FetchStats::default();
     // Without a given voxel, the first views' depth maps (kept for the fusion) measure the footprint.
-    let mut probed: Vec<(usize, Image, Option<Image>)> = Vec::new();
+    let mut held: Vec<Fetched> = Vec::new();
     if opts.voxel_size.is_none() || opts.max_memory.is_some() {
-        let t0 = std::time::Instant::now();
         for k in 0..FOOTPRINT_PROBES.min(views.len()) {
             let i = views[k * views.len() / FOOTPRINT_PROBES.min(views.len())];
-            let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
-            let (depth, color) = source.depth_of(i, view, opts.min_alpha)?;
-            probed.push((i, depth, color));
+            held.push(source.fetch(scene, i, opts.min_alpha, &mut stats)?);
         }
-        render_s += t0.elapsed().as_secs_f64();
     }
-    let probe_footprint = median(
-        probed.iter().filter_map(|(i, d, _)| median_footprint(d, scene.views[*i].camera.intrinsics.fx)).collect(),
-    );
+    let probe_footprint =
+        median(held.iter().filter_map(|f| median_footprint(&f.depth, scene.views[f.view].camera.intrinsics.fx)).collect());
     let voxel = opts.voxel_size.unwrap_or_else(|| default_voxel(scene, probe_footprint));
     let depth_trunc = opts.depth_trunc.unwrap_or(3.0 * scene.extent());
     let mut config = TsdfConfig {
@@ -193,44 +301,43 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     };
     if let Some(limit) = opts.max_memory {
         config.max_blocks = config.max_blocks.min((limit / MemoryEstimate::bytes_per_block(true)).max(1) as usize);
-        check_memory(scene, views.len(), &probed, &config, opts.use_masks, limit, probe_footprint)?;
+        let kept = opts.consistency.map_or(0, |_| held_bytes(scene, views, matches!(source, DepthSource::Rendered { .. })));
+        check_memory(scene, views.len(), &held, &config, opts.use_masks, (limit, kept), probe_footprint)?;
     }
-    let mut volume = TsdfVolume::new(config)?;
-    let mut footprints = Vec::with_capacity(views.len());
-    for &i in views {
-        let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
-        let t0 = std::time::Instant::now();
-        let (depth, color) = match probed.iter().position(|(p, _, _)| *p == i) {
-            Some(k) => {
-                let (_, d, c) = probed.swap_remove(k);
-                (d, c)
+    let depth_filter = match opts.consistency {
+        Some(cfg) => {
+            let mut all = Vec::with_capacity(views.len());
+            for &i in views {
+                match held.iter().position(|f| f.view == i) {
+                    Some(k) => all.push(held.swap_remove(k)),
+                    None => all.push(source.fetch(scene, i, opts.min_alpha, &mut stats)?),
+                }
             }
-            None => source.depth_of(i, view, opts.min_alpha)?,
-        };
-        let t1 = std::time::Instant::now();
-        let mask = if opts.use_masks { view.mask.as_ref() } else { None };
-        let fused = volume
-            .integrate_view(i, &view.camera, &depth, Some(color.as_ref().unwrap_or(&view.image)), mask)
-            .map_err(|e| match (e, opts.max_memory) {
-                (TsdfError::BlockCapExceeded { needed, .. }, Some(limit)) => TrainError::MemoryLimit(format!(
-                    "fusing view '{}' needs {needed} TSDF blocks, about {}, more than the memory limit of {}; \
-                     use a larger --voxel-size than {} or raise --max-memory",
-                    view.name,
-                    format_bytes(MemoryEstimate::for_blocks(needed as u64, true).peak_bytes()),
-                    format_bytes(limit),
-                    short(voxel)
-                )),
-                (e, _) => TrainError::InvalidScene(format!("view '{}': {e}", view.name)),
-            })?;
-        footprints.extend(fused.median_depth.map(|z| z as f64 / view.camera.intrinsics.fx));
-        render_s += (t1 - t0).as_secs_f64();
-        fuse_s += t1.elapsed().as_secs_f64();
-    }
+            held = all;
+            Some(filter_held(scene, &mut held, cfg)?)
+        }
+        None => None,
+    };
+    let mut volume = TsdfVolume::new(config)?;
     let t = std::time::Instant::now();
+    let mut footprints = Vec::with_capacity(views.len());
+    let mut fetch_s = 0.0;
+    for &i in views {
+        let f = match held.iter().position(|f| f.view == i) {
+            Some(k) => held.swap_remove(k),
+            None => {
+                let before = stats.seconds;
+                let f = source.fetch(scene, i, opts.min_alpha, &mut stats)?;
+                fetch_s += stats.seconds - before;
+                f
+            }
+        };
+        footprints.extend(integrate(&mut volume, scene, &f, opts, voxel)?);
+    }
     let raw = volume.extract_mesh()?;
-    let filter = if opts.largest_component_only { ComponentFilter::Largest } else { ComponentFilter::MinTriangles(50) };
-    let mesh = clean_mesh(&raw, filter)?;
-    fuse_s += t.elapsed().as_secs_f64();
+    let fuse_seconds = t.elapsed().as_secs_f64() - fetch_s;
+    let footprint = median(footprints);
+    let (mesh, components, simplification) = finish(&raw, opts, footprint.unwrap_or(voxel))?;
     let report = MeshReport {
         voxel_size: voxel,
         sdf_trunc: volume.config().truncation(),
@@ -240,11 +347,77 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         tsdf_bytes: volume.memory_bytes(),
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
-        render_seconds: render_s,
-        fuse_seconds: fuse_s,
-        pixel_footprint: median(footprints),
+        min_alpha: matches!(source, DepthSource::Rendered { .. }).then_some(opts.min_alpha),
+        pixels_below_min_alpha: stats.below_alpha,
+        depth_filter,
+        components,
+        simplification,
+        render_seconds: stats.seconds,
+        fuse_seconds,
+        pixel_footprint: footprint,
     };
     Ok((mesh, report))
+}
+
+/// Bytes of the depth maps (and rendered colours) held for the depth filter.
+fn held_bytes(scene: &Scene, views: &[usize], rendered: bool) -> u64 {
+    let per_pixel = if rendered { 16 } else { 4 };
+    views.iter().map(|&i| scene.views[i].camera.width as u64 * scene.views[i].camera.height as u64 * per_pixel).sum()
+}
+
+/// Runs the multi-view depth filter over `held` (every fused view, in fusion order).
+fn filter_held(scene: &Scene, held: &mut [Fetched], cfg: ConsistencyConfig) -> Result<DepthFilterReport> {
+    let t = std::time::Instant::now();
+    let cameras: Vec<&Camera> = held.iter().map(|f| &scene.views[f.view].camera).collect();
+    let neighbours = source_view_candidates(&cameras, &NeighbourRule::default());
+    let mut depths: Vec<&mut Image> = held.iter_mut().map(|f| &mut f.depth).collect();
+    let result = filter_depths(&cameras, &mut depths, &neighbours, &cfg)
+        .map_err(|e| TrainError::InvalidScene(format!("depth filter: {e}")))?;
+    Ok(DepthFilterReport { settings: cfg, result, seconds: t.elapsed().as_secs_f64() })
+}
+
+/// Integrates one fetched view; returns its pixel footprint (median fused depth / fx).
+fn integrate(volume: &mut TsdfVolume, scene: &Scene, f: &Fetched, opts: &MeshOptions, voxel: f64) -> Result<Option<f64>> {
+    let view = &scene.views[f.view];
+    let mask = if opts.use_masks { view.mask.as_ref() } else { None };
+    let fused = volume
+        .integrate_view(f.view, &view.camera, &f.depth, Some(f.color.as_ref().unwrap_or(&view.image)), mask)
+        .map_err(|e| match (e, opts.max_memory) {
+            (TsdfError::BlockCapExceeded { needed, .. }, Some(limit)) => TrainError::MemoryLimit(format!(
+                "fusing view '{}' needs {needed} TSDF blocks, about {}, more than the memory limit of {}; \
+                 use a larger --voxel-size than {} or raise --max-memory",
+                view.name,
+                format_bytes(MemoryEstimate::for_blocks(needed as u64, true).peak_bytes()),
+                format_bytes(limit),
+                short(voxel)
+            )),
+            (e, _) => TrainError::InvalidScene(format!("view '{}': {e}", view.name)),
+        })?;
+    Ok(fused.median_depth.map(|z| z as f64 / view.camera.intrinsics.fx))
+}
+
+/// The clean-up and simplification of the raw marching-cubes mesh; `footprint` scales
+/// [`Simplify::FootprintError`].
+fn finish(raw: &TriangleMesh, opts: &MeshOptions, footprint: f64) -> Result<(TriangleMesh, ComponentCleanup, Option<SimplifyApplied>)> {
+    let filter = if opts.largest_component_only {
+        ComponentFilter::Largest
+    } else {
+        ComponentFilter::MinShare { share: opts.min_component_share, min_triangles: MIN_COMPONENT_TRIANGLES }
+    };
+    let (mesh, result) = clean_mesh(raw, filter)?;
+    let components = ComponentCleanup {
+        min_share: (!opts.largest_component_only).then_some(opts.min_component_share),
+        min_triangles: MIN_COMPONENT_TRIANGLES,
+        result,
+    };
+    let target = match opts.simplify {
+        Simplify::Off => return Ok((mesh, components, None)),
+        Simplify::FootprintError(k) => SimplifyTarget::MaxError(k * footprint),
+        Simplify::Triangles(n) => SimplifyTarget::Triangles(n),
+    };
+    let t = std::time::Instant::now();
+    let (mesh, result) = simplify_mesh(&mesh, target)?;
+    Ok((mesh, components, Some(SimplifyApplied { target: opts.simplify, result, seconds: t.elapsed().as_secs_f64() })))
 }
 
 /// A voxel size in few digits (`0.01293`, `1.000e-9`).
@@ -252,25 +425,32 @@ fn short(v: f64) -> String {
     if v.abs() >= 1e-3 { format!("{v:.5}") } else { format!("{v:.3e}") }
 }
 
-/// Refuses a fusion whose [`BlockCensus`] estimate over the `probed` depth maps exceeds `limit`
-/// bytes, naming the estimate, the limit and a voxel that would fit.
+/// Refuses a fusion whose [`BlockCensus`] estimate over the `probed` depth maps, plus `kept`
+/// bytes of depth maps held for the depth filter, exceeds `limit` bytes, naming the estimate,
+/// the limit and a voxel that would fit.
 fn check_memory(
     scene: &Scene,
     views: usize,
-    probed: &[(usize, Image, Option<Image>)],
+    probed: &[Fetched],
     config: &TsdfConfig,
     use_masks: bool,
-    limit: u64,
+    (limit, kept): (u64, u64),
     footprint: Option<f64>,
 ) -> Result<()> {
     let voxel = config.voxel_size;
     let refuse = |what: String, blocks: u64| {
         let bytes = MemoryEstimate::for_blocks(blocks, true).peak_bytes();
         // Blocks scale as 1/voxel² on a surface sheet; never suggest finer than a pixel.
-        let fits = voxel * (1.1 * bytes as f64 / limit as f64).sqrt();
+        let room = limit.saturating_sub(kept).max(1);
+        let fits = voxel * (1.1 * bytes as f64 / room as f64).sqrt();
         let fits = footprint.map_or(fits, |f| fits.max(f));
+        let held = if kept > 0 {
+            format!(" plus {} of depth maps held for the depth filter (without --depth-filter none are held),", format_bytes(kept))
+        } else {
+            String::new()
+        };
         TrainError::MemoryLimit(format!(
-            "{what} at voxel size {} needs about {} ({blocks} TSDF blocks of {} each, with marching cubes), \
+            "{what} at voxel size {} needs about {} ({blocks} TSDF blocks of {} each, with marching cubes),{held} \
              more than the memory limit of {}; use --voxel-size {fits:.3e} or larger, or raise --max-memory",
             short(voxel),
             format_bytes(bytes),
@@ -279,10 +459,10 @@ fn check_memory(
         ))
     };
     let mut census = BlockCensus::new(config.clone())?;
-    for (i, depth, _) in probed {
-        let view = &scene.views[*i];
+    for f in probed {
+        let view = &scene.views[f.view];
         let mask = if use_masks { view.mask.as_ref() } else { None };
-        match census.add(&view.camera, depth, mask) {
+        match census.add(&view.camera, &f.depth, mask) {
             Err(TsdfError::BlockCapExceeded { needed, .. }) => {
                 let n = census.probes() + 1;
                 return Err(refuse(format!("fusing {n} of the {views} views alone"), needed as u64));
@@ -291,7 +471,7 @@ fn check_memory(
         }
     }
     let est = census.estimate(views);
-    if est.peak_bytes() > limit {
+    if est.peak_bytes().saturating_add(kept) > limit {
         return Err(refuse(format!("fusing {views} views"), est.blocks));
     }
     Ok(())

@@ -2,14 +2,35 @@
 
 use crate::error::{Result, TsdfError};
 use gs_core::{Camera, Image, TriangleMesh};
+use serde::Serialize;
 
 /// Which connected components [`filter_components`] keeps.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ComponentFilter {
     /// Only the component with the most triangles (ties: the one with the lowest triangle index).
     Largest,
     /// Every component with at least this many triangles.
     MinTriangles(usize),
+    /// Every component with at least `share` of the mesh's triangles and at least
+    /// `min_triangles`: small pieces are judged relative to the scene, not by a fixed count
+    /// that a finer voxel makes every speck pass.
+    MinShare {
+        /// Fraction of all triangles, in [0, 1].
+        share: f64,
+        /// Absolute floor.
+        min_triangles: usize,
+    },
+}
+
+/// What [`filter_components`] kept and removed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct ComponentReport {
+    /// Connected components before.
+    pub components: usize,
+    /// Components removed.
+    pub removed: usize,
+    /// Triangles of the removed components.
+    pub triangles_removed: usize,
 }
 
 /// Drops vertices no triangle uses and renumbers the rest in their original order.
@@ -96,7 +117,12 @@ pub fn triangle_components(mesh: &TriangleMesh) -> Result<(Vec<u32>, usize)> {
 }
 
 /// Keeps the connected components selected by `filter` (e.g. drops floating fragments).
-pub fn filter_components(mesh: &TriangleMesh, filter: ComponentFilter) -> Result<TriangleMesh> {
+pub fn filter_components(mesh: &TriangleMesh, filter: ComponentFilter) -> Result<(TriangleMesh, ComponentReport)> {
+    if let ComponentFilter::MinShare { share, .. } = filter
+        && !(0.0..=1.0).contains(&share)
+    {
+        return Err(TsdfError::InvalidParameter(format!("component share {share} is not a fraction in [0, 1]")));
+    }
     let (labels, count) = triangle_components(mesh)?;
     let mut sizes = vec![0usize; count];
     for &l in &labels {
@@ -112,16 +138,24 @@ pub fn filter_components(mesh: &TriangleMesh, filter: ComponentFilter) -> Result
             (0..count).map(|i| Some(i) == best.map(|b| b.0)).collect()
         }
         ComponentFilter::MinTriangles(k) => sizes.iter().map(|&s| s >= k).collect(),
+        ComponentFilter::MinShare { share, min_triangles } => {
+            let k = ((share * labels.len() as f64).ceil() as usize).max(min_triangles);
+            sizes.iter().map(|&s| s >= k).collect()
+        }
     };
+    let removed = keep_label.iter().filter(|k| !**k).count();
+    let triangles_removed = sizes.iter().zip(&keep_label).filter(|(_, k)| !**k).map(|(s, _)| s).sum();
     let triangles =
         mesh.triangles.iter().zip(&labels).filter(|(_, l)| keep_label[**l as usize]).map(|(t, _)| *t).collect();
-    Ok(remove_unreferenced_vertices(&TriangleMesh { triangles, ..mesh.clone() }))
+    let report = ComponentReport { components: count, removed, triangles_removed };
+    Ok((remove_unreferenced_vertices(&TriangleMesh { triangles, ..mesh.clone() }), report))
 }
 
 /// The standard clean-up after marching cubes (docs/method.md §TSDF): keep the components selected by
 /// `filter`, then drop degenerate triangles and unreferenced vertices.
-pub fn clean_mesh(mesh: &TriangleMesh, filter: ComponentFilter) -> Result<TriangleMesh> {
-    Ok(remove_unreferenced_vertices(&remove_degenerate_triangles(&filter_components(mesh, filter)?)))
+pub fn clean_mesh(mesh: &TriangleMesh, filter: ComponentFilter) -> Result<(TriangleMesh, ComponentReport)> {
+    let (kept, report) = filter_components(mesh, filter)?;
+    Ok((remove_unreferenced_vertices(&remove_degenerate_triangles(&kept)), report))
 }
 
 /// DTU-style culling: drops every vertex that projects inside some view's image (in front of
@@ -192,14 +226,28 @@ mod tests {
         let d = remove_degenerate_triangles(&m);
         assert_eq!(d.triangles.len(), 3);
         assert_eq!(d.positions.len(), 7);
-        let largest = filter_components(&d, ComponentFilter::Largest).unwrap();
+        let (largest, r) = filter_components(&d, ComponentFilter::Largest).unwrap();
         assert_eq!(largest.triangles.len(), 2);
         assert_eq!(largest.positions.len(), 4);
-        let all = filter_components(&d, ComponentFilter::MinTriangles(1)).unwrap();
+        assert_eq!(r, ComponentReport { components: 2, removed: 1, triangles_removed: 1 });
+        let (all, r) = filter_components(&d, ComponentFilter::MinTriangles(1)).unwrap();
         assert_eq!(all.triangles.len(), 3);
-        let none = filter_components(&d, ComponentFilter::MinTriangles(3)).unwrap();
+        assert_eq!(r.removed, 0);
+        let (none, r) = filter_components(&d, ComponentFilter::MinTriangles(3)).unwrap();
         assert!(none.triangles.is_empty() && none.positions.is_empty());
-        assert!(filter_components(&TriangleMesh::default(), ComponentFilter::Largest).unwrap().triangles.is_empty());
+        assert_eq!((r.removed, r.triangles_removed), (2, 3));
+        assert!(filter_components(&TriangleMesh::default(), ComponentFilter::Largest).unwrap().0.triangles.is_empty());
+        // Shares: the lone triangle is 1/3 of the mesh; a share above that drops it.
+        let share = |s| filter_components(&d, ComponentFilter::MinShare { share: s, min_triangles: 1 }).unwrap();
+        assert_eq!(share(0.33).0.triangles.len(), 3);
+        assert_eq!(share(0.34).0.triangles.len(), 2);
+        assert_eq!(share(0.34).1, ComponentReport { components: 2, removed: 1, triangles_removed: 1 });
+        assert!(share(0.67).0.triangles.is_empty());
+        let floor = filter_components(&d, ComponentFilter::MinShare { share: 0.0, min_triangles: 2 }).unwrap();
+        assert_eq!(floor.0.triangles.len(), 2);
+        for bad in [-0.1, 1.5, f64::NAN] {
+            assert!(filter_components(&d, ComponentFilter::MinShare { share: bad, min_triangles: 1 }).is_err());
+        }
     }
 
     #[test]

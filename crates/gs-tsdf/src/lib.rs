@@ -25,22 +25,29 @@
 //! * [`TsdfVolume`]: a hash map of 8³ voxel blocks, allocated only within `sdf_trunc` of
 //!   observed depth; [`TsdfVolume::integrate`] follows Open3D's `ScalableTSDFVolume`.
 //! * [`TsdfVolume::extract_mesh`]: marching cubes across block borders with shared vertices.
-//! * [`clean`]: connected components, degenerate / unreferenced elements, mask culling.
+//! * [`consistency`]: multi-view geometric depth consistency, before fusion.
+//! * [`clean`]: connected components (absolute or relative size), degenerate / unreferenced
+//!   elements, mask culling.
+//! * [`simplify`]: quadric-error simplification to a world-space error bound or a count.
 //! * [`memory`]: the peak-memory estimate of a fusion, made before allocating it.
 //! * [`metrics`]: area-weighted sampling, accuracy / completeness / Chamfer / F1.
 
 pub mod clean;
+pub mod consistency;
 pub mod error;
 pub mod extract;
 pub mod memory;
 mod mc_table;
 pub mod metrics;
+pub mod simplify;
 pub mod synthetic;
 pub mod volume;
 
-pub use clean::{ComponentFilter, clean_mesh, cull_by_masks, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
+pub use clean::{ComponentFilter, ComponentReport, clean_mesh, cull_by_masks, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
+pub use consistency::{ConsistencyConfig, ConsistencyReport, filter_depths};
 pub use error::{Result, TsdfError};
 pub use extract::ExtractOptions;
 pub use memory::{BlockCensus, MemoryEstimate, format_bytes};
 pub use metrics::{Aabb, EvalOptions, EvalReport, PointMetrics, evaluate_meshes, point_metrics, sample_surface};
+pub use simplify::{SimplifyReport, SimplifyTarget, simplify_mesh};
 pub use volume::{IntegrateStats, TsdfConfig, TsdfVolume};

@@ -86,7 +86,7 @@ fn estimate_brackets_real_peak() {
             vol
         });
         let raw = vol.extract_mesh().unwrap();
-        let mesh = clean_mesh(&raw, ComponentFilter::MinTriangles(50)).unwrap();
+        let (mesh, _) = clean_mesh(&raw, ComponentFilter::MinTriangles(50)).unwrap();
         (vol.block_count(), volume_peak, mesh)
     });
     assert_eq!(est.blocks, blocks as u64, "all views probed: the count is exact");

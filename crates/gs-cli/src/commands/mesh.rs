@@ -2,7 +2,7 @@
 
 use crate::run_dir::{OpenRun, SceneSource, load_scene, write_json};
 use anyhow::{Result, bail};
-use gs_train::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, extract_mesh, fuse_mesh};
+use gs_train::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, Simplify, extract_mesh, fuse_mesh};
 use std::path::{Path, PathBuf};
 
 /// Options of `vagsl mesh`.
@@ -37,9 +37,37 @@ pub struct MeshArgs {
     /// Drop depths whose depth normal is more than this many degrees from the ray (e.g. 80).
     #[arg(long)]
     pub max_normal_angle: Option<f64>,
+    /// Fuse only pixels whose rendered opacity is at least this (default 0.5; 0 fuses every
+    /// pixel with a depth).
+    #[arg(long)]
+    pub min_alpha: Option<f32>,
+    /// Fuse only the depths that neighbouring views confirm (a multi-view depth consistency
+    /// filter: a floating sheet that one view's depth holds and its neighbours see through is
+    /// not fused). Off by default: on exact depths it drops the strips that fewer than two
+    /// neighbours see (BENCHMARKS.md).
+    #[arg(long)]
+    pub depth_filter: bool,
+    /// Neighbouring views that must confirm a depth under --depth-filter (default 2; a view
+    /// with fewer neighbours needs all of them).
+    #[arg(long, requires = "depth_filter")]
+    pub depth_filter_views: Option<usize>,
     /// Keep only the largest connected component.
     #[arg(long)]
     pub largest: bool,
+    /// Remove the connected components with fewer than this share of the mesh's triangles
+    /// (default 0.001; 0 keeps every component of at least 50 triangles).
+    #[arg(long, conflicts_with = "largest")]
+    pub min_component_share: Option<f64>,
+    /// Simplify to at most this many triangles (instead of the error bound).
+    #[arg(long, conflicts_with = "no_simplify")]
+    pub triangles: Option<usize>,
+    /// Simplify while the surface moves at most this multiple of the pixel footprint
+    /// (default 0.25).
+    #[arg(long, conflicts_with_all = ["no_simplify", "triangles"])]
+    pub simplify_error: Option<f64>,
+    /// Keep the mesh as marching cubes made it (no simplification).
+    #[arg(long)]
+    pub no_simplify: bool,
     /// Fuse only inside the views' masks.
     #[arg(long)]
     pub masks: bool,
@@ -81,26 +109,58 @@ fn parse_bounds(s: &str) -> std::result::Result<gs_tsdf::Aabb, String> {
     Ok(gs_tsdf::Aabb { min: [v[0], v[1], v[2]], max: [v[3], v[4], v[5]] })
 }
 
-/// The mesh options of `args`.
-fn options(args: &MeshArgs) -> MeshOptions {
-    MeshOptions {
+/// The mesh options of `args`: [`MeshOptions::default`] with what the flags change.
+fn options(args: &MeshArgs) -> Result<MeshOptions> {
+    let d = MeshOptions::default();
+    if let Some(a) = args.min_alpha
+        && !(0.0..=1.0).contains(&a)
+    {
+        bail!("--min-alpha {a}: an opacity is between 0 and 1");
+    }
+    if let Some(s) = args.min_component_share
+        && !(0.0..=1.0).contains(&s)
+    {
+        bail!("--min-component-share {s}: a share of the triangles is between 0 and 1");
+    }
+    if let Some(e) = args.simplify_error
+        && !(e.is_finite() && e >= 0.0)
+    {
+        bail!("--simplify-error {e}: a multiple of the pixel footprint is a finite number ≥ 0");
+    }
+    let consistency = match (args.depth_filter, args.depth_filter_views) {
+        (false, _) => d.consistency,
+        (true, Some(0)) => bail!("--depth-filter-views 0: at least one view must confirm a depth"),
+        (true, Some(k)) => Some(gs_tsdf::ConsistencyConfig { min_views: k, ..d.consistency.unwrap_or_default() }),
+        (true, None) => Some(d.consistency.unwrap_or_default()),
+    };
+    let simplify = match (args.no_simplify, args.triangles, args.simplify_error) {
+        (true, _, _) => Simplify::Off,
+        (_, Some(n), _) => Simplify::Triangles(n),
+        (_, _, Some(e)) => Simplify::FootprintError(e),
+        _ => d.simplify,
+    };
+    Ok(MeshOptions {
         voxel_size: args.voxel_size,
         sdf_trunc: args.sdf_trunc,
         depth_trunc: args.depth_trunc,
+        min_alpha: args.min_alpha.unwrap_or(d.min_alpha),
         max_normal_angle_deg: args.max_normal_angle,
+        consistency,
         largest_component_only: args.largest,
+        min_component_share: args.min_component_share.unwrap_or(d.min_component_share),
+        simplify,
         use_masks: args.masks,
         bounds: args.bounds,
         max_memory: Some(crate::memory::limit(args.max_memory)),
-        ..Default::default()
-    }
+        ..d
+    })
 }
 
 /// Runs `vagsl mesh`: a run's rendered plane depths, or with `--depth-dir` given depth maps of
 /// every view of a scene (e.g. ground truth, or another method's output), through the one
 /// fusion path of [`fuse_mesh`].
 pub fn run(args: &MeshArgs) -> Result<()> {
-    let opts = options(args);
+    let opts = options(args)?;
     if let Some(out) = &args.output {
         check_writable(out, "the mesh")?;
     }
@@ -134,6 +194,7 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         report.fuse_seconds,
         path.display()
     );
+    println!("{}", cleanup_line(&report));
     if let Some(footprint) = report.pixel_footprint
         && report.voxel_size < FINE_VOXEL_FRACTION * footprint
     {
@@ -143,6 +204,31 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// One line on what the filters and the simplification removed.
+fn cleanup_line(r: &gs_train::MeshReport) -> String {
+    let mut parts = Vec::new();
+    if r.pixels_below_min_alpha > 0 {
+        parts.push(format!("{} pixels below opacity {}", r.pixels_below_min_alpha, r.min_alpha.unwrap_or(0.0)));
+    }
+    if let Some(f) = &r.depth_filter {
+        let share = 100.0 * f.result.pixels_dropped as f64 / f.result.pixels_checked.max(1) as f64;
+        parts.push(format!("{} depths ({share:.1} %) not confirmed by {} neighbouring views", f.result.pixels_dropped, f.settings.min_views));
+    }
+    let c = &r.components.result;
+    parts.push(format!("{} of {} components ({} triangles)", c.removed, c.components, c.triangles_removed));
+    let mut line = format!("  removed: {}", parts.join("; "));
+    if let Some(s) = &r.simplification {
+        line.push_str(&format!(
+            "\n  simplified: {} → {} triangles (error {:.2e}{})",
+            s.result.triangles_before,
+            s.result.triangles_after,
+            s.result.error,
+            s.result.error_bound.map_or(String::new(), |b| format!(", bound {b:.2e}"))
+        ));
+    }
+    line
 }
 
 /// Fails, before any work, when `path`'s folder is missing or refuses a new file (probed with a
