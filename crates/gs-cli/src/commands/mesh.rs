@@ -62,7 +62,7 @@ pub struct MeshArgs {
     #[arg(long, conflicts_with = "no_simplify")]
     pub triangles: Option<usize>,
     /// Simplify while the surface moves at most this multiple of the pixel footprint
-    /// (default 0.25).
+    /// (default 0.1).
     #[arg(long, conflicts_with_all = ["no_simplify", "triangles"])]
     pub simplify_error: Option<f64>,
     /// Keep the mesh as marching cubes made it (no simplification).
