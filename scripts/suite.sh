@@ -100,14 +100,14 @@ scene, d, t0, t1, t2 = sys.argv[1], sys.argv[2], *map(float, sys.argv[3:])
 load = lambda p: json.load(open(p))
 meta, floor, em = load(f"{scene}/scene.json"), load(f"{d}/floor/eval_mesh.json"), load(f"{d}/eval_mesh.json")
 ei, rep, mesh = load(f"{d}/eval_images.json"), load(f"{d}/run/report.json"), load(f"{d}/run/mesh.json")
-fm, m = floor["metrics"], em["metrics"]
+fm, m = floor, em
 views = ei["views"]
 worst = min(views, key=lambda v: v["psnr"])
 veils = [v for v in views if v.get("veil")]
 row = {
     "scene": d.rstrip("/").split("/")[-1], "views": meta["views"], "texture": meta["texture_strength"]["object"],
     "chamfer": m["chamfer"], "floor_chamfer": fm["chamfer"], "chamfer_ratio": m["chamfer"] / fm["chamfer"],
-    "f1": m["f1"], "floor_f1": fm["f1"], "accuracy": m["accuracy"], "completeness": m["completeness"],
+    "f1": m["f1"], "floor_f1": fm["f1"], "f1_ratio": m["f1"] / fm["f1"], "accuracy": m["accuracy"], "completeness": m["completeness"],
     "psnr": ei["psnr"], "worst_view": worst["name"], "worst_psnr": worst["psnr"],
     "veils": len(veils), "veil_views": [f'{v["name"]} ({v["veil"]["psnr_without"]:.1f} dB without)' for v in veils],
     "triangles": mesh["triangles"], "gaussians": rep["gaussians"], "train_seconds": rep["train_seconds"],
@@ -143,7 +143,7 @@ rows = [json.load(open(f"{out}/{s}/row.json")) for s in scenes]
 commit = subprocess.run(["git", "-C", os.environ["SUITE_ROOT"], "describe", "--always", "--dirty"], capture_output=True, text=True).stdout.strip()
 cols = [  # header, key, format, worst = max or min
     ("Chamfer", "chamfer", "{:.5f}", max), ("floor", "floor_chamfer", "{:.5f}", max), ("× floor", "chamfer_ratio", "{:.2f}", max),
-    ("F1", "f1", "{:.3f}", min), ("floor F1", "floor_f1", "{:.3f}", min),
+    ("F1", "f1", "{:.3f}", min), ("floor F1", "floor_f1", "{:.3f}", min), ("F1 ÷ floor", "f1_ratio", "{:.3f}", min),
     ("PSNR", "psnr", "{:.2f}", min), ("worst view", "worst_psnr", "{:.2f}", min), ("veils", "veils", "{:d}", max),
     ("triangles", "triangles", "{:,}", max), ("Gaussians", "gaussians", "{:,}", max),
     ("train s", "train_seconds", "{:.0f}", max), ("total s", "total_seconds", "{:.0f}", max),
@@ -162,7 +162,7 @@ lines = [
 ]
 for r in rows:
     cells = [fmt(f, r[k]) for _, k, f, _ in cols]
-    cells[6] = f'{r["worst_view"]} {r["worst_psnr"]:.2f}'
+    cells[7] = f'{r["worst_view"]} {r["worst_psnr"]:.2f}'
     lines.append(f'| {r["scene"]} | {r["views"]} | {r["texture"]:.2f} | ' + " | ".join(cells) + " |")
 mean = [fmt(f.replace(":d", ":.1f").replace(":,", ":,.0f"), sum(r[k] for r in rows) / len(rows)) for _, k, f, _ in cols]
 lines.append("| **mean** | | | " + " | ".join(mean) + " |")
