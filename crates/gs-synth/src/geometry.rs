@@ -40,7 +40,10 @@ pub enum Material {
 impl Material {
     /// Whether this is one of the three objects (mask = 1).
     pub fn is_object(self) -> bool {
-        matches!(self, Material::Sphere | Material::Cuboid | Material::Torus | Material::Part(_))
+        matches!(
+            self,
+            Material::Sphere | Material::Cuboid | Material::Torus | Material::Part(_)
+        )
     }
 }
 
@@ -80,7 +83,13 @@ impl Builder {
     }
 
     /// Adds a triangle wound counter-clockwise seen from the side `outward` points to.
-    pub(crate) fn triangle(&mut self, mut t: [u32; 3], outward: DVec3, material: Material, smooth: bool) {
+    pub(crate) fn triangle(
+        &mut self,
+        mut t: [u32; 3],
+        outward: DVec3,
+        material: Material,
+        smooth: bool,
+    ) {
         let p = |i: u32| {
             let v = self.positions[i as usize];
             DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
@@ -98,7 +107,13 @@ impl Builder {
     }
 
     /// A quad `a b c d` (in order around its boundary) as two triangles.
-    pub(crate) fn quad(&mut self, q: [u32; 4], outward: Option<DVec3>, material: Material, smooth: bool) {
+    pub(crate) fn quad(
+        &mut self,
+        q: [u32; 4],
+        outward: Option<DVec3>,
+        material: Material,
+        smooth: bool,
+    ) {
         for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
             let out = outward
                 .unwrap_or_else(|| t.iter().map(|&i| self.normals[i as usize]).sum::<DVec3>());
@@ -106,7 +121,13 @@ impl Builder {
         }
     }
 
-    pub(crate) fn sphere(&mut self, centre: DVec3, radius: f64, (n_lon, n_lat): (usize, usize), m: Material) {
+    pub(crate) fn sphere(
+        &mut self,
+        centre: DVec3,
+        radius: f64,
+        (n_lon, n_lat): (usize, usize),
+        m: Material,
+    ) {
         let mut rings: Vec<Vec<u32>> = Vec::with_capacity(n_lat + 1);
         for i in 0..=n_lat {
             let theta = std::f64::consts::PI * i as f64 / n_lat as f64;
@@ -207,12 +228,7 @@ impl Builder {
             ([4, 5, 7, 6], DVec3::Z),
         ];
         for (q, axis) in faces {
-            self.quad(
-                q.map(|k| corner[k]),
-                Some(rot * axis),
-                m,
-                false,
-            );
+            self.quad(q.map(|k| corner[k]), Some(rot * axis), m, false);
         }
     }
 
@@ -242,7 +258,14 @@ pub fn build() -> Geometry {
     let (major, minor, tilt, tyaw, [tx, ty]) = TORUS;
     let rot = DMat3::from_rotation_z(deg(tyaw)) * DMat3::from_rotation_x(deg(tilt));
     let tz = major * deg(tilt).sin() + minor;
-    b.torus(DVec3::new(tx, ty, tz), rot, major, minor, TORUS_SEGMENTS, Material::Torus);
+    b.torus(
+        DVec3::new(tx, ty, tz),
+        rot,
+        major,
+        minor,
+        TORUS_SEGMENTS,
+        Material::Torus,
+    );
     let object_triangles = b.triangles.len();
     let object_vertices = b.positions.len();
 

@@ -51,7 +51,10 @@ pub mod write;
 pub use bvh::{Bvh, ClosestPoint, Hit, ViewCast, pixel_ray};
 pub use error::{Result, SynthError};
 pub use render::{LIGHT_DIRECTION, RingSpec, Style, ring_cameras, ring_cameras_with};
-pub use suite::{GENERATOR_VERSION, SUITE_SIZE, SceneSpec, SuiteOptions, SuiteScene, generate_suite_scene, scene_spec, write_suite_scene};
+pub use suite::{
+    GENERATOR_VERSION, SUITE_SIZE, SceneSpec, SuiteOptions, SuiteScene, generate_suite_scene,
+    scene_spec, write_suite_scene,
+};
 pub use write::write_scene;
 
 use glam::DVec3;
@@ -237,7 +240,11 @@ pub(crate) fn render_scene(
         gt_normals.push(r.normal);
     }
     Ok(BuiltinScene {
-        scene: Scene { views, points, held_out: None },
+        scene: Scene {
+            views,
+            points,
+            held_out: None,
+        },
         gt_depth,
         gt_normals,
         object_mesh,

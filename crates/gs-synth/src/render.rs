@@ -85,7 +85,12 @@ pub struct RingSpec {
 impl RingSpec {
     /// The built-in scene's rings.
     pub fn builtin() -> Self {
-        Self { target: TARGET, radius: RING_RADIUS, elevations: RING_ELEVATIONS, fov_deg: FOV_DEG }
+        Self {
+            target: TARGET,
+            radius: RING_RADIUS,
+            elevations: RING_ELEVATIONS,
+            fov_deg: FOV_DEG,
+        }
     }
 }
 

@@ -13,7 +13,13 @@ impl Builder {
     /// bottom, up the outside, over the rim, down the inside), revolved in `segments` steps.
     /// Smooth around the axis, flat along the profile (each profile segment gets its own ring
     /// of vertices, so rims and corners stay sharp).
-    pub(crate) fn lathe(&mut self, centre: DVec3, profile: &[[f64; 2]], segments: usize, m: Material) {
+    pub(crate) fn lathe(
+        &mut self,
+        centre: DVec3,
+        profile: &[[f64; 2]],
+        segments: usize,
+        m: Material,
+    ) {
         for w in profile.windows(2) {
             let ([r0, z0], [r1, z1]) = (w[0], w[1]);
             let (dr, dz) = (r1 - r0, z1 - z0);
@@ -45,7 +51,14 @@ impl Builder {
     /// A tube of radius `radius` swept along the polyline `path` (parallel-transported frames,
     /// `sides` vertices around). `closed` joins the end to the start (the frame's twist is spread
     /// along the loop); otherwise both ends get flat caps.
-    pub(crate) fn tube(&mut self, path: &[DVec3], radius: f64, sides: usize, closed: bool, m: Material) {
+    pub(crate) fn tube(
+        &mut self,
+        path: &[DVec3],
+        radius: f64,
+        sides: usize,
+        closed: bool,
+        m: Material,
+    ) {
         let n = path.len();
         let tangent = |i: usize| -> DVec3 {
             let (a, b) = if closed {
@@ -118,55 +131,142 @@ impl Builder {
     /// `centre.z`) of outer size `w × h` with a rectangular hole of `hole_w × hole_h` whose
     /// bottom is `sill` above the plate's bottom: a window frame, watertight, flat shaded.
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn frame(&mut self, centre: DVec3, w: f64, h: f64, depth: f64, hole: [f64; 3], m: Material) {
+    pub(crate) fn frame(
+        &mut self,
+        centre: DVec3,
+        w: f64,
+        h: f64,
+        depth: f64,
+        hole: [f64; 3],
+        m: Material,
+    ) {
         let [hole_w, hole_h, sill] = hole;
         let outer = [[-w / 2.0, 0.0], [w / 2.0, 0.0], [w / 2.0, h], [-w / 2.0, h]];
-        let inner = [[-hole_w / 2.0, sill], [hole_w / 2.0, sill], [hole_w / 2.0, sill + hole_h], [-hole_w / 2.0, sill + hole_h]];
+        let inner = [
+            [-hole_w / 2.0, sill],
+            [hole_w / 2.0, sill],
+            [hole_w / 2.0, sill + hole_h],
+            [-hole_w / 2.0, sill + hole_h],
+        ];
         let at = |[x, z]: [f64; 2], y: f64| centre + DVec3::new(x, y, z);
         let (yf, yb) = (-depth / 2.0, depth / 2.0);
         for (y, out) in [(yf, -DVec3::Y), (yb, DVec3::Y)] {
             for i in 0..4 {
                 let i1 = (i + 1) % 4;
-                let q = [at(outer[i], y), at(outer[i1], y), at(inner[i1], y), at(inner[i], y)];
+                let q = [
+                    at(outer[i], y),
+                    at(outer[i1], y),
+                    at(inner[i1], y),
+                    at(inner[i], y),
+                ];
                 self.flat_quad(q, out, m);
             }
         }
         for i in 0..4 {
             let i1 = (i + 1) % 4;
             // Outer side faces point away from the plate's centre, inner ones into the hole.
-            let mid_o = 0.5 * (DVec3::new(outer[i][0], 0.0, outer[i][1]) + DVec3::new(outer[i1][0], 0.0, outer[i1][1]));
-            let mid_i = 0.5 * (DVec3::new(inner[i][0], 0.0, inner[i][1]) + DVec3::new(inner[i1][0], 0.0, inner[i1][1]));
+            let mid_o = 0.5
+                * (DVec3::new(outer[i][0], 0.0, outer[i][1])
+                    + DVec3::new(outer[i1][0], 0.0, outer[i1][1]));
+            let mid_i = 0.5
+                * (DVec3::new(inner[i][0], 0.0, inner[i][1])
+                    + DVec3::new(inner[i1][0], 0.0, inner[i1][1]));
             let hole_c = DVec3::new(0.0, 0.0, sill + hole_h / 2.0);
             let out_o = side_normal(mid_o - DVec3::new(0.0, 0.0, h / 2.0));
             let out_i = side_normal(hole_c - mid_i);
-            self.flat_quad([at(outer[i], yf), at(outer[i1], yf), at(outer[i1], yb), at(outer[i], yb)], out_o, m);
-            self.flat_quad([at(inner[i], yf), at(inner[i1], yf), at(inner[i1], yb), at(inner[i], yb)], out_i, m);
+            self.flat_quad(
+                [
+                    at(outer[i], yf),
+                    at(outer[i1], yf),
+                    at(outer[i1], yb),
+                    at(outer[i], yb),
+                ],
+                out_o,
+                m,
+            );
+            self.flat_quad(
+                [
+                    at(inner[i], yf),
+                    at(inner[i1], yf),
+                    at(inner[i1], yb),
+                    at(inner[i], yb),
+                ],
+                out_i,
+                m,
+            );
         }
     }
 
     /// Stairs along +x from `origin` (its lowest front corner): step `k` spans
     /// `[x_k, x_k + run]`, is `heights[k]` tall and `width` deep along y. Watertight, flat shaded.
-    pub(crate) fn stairs(&mut self, origin: DVec3, run: f64, width: f64, heights: &[f64], m: Material) {
+    pub(crate) fn stairs(
+        &mut self,
+        origin: DVec3,
+        run: f64,
+        width: f64,
+        heights: &[f64],
+        m: Material,
+    ) {
         let n = heights.len();
         let p = |x: f64, y: f64, z: f64| origin + DVec3::new(x, y, z);
         let x_end = run * n as f64;
-        self.flat_quad([p(0.0, 0.0, 0.0), p(x_end, 0.0, 0.0), p(x_end, width, 0.0), p(0.0, width, 0.0)], -DVec3::Z, m);
+        self.flat_quad(
+            [
+                p(0.0, 0.0, 0.0),
+                p(x_end, 0.0, 0.0),
+                p(x_end, width, 0.0),
+                p(0.0, width, 0.0),
+            ],
+            -DVec3::Z,
+            m,
+        );
         let mut prev = 0.0;
         for (k, &h) in heights.iter().enumerate() {
             let (x0, x1) = (run * k as f64, run * (k + 1) as f64);
-            self.flat_quad([p(x0, 0.0, h), p(x1, 0.0, h), p(x1, width, h), p(x0, width, h)], DVec3::Z, m);
+            self.flat_quad(
+                [
+                    p(x0, 0.0, h),
+                    p(x1, 0.0, h),
+                    p(x1, width, h),
+                    p(x0, width, h),
+                ],
+                DVec3::Z,
+                m,
+            );
             for (y, out) in [(0.0, -DVec3::Y), (width, DVec3::Y)] {
-                self.flat_quad([p(x0, y, 0.0), p(x1, y, 0.0), p(x1, y, h), p(x0, y, h)], out, m);
+                self.flat_quad(
+                    [p(x0, y, 0.0), p(x1, y, 0.0), p(x1, y, h), p(x0, y, h)],
+                    out,
+                    m,
+                );
             }
             // The riser between the previous step's height and this one.
             if h != prev {
                 let out = if h > prev { -DVec3::X } else { DVec3::X };
                 let (a, b) = (prev.min(h), prev.max(h));
-                self.flat_quad([p(x0, 0.0, a), p(x0, width, a), p(x0, width, b), p(x0, 0.0, b)], out, m);
+                self.flat_quad(
+                    [
+                        p(x0, 0.0, a),
+                        p(x0, width, a),
+                        p(x0, width, b),
+                        p(x0, 0.0, b),
+                    ],
+                    out,
+                    m,
+                );
             }
             prev = h;
         }
-        self.flat_quad([p(x_end, 0.0, 0.0), p(x_end, width, 0.0), p(x_end, width, prev), p(x_end, 0.0, prev)], DVec3::X, m);
+        self.flat_quad(
+            [
+                p(x_end, 0.0, 0.0),
+                p(x_end, width, 0.0),
+                p(x_end, width, prev),
+                p(x_end, 0.0, prev),
+            ],
+            DVec3::X,
+            m,
+        );
     }
 
     /// A flat quad with its own four vertices, facing `out`.
@@ -177,7 +277,11 @@ impl Builder {
 
 /// The x/z-plane normal of a frame side: the dominant axis of `d`.
 fn side_normal(d: DVec3) -> DVec3 {
-    if d.x.abs() > d.z.abs() { DVec3::new(d.x.signum(), 0.0, 0.0) } else { DVec3::new(0.0, 0.0, d.z.signum()) }
+    if d.x.abs() > d.z.abs() {
+        DVec3::new(d.x.signum(), 0.0, 0.0)
+    } else {
+        DVec3::new(0.0, 0.0, d.z.signum())
+    }
 }
 
 /// Parallel transport of normal `n` from tangent `ta` to tangent `tb` (rotation taking ta to tb).

@@ -6,8 +6,8 @@
 //! the camera ring or seen at grazing angles, light direction, ring radius and elevation, and
 //! the number of views (20–60). See docs/architecture.md §validation suite.
 
-use crate::geometry::{Builder, Geometry, Material};
 use crate::error::{Result, SynthError};
+use crate::geometry::{Builder, Geometry, Material};
 use crate::render::{Renderer, RingSpec, Style, ring_cameras_with};
 use crate::shapes::{closed_curve, open_curve};
 use glam::{DMat3, DVec3};
@@ -64,14 +64,94 @@ struct Base {
 }
 
 const BASES: [Base; SUITE_SIZE] = [
-    Base { name: "cup", about: "open cup (thin rim, deep concavity) with a tube handle and a ball", views: 36, radius: 2.6, elevations: [22.0, 42.0], target_z: 0.25, room: [3.6, 3.6, 2.0], strength: 0.8, light: [35.0, 52.0] },
-    Base { name: "knot", about: "trefoil-knot tube on a thin post, walls close behind the camera ring", views: 40, radius: 2.3, elevations: [20.0, 38.0], target_z: 0.45, room: [2.75, 2.75, 2.0], strength: 1.0, light: [120.0, 60.0] },
-    Base { name: "window", about: "weakly textured frame with a hole, a ball seen through it, a flat ring; low light", views: 30, radius: 2.8, elevations: [15.0, 35.0], target_z: 0.35, room: [3.5, 3.5, 2.0], strength: 0.3, light: [210.0, 30.0] },
-    Base { name: "table", about: "slab on four thin legs over a cone (hidden concavity), narrow room: side walls at grazing angles", views: 24, radius: 2.0, elevations: [25.0, 45.0], target_z: 0.3, room: [4.0, 2.3, 2.0], strength: 0.6, light: [300.0, 55.0] },
-    Base { name: "vase", about: "almost untextured vase with a narrow neck, a thin pole and a rod on the floor; low ring", views: 48, radius: 2.7, elevations: [12.0, 28.0], target_z: 0.35, room: [3.6, 3.6, 2.0], strength: 0.15, light: [60.0, 45.0] },
-    Base { name: "stairs", about: "stepped block and a thin arch, strong texture, high ring, 60 views", views: 60, radius: 2.5, elevations: [35.0, 60.0], target_z: 0.25, room: [3.4, 3.4, 2.0], strength: 1.0, light: [150.0, 65.0] },
-    Base { name: "spring", about: "helical spring beside a thin-walled bowl, walls close to the ring", views: 32, radius: 2.2, elevations: [20.0, 40.0], target_z: 0.25, room: [2.6, 2.6, 2.0], strength: 0.5, light: [10.0, 40.0] },
-    Base { name: "pillars", about: "six thin pillars under a ring and a ball, few views (20), long room", views: 20, radius: 2.1, elevations: [18.0, 35.0], target_z: 0.35, room: [2.5, 4.0, 2.0], strength: 0.7, light: [250.0, 50.0] },
+    Base {
+        name: "cup",
+        about: "open cup (thin rim, deep concavity) with a tube handle and a ball",
+        views: 36,
+        radius: 2.6,
+        elevations: [22.0, 42.0],
+        target_z: 0.25,
+        room: [3.6, 3.6, 2.0],
+        strength: 0.8,
+        light: [35.0, 52.0],
+    },
+    Base {
+        name: "knot",
+        about: "trefoil-knot tube on a thin post, walls close behind the camera ring",
+        views: 40,
+        radius: 2.3,
+        elevations: [20.0, 38.0],
+        target_z: 0.45,
+        room: [2.75, 2.75, 2.0],
+        strength: 1.0,
+        light: [120.0, 60.0],
+    },
+    Base {
+        name: "window",
+        about: "weakly textured frame with a hole, a ball seen through it, a flat ring; low light",
+        views: 30,
+        radius: 2.8,
+        elevations: [15.0, 35.0],
+        target_z: 0.35,
+        room: [3.5, 3.5, 2.0],
+        strength: 0.3,
+        light: [210.0, 30.0],
+    },
+    Base {
+        name: "table",
+        about: "slab on four thin legs over a cone (hidden concavity), narrow room: side walls at grazing angles",
+        views: 24,
+        radius: 2.0,
+        elevations: [25.0, 45.0],
+        target_z: 0.3,
+        room: [4.0, 2.3, 2.0],
+        strength: 0.6,
+        light: [300.0, 55.0],
+    },
+    Base {
+        name: "vase",
+        about: "almost untextured vase with a narrow neck, a thin pole and a rod on the floor; low ring",
+        views: 48,
+        radius: 2.7,
+        elevations: [12.0, 28.0],
+        target_z: 0.35,
+        room: [3.6, 3.6, 2.0],
+        strength: 0.15,
+        light: [60.0, 45.0],
+    },
+    Base {
+        name: "stairs",
+        about: "stepped block and a thin arch, strong texture, high ring, 60 views",
+        views: 60,
+        radius: 2.5,
+        elevations: [35.0, 60.0],
+        target_z: 0.25,
+        room: [3.4, 3.4, 2.0],
+        strength: 1.0,
+        light: [150.0, 65.0],
+    },
+    Base {
+        name: "spring",
+        about: "helical spring beside a thin-walled bowl, walls close to the ring",
+        views: 32,
+        radius: 2.2,
+        elevations: [20.0, 40.0],
+        target_z: 0.25,
+        room: [2.6, 2.6, 2.0],
+        strength: 0.5,
+        light: [10.0, 40.0],
+    },
+    Base {
+        name: "pillars",
+        about: "six thin pillars under a ring and a ball, few views (20), long room",
+        views: 20,
+        radius: 2.1,
+        elevations: [18.0, 35.0],
+        target_z: 0.35,
+        room: [2.5, 4.0, 2.0],
+        strength: 0.7,
+        light: [250.0, 50.0],
+    },
 ];
 
 /// The spec of suite scene `index` (0-based, below [`SUITE_SIZE`]) for `seed`: the seed jitters
@@ -100,7 +180,12 @@ pub fn scene_spec(index: usize, seed: u64) -> Option<SceneSpec> {
         about: b.about,
         seed,
         views: b.views,
-        ring: RingSpec { target: [0.0, 0.0, b.target_z * scale], radius: b.radius, elevations: b.elevations, fov_deg: 50.0 },
+        ring: RingSpec {
+            target: [0.0, 0.0, b.target_z * scale],
+            radius: b.radius,
+            elevations: b.elevations,
+            fov_deg: 50.0,
+        },
         room: b.room,
         style,
         light_deg: [az, el],
@@ -124,12 +209,22 @@ pub struct SuiteOptions {
 impl SuiteOptions {
     /// The record: 480×360 (synth-bunny's size), 3×3 supersampling, 6000 points.
     pub fn full() -> Self {
-        Self { width: 480, height: 360, supersample: 3, points: 6000 }
+        Self {
+            width: 480,
+            height: 360,
+            supersample: 3,
+            points: 6000,
+        }
     }
 
     /// For trying an idea (`--quick`): 200×150 (the built-in scene's size), 2×2, 3000 points.
     pub fn quick() -> Self {
-        Self { width: 200, height: 150, supersample: 2, points: 3000 }
+        Self {
+            width: 200,
+            height: 150,
+            supersample: 2,
+            points: 3000,
+        }
     }
 }
 
@@ -147,7 +242,10 @@ pub struct SuiteScene {
 /// exactly the poses a reader of the written `images.txt` gets.
 pub fn generate_suite_scene(index: usize, seed: u64, opts: &SuiteOptions) -> Result<SuiteScene> {
     let spec = scene_spec(index, seed).ok_or_else(|| {
-        SynthError::InvalidOptions(format!("scene {index} does not exist: the suite has scenes 0 to {}", SUITE_SIZE - 1))
+        SynthError::InvalidOptions(format!(
+            "scene {index} does not exist: the suite has scenes 0 to {}",
+            SUITE_SIZE - 1
+        ))
     })?;
     let bopts = crate::BuiltinOptions {
         width: opts.width,
@@ -161,7 +259,15 @@ pub fn generate_suite_scene(index: usize, seed: u64, opts: &SuiteOptions) -> Res
     let renderer = Renderer::new(build_geometry(&spec), spec.style.clone())?;
     let cameras = ring_cameras_with(&spec.ring, opts.width, opts.height, spec.views, bopts.seed)?
         .into_iter()
-        .map(|c| Camera::from_quaternion(c.width, c.height, c.intrinsics, c.quaternion(), c.translation.to_array()))
+        .map(|c| {
+            Camera::from_quaternion(
+                c.width,
+                c.height,
+                c.intrinsics,
+                c.quaternion(),
+                c.translation.to_array(),
+            )
+        })
         .collect::<std::result::Result<Vec<_>, _>>()?;
     let mut built = crate::render_scene(&renderer, cameras, &bopts)?;
     let [hx, hy, h] = spec.room;
@@ -199,7 +305,11 @@ impl SuiteScene {
     /// The parameters written to `scene.json`.
     pub fn metadata(&self, opts: &SuiteOptions) -> serde_json::Value {
         let s = &self.spec;
-        let (lo, hi) = self.built.object_mesh.bounds().unwrap_or(([0.0; 3], [0.0; 3]));
+        let (lo, hi) = self
+            .built
+            .object_mesh
+            .bounds()
+            .unwrap_or(([0.0; 3], [0.0; 3]));
         serde_json::json!({
             "generator": "gs-synth suite",
             "generator_version": GENERATOR_VERSION,
@@ -257,7 +367,12 @@ impl SuiteScene {
 }
 
 /// Generates suite scene `index` for `seed` and writes it to the new folder `dir`.
-pub fn write_suite_scene(dir: &std::path::Path, index: usize, seed: u64, opts: &SuiteOptions) -> Result<SuiteScene> {
+pub fn write_suite_scene(
+    dir: &std::path::Path,
+    index: usize,
+    seed: u64,
+    opts: &SuiteOptions,
+) -> Result<SuiteScene> {
     let scene = generate_suite_scene(index, seed, opts)?;
     crate::write::write_scene(dir, &scene.built, &scene.metadata(opts), &scene.readme())?;
     Ok(scene)
@@ -295,7 +410,19 @@ fn scaled(profile: &[[f64; 2]], s: f64) -> Vec<[f64; 2]> {
 fn cup(b: &mut Builder, s: f64) {
     let (r, h, t, tb) = (0.32 * s, 0.5 * s, 0.025 * s, 0.04 * s);
     let c = v(-0.15 * s, 0.0, 0.0);
-    b.lathe(c, &[[0.0, 0.0], [r, 0.0], [r, h], [r - t, h], [r - t, tb], [0.0, tb]], 72, Material::Part(0));
+    b.lathe(
+        c,
+        &[
+            [0.0, 0.0],
+            [r, 0.0],
+            [r, h],
+            [r - t, h],
+            [r - t, tb],
+            [0.0, tb],
+        ],
+        72,
+        Material::Part(0),
+    );
     // C-shaped handle whose ends sit inside the cup's wall.
     let hc = c + v(r - 0.012 * s, 0.0, 0.5 * h);
     let path = open_curve(24, |u| {
@@ -303,27 +430,66 @@ fn cup(b: &mut Builder, s: f64) {
         hc + v(0.17 * s * a.cos(), 0.0, 0.17 * s * a.sin())
     });
     b.tube(&path, 0.03 * s, 16, false, Material::Part(1));
-    b.sphere(v(0.38 * s, -0.4 * s, 0.17 * s), 0.17 * s, (40, 20), Material::Part(2));
+    b.sphere(
+        v(0.38 * s, -0.4 * s, 0.17 * s),
+        0.17 * s,
+        (40, 20),
+        Material::Part(2),
+    );
 }
 
 fn knot(b: &mut Builder, s: f64) {
     let (k, zc, r) = (0.13 * s, 0.62 * s, 0.055 * s);
     let f = |t: f64| {
         let a = TAU * t;
-        v(k * (a.sin() + 2.0 * (2.0 * a).sin()), k * (a.cos() - 2.0 * (2.0 * a).cos()), zc - k * (3.0 * a).sin())
+        v(
+            k * (a.sin() + 2.0 * (2.0 * a).sin()),
+            k * (a.cos() - 2.0 * (2.0 * a).cos()),
+            zc - k * (3.0 * a).sin(),
+        )
     };
     b.tube(&closed_curve(240, f), r, 16, true, Material::Part(0));
     // Pedestal and a thin post up into the knot's lowest strand (t = 1/12: sin 3a = 1).
     let low = f(1.0 / 12.0);
     let foot = v(low.x, low.y, 0.0);
-    b.lathe(foot, &scaled(&[[0.0, 0.0], [0.22, 0.0], [0.22, 0.05], [0.0, 0.05]], s), 48, Material::Part(1));
-    b.tube(&[foot + v(0.0, 0.0, 0.04 * s), v(low.x, low.y, low.z)], 0.025 * s, 12, false, Material::Part(2));
+    b.lathe(
+        foot,
+        &scaled(&[[0.0, 0.0], [0.22, 0.0], [0.22, 0.05], [0.0, 0.05]], s),
+        48,
+        Material::Part(1),
+    );
+    b.tube(
+        &[foot + v(0.0, 0.0, 0.04 * s), v(low.x, low.y, low.z)],
+        0.025 * s,
+        12,
+        false,
+        Material::Part(2),
+    );
 }
 
 fn window(b: &mut Builder, s: f64) {
-    b.frame(v(0.0, 0.1 * s, 0.0), 0.9 * s, 0.8 * s, 0.12 * s, [0.5 * s, 0.42 * s, 0.2 * s], Material::Part(0));
-    b.torus(v(0.1 * s, -0.45 * s, 0.07 * s), DMat3::IDENTITY, 0.25 * s, 0.07 * s, (64, 24), Material::Part(1));
-    b.sphere(v(-0.1 * s, 0.6 * s, 0.16 * s), 0.16 * s, (40, 20), Material::Part(2));
+    b.frame(
+        v(0.0, 0.1 * s, 0.0),
+        0.9 * s,
+        0.8 * s,
+        0.12 * s,
+        [0.5 * s, 0.42 * s, 0.2 * s],
+        Material::Part(0),
+    );
+    b.torus(
+        v(0.1 * s, -0.45 * s, 0.07 * s),
+        DMat3::IDENTITY,
+        0.25 * s,
+        0.07 * s,
+        (64, 24),
+        Material::Part(1),
+    );
+    b.sphere(
+        v(-0.1 * s, 0.6 * s, 0.16 * s),
+        0.16 * s,
+        (40, 20),
+        Material::Part(2),
+    );
 }
 
 fn table(b: &mut Builder, s: f64) {
@@ -331,23 +497,67 @@ fn table(b: &mut Builder, s: f64) {
     b.aabox(v(-hx, -hy, top), v(hx, hy, top + th), Material::Part(0));
     let leg = scaled(&[[0.0, 0.0], [0.025, 0.0], [0.025, 0.5], [0.0, 0.5]], s);
     for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-        b.lathe(v(sx * (hx - 0.06 * s), sy * (hy - 0.06 * s), 0.0), &leg, 24, Material::Part(1));
+        b.lathe(
+            v(sx * (hx - 0.06 * s), sy * (hy - 0.06 * s), 0.0),
+            &leg,
+            24,
+            Material::Part(1),
+        );
     }
-    b.lathe(v(0.0, 0.0, 0.0), &scaled(&[[0.0, 0.0], [0.16, 0.0], [0.0, 0.32]], s), 48, Material::Part(2));
+    b.lathe(
+        v(0.0, 0.0, 0.0),
+        &scaled(&[[0.0, 0.0], [0.16, 0.0], [0.0, 0.32]], s),
+        48,
+        Material::Part(2),
+    );
 }
 
 fn vase(b: &mut Builder, s: f64) {
-    let profile = [[0.0, 0.0], [0.2, 0.0], [0.28, 0.15], [0.3, 0.3], [0.2, 0.5], [0.1, 0.62], [0.17, 0.76], [0.15, 0.76], [0.08, 0.64], [0.0, 0.55]];
-    b.lathe(v(-0.1 * s, 0.0, 0.0), &scaled(&profile, s), 72, Material::Part(0));
+    let profile = [
+        [0.0, 0.0],
+        [0.2, 0.0],
+        [0.28, 0.15],
+        [0.3, 0.3],
+        [0.2, 0.5],
+        [0.1, 0.62],
+        [0.17, 0.76],
+        [0.15, 0.76],
+        [0.08, 0.64],
+        [0.0, 0.55],
+    ];
+    b.lathe(
+        v(-0.1 * s, 0.0, 0.0),
+        &scaled(&profile, s),
+        72,
+        Material::Part(0),
+    );
     let r = 0.02 * s;
-    b.tube(&[v(0.4 * s, 0.25 * s, 0.0), v(0.4 * s, 0.25 * s, 0.9 * s)], r, 12, false, Material::Part(1));
+    b.tube(
+        &[v(0.4 * s, 0.25 * s, 0.0), v(0.4 * s, 0.25 * s, 0.9 * s)],
+        r,
+        12,
+        false,
+        Material::Part(1),
+    );
     let rod = 0.025 * s;
-    b.tube(&[v(-0.55 * s, -0.42 * s, rod), v(0.2 * s, -0.42 * s, rod)], rod, 12, false, Material::Part(2));
+    b.tube(
+        &[v(-0.55 * s, -0.42 * s, rod), v(0.2 * s, -0.42 * s, rod)],
+        rod,
+        12,
+        false,
+        Material::Part(2),
+    );
 }
 
 fn stairs(b: &mut Builder, s: f64) {
     let heights: Vec<f64> = [0.15, 0.3, 0.45, 0.6, 0.45].iter().map(|h| h * s).collect();
-    b.stairs(v(-0.5 * s, -0.3 * s, 0.0), 0.2 * s, 0.5 * s, &heights, Material::Part(0));
+    b.stairs(
+        v(-0.5 * s, -0.3 * s, 0.0),
+        0.2 * s,
+        0.5 * s,
+        &heights,
+        Material::Part(0),
+    );
     let arch = open_curve(48, |u| {
         let a = PI * u;
         v(0.35 * s * a.cos(), 0.45 * s, 0.4 * s * a.sin())
@@ -383,10 +593,22 @@ fn pillars(b: &mut Builder, s: f64) {
     let pillar = [[0.0, 0.0], [pr, 0.0], [pr, h], [0.0, h]];
     for k in 0..6 {
         let a = TAU * k as f64 / 6.0;
-        b.lathe(v(ring * a.cos(), ring * a.sin(), 0.0), &pillar, 20, Material::Part(0));
+        b.lathe(
+            v(ring * a.cos(), ring * a.sin(), 0.0),
+            &pillar,
+            20,
+            Material::Part(0),
+        );
     }
     let minor = 0.05 * s;
-    b.torus(v(0.0, 0.0, h + minor), DMat3::IDENTITY, ring, minor, (72, 20), Material::Part(1));
+    b.torus(
+        v(0.0, 0.0, h + minor),
+        DMat3::IDENTITY,
+        ring,
+        minor,
+        (72, 20),
+        Material::Part(1),
+    );
     b.sphere(v(0.0, 0.0, 0.2 * s), 0.2 * s, (40, 20), Material::Part(2));
 }
 
@@ -401,8 +623,17 @@ mod tests {
             let g = build_geometry(&spec);
             g.mesh.validate().unwrap();
             let (lo, hi) = g.object_mesh().bounds().unwrap();
-            assert!(lo[2] > -3e-3 && lo[2] < 1e-3, "{}: lowest point {}", spec.name, lo[2]);
-            assert!(hi[2] < 1.2 && lo[0] > -1.0 && hi[0] < 1.0 && lo[1] > -1.0 && hi[1] < 1.0, "{}: {lo:?} {hi:?}", spec.name);
+            assert!(
+                lo[2] > -3e-3 && lo[2] < 1e-3,
+                "{}: lowest point {}",
+                spec.name,
+                lo[2]
+            );
+            assert!(
+                hi[2] < 1.2 && lo[0] > -1.0 && hi[0] < 1.0 && lo[1] > -1.0 && hi[1] < 1.0,
+                "{}: {lo:?} {hi:?}",
+                spec.name
+            );
             assert!((0..g.object_triangles).all(|t| g.material[t].is_object()));
             assert!((g.object_triangles..g.material.len()).all(|t| !g.material[t].is_object()));
         }

@@ -174,7 +174,12 @@ fn mean_albedo(material: Material) -> DVec3 {
         }
         Material::Floor => DVec3::new(0.50, 0.50, 0.48),
         Material::Wall(k) => {
-            let tints = [[0.75, 0.45, 0.40], [0.40, 0.60, 0.45], [0.42, 0.50, 0.75], [0.75, 0.68, 0.40]];
+            let tints = [
+                [0.75, 0.45, 0.40],
+                [0.40, 0.60, 0.45],
+                [0.42, 0.50, 0.75],
+                [0.75, 0.68, 0.40],
+            ];
             0.78 * DVec3::from_array(tints[k as usize % 4])
         }
         Material::Sphere => DVec3::new(0.6, 0.3, 0.12),
@@ -188,7 +193,10 @@ fn mean_albedo(material: Material) -> DVec3 {
 /// built-in materials at strength 1.
 pub fn albedo_styled(material: Material, p: DVec3, style: &crate::render::Style) -> DVec3 {
     let (a, strength) = match material {
-        Material::Part(k) => (part_albedo(k, p, style.texture_seed), style.texture_strength),
+        Material::Part(k) => (
+            part_albedo(k, p, style.texture_seed),
+            style.texture_strength,
+        ),
         Material::Floor | Material::Wall(_) => (albedo(material, p), style.background_strength),
         _ => (albedo(material, p), style.texture_strength),
     };
