@@ -42,6 +42,7 @@
 pub mod bvh;
 pub mod error;
 pub mod geometry;
+mod objects;
 pub mod render;
 pub mod shapes;
 pub mod suite;
