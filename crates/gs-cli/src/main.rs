@@ -80,6 +80,10 @@ enum Command {
     /// mesh, every view's photo, render, normal and depth maps with their scores, and the
     /// training curves (works offline; `--serve` serves it on 127.0.0.1).
     View(commands::view::ViewArgs),
+    /// Write scenes of the validation suite: procedurally built objects in a room, ray-traced
+    /// views in the COLMAP layout, exact GT depth, normals, masks and meshes (`scripts/suite.sh`
+    /// trains and scores a preset on all of them).
+    Synth(commands::synth::SynthArgs),
 }
 
 /// On a headless machine (no Wayland or X display) Mesa's Vulkan device-select layer, loaded
@@ -111,6 +115,7 @@ fn main() -> std::process::ExitCode {
         Command::Export(args) => commands::export::run(&args),
         Command::Tradeoff(args) => commands::tradeoff::run(&args),
         Command::View(args) => commands::view::run(&args),
+        Command::Synth(args) => commands::synth::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

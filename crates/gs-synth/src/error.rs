@@ -3,7 +3,7 @@
 use thiserror::Error;
 
 /// Errors raised by gs-synth for invalid options or meshes (never for internal invariants).
-#[derive(Debug, Error, Clone, PartialEq)]
+#[derive(Debug, Error)]
 pub enum SynthError {
     /// A [`BuiltinOptions`](crate::BuiltinOptions) field outside its documented range.
     #[error("invalid built-in scene option: {0}")]
@@ -14,6 +14,12 @@ pub enum SynthError {
     /// An error from gs-core (camera or image construction).
     #[error(transparent)]
     Core(#[from] gs_core::CoreError),
+    /// A scene folder that cannot be written (it exists, or the file system refused).
+    #[error("cannot write the scene: {0}")]
+    Write(String),
+    /// A file of the scene folder that gs-io could not write.
+    #[error(transparent)]
+    Io(#[from] gs_io::IoError),
 }
 
 /// Result alias of gs-synth.

@@ -33,12 +33,17 @@ pub enum Material {
     Floor,
     /// One of the four walls: 0 = +x, 1 = −x, 2 = +y, 3 = −y.
     Wall(u8),
+    /// Part `k` of a suite object (`crate::suite`); textured by the scene's texture style.
+    Part(u8),
 }
 
 impl Material {
     /// Whether this is one of the three objects (mask = 1).
     pub fn is_object(self) -> bool {
-        matches!(self, Material::Sphere | Material::Cuboid | Material::Torus)
+        matches!(
+            self,
+            Material::Sphere | Material::Cuboid | Material::Torus | Material::Part(_)
+        )
     }
 }
 
@@ -60,24 +65,31 @@ pub struct Geometry {
     pub vertex_normals: Vec<DVec3>,
 }
 
+/// Accumulates triangles with materials, smoothness flags and analytic vertex normals.
 #[derive(Default)]
-struct Builder {
-    positions: Vec<[f32; 3]>,
-    normals: Vec<DVec3>,
-    triangles: Vec<[u32; 3]>,
-    material: Vec<Material>,
-    smooth: Vec<bool>,
+pub(crate) struct Builder {
+    pub(crate) positions: Vec<[f32; 3]>,
+    pub(crate) normals: Vec<DVec3>,
+    pub(crate) triangles: Vec<[u32; 3]>,
+    pub(crate) material: Vec<Material>,
+    pub(crate) smooth: Vec<bool>,
 }
 
 impl Builder {
-    fn vertex(&mut self, p: DVec3, n: DVec3) -> u32 {
+    pub(crate) fn vertex(&mut self, p: DVec3, n: DVec3) -> u32 {
         self.positions.push([p.x as f32, p.y as f32, p.z as f32]);
         self.normals.push(n.normalize());
         (self.positions.len() - 1) as u32
     }
 
     /// Adds a triangle wound counter-clockwise seen from the side `outward` points to.
-    fn triangle(&mut self, mut t: [u32; 3], outward: DVec3, material: Material, smooth: bool) {
+    pub(crate) fn triangle(
+        &mut self,
+        mut t: [u32; 3],
+        outward: DVec3,
+        material: Material,
+        smooth: bool,
+    ) {
         let p = |i: u32| {
             let v = self.positions[i as usize];
             DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
@@ -95,7 +107,13 @@ impl Builder {
     }
 
     /// A quad `a b c d` (in order around its boundary) as two triangles.
-    fn quad(&mut self, q: [u32; 4], outward: Option<DVec3>, material: Material, smooth: bool) {
+    pub(crate) fn quad(
+        &mut self,
+        q: [u32; 4],
+        outward: Option<DVec3>,
+        material: Material,
+        smooth: bool,
+    ) {
         for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
             let out = outward
                 .unwrap_or_else(|| t.iter().map(|&i| self.normals[i as usize]).sum::<DVec3>());
@@ -103,7 +121,13 @@ impl Builder {
         }
     }
 
-    fn sphere(&mut self, centre: DVec3, radius: f64, (n_lon, n_lat): (usize, usize)) {
+    pub(crate) fn sphere(
+        &mut self,
+        centre: DVec3,
+        radius: f64,
+        (n_lon, n_lat): (usize, usize),
+        m: Material,
+    ) {
         let mut rings: Vec<Vec<u32>> = Vec::with_capacity(n_lat + 1);
         for i in 0..=n_lat {
             let theta = std::f64::consts::PI * i as f64 / n_lat as f64;
@@ -135,24 +159,26 @@ impl Builder {
                 let d = bottom[j % bottom.len()];
                 if top.len() == 1 {
                     let out = self.normals[c as usize] + self.normals[d as usize];
-                    self.triangle([a, d, c], out, Material::Sphere, true);
+                    self.triangle([a, d, c], out, m, true);
                 } else if bottom.len() == 1 {
                     let out = self.normals[a as usize] + self.normals[b as usize];
-                    self.triangle([a, b, c], out, Material::Sphere, true);
+                    self.triangle([a, b, c], out, m, true);
                 } else {
-                    self.quad([a, b, c, d], None, Material::Sphere, true);
+                    self.quad([a, b, c, d], None, m, true);
                 }
             }
         }
     }
 
-    fn torus(
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn torus(
         &mut self,
         centre: DVec3,
         rot: DMat3,
         major: f64,
         minor: f64,
         (nu, nv): (usize, usize),
+        m: Material,
     ) {
         let mut idx = vec![0u32; nu * nv];
         for i in 0..nu {
@@ -177,12 +203,12 @@ impl Builder {
                     idx[i1 * nv + j1],
                     idx[i * nv + j1],
                 ];
-                self.quad(q, None, Material::Torus, true);
+                self.quad(q, None, m, true);
             }
         }
     }
 
-    fn cuboid(&mut self, centre: DVec3, half: DVec3, rot: DMat3) {
+    pub(crate) fn cuboid(&mut self, centre: DVec3, half: DVec3, rot: DMat3, m: Material) {
         let mut corner = [0u32; 8];
         for (k, c) in corner.iter_mut().enumerate() {
             let s = DVec3::new(
@@ -202,17 +228,12 @@ impl Builder {
             ([4, 5, 7, 6], DVec3::Z),
         ];
         for (q, axis) in faces {
-            self.quad(
-                q.map(|k| corner[k]),
-                Some(rot * axis),
-                Material::Cuboid,
-                false,
-            );
+            self.quad(q.map(|k| corner[k]), Some(rot * axis), m, false);
         }
     }
 
     /// A flat rectangle with corners in boundary order facing `normal`.
-    fn rectangle(&mut self, corners: [DVec3; 4], normal: DVec3, material: Material) {
+    pub(crate) fn rectangle(&mut self, corners: [DVec3; 4], normal: DVec3, material: Material) {
         let q = corners.map(|c| self.vertex(c, normal));
         self.quad(q, Some(normal), material, false);
     }
@@ -226,58 +247,82 @@ fn deg(x: f64) -> f64 {
 pub fn build() -> Geometry {
     let mut b = Builder::default();
     let (sc, sr) = SPHERE;
-    b.sphere(DVec3::from_array(sc), sr, SPHERE_SEGMENTS);
+    b.sphere(DVec3::from_array(sc), sr, SPHERE_SEGMENTS, Material::Sphere);
     let (bc, bh, yaw) = CUBOID;
     b.cuboid(
         DVec3::from_array(bc),
         DVec3::from_array(bh),
         DMat3::from_rotation_z(deg(yaw)),
+        Material::Cuboid,
     );
     let (major, minor, tilt, tyaw, [tx, ty]) = TORUS;
     let rot = DMat3::from_rotation_z(deg(tyaw)) * DMat3::from_rotation_x(deg(tilt));
     let tz = major * deg(tilt).sin() + minor;
-    b.torus(DVec3::new(tx, ty, tz), rot, major, minor, TORUS_SEGMENTS);
+    b.torus(
+        DVec3::new(tx, ty, tz),
+        rot,
+        major,
+        minor,
+        TORUS_SEGMENTS,
+        Material::Torus,
+    );
     let object_triangles = b.triangles.len();
     let object_vertices = b.positions.len();
 
-    let (l, h) = (ROOM_HALF, WALL_HEIGHT);
-    b.rectangle(
-        [
-            DVec3::new(-l, -l, 0.0),
-            DVec3::new(l, -l, 0.0),
-            DVec3::new(l, l, 0.0),
-            DVec3::new(-l, l, 0.0),
-        ],
-        DVec3::Z,
-        Material::Floor,
-    );
-    // Walls face into the room: 0 = x=+L, 1 = x=−L, 2 = y=+L, 3 = y=−L.
-    for (k, (axis, sign)) in [(0usize, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)]
-        .into_iter()
-        .enumerate()
-    {
-        let corners: [DVec3; 4] = [(-l, 0.0), (l, 0.0), (l, h), (-l, h)].map(|(s, z)| {
-            if axis == 0 {
-                DVec3::new(sign * l, s, z)
-            } else {
-                DVec3::new(s, sign * l, z)
-            }
-        });
-        let mut inward = DVec3::ZERO;
-        inward[axis] = -sign;
-        b.rectangle(corners, inward, Material::Wall(k as u8));
+    b.room(ROOM_HALF, ROOM_HALF, WALL_HEIGHT);
+    b.finish(object_triangles, object_vertices)
+}
+
+impl Builder {
+    /// The floor `[−hx, hx] × [−hy, hy]` at z = 0 and four walls of height `h` facing into the
+    /// room (0 = x = +hx, 1 = x = −hx, 2 = y = +hy, 3 = y = −hy); no ceiling.
+    pub(crate) fn room(&mut self, hx: f64, hy: f64, h: f64) {
+        let b = self;
+        b.rectangle(
+            [
+                DVec3::new(-hx, -hy, 0.0),
+                DVec3::new(hx, -hy, 0.0),
+                DVec3::new(hx, hy, 0.0),
+                DVec3::new(-hx, hy, 0.0),
+            ],
+            DVec3::Z,
+            Material::Floor,
+        );
+        for (k, (axis, sign)) in [(0usize, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            // Half length along the wall and the wall's distance from the centre.
+            let (along, off) = if axis == 0 { (hy, hx) } else { (hx, hy) };
+            let corners: [DVec3; 4] =
+                [(-along, 0.0), (along, 0.0), (along, h), (-along, h)].map(|(s, z)| {
+                    if axis == 0 {
+                        DVec3::new(sign * off, s, z)
+                    } else {
+                        DVec3::new(s, sign * off, z)
+                    }
+                });
+            let mut inward = DVec3::ZERO;
+            inward[axis] = -sign;
+            b.rectangle(corners, inward, Material::Wall(k as u8));
+        }
     }
-    Geometry {
-        mesh: TriangleMesh {
-            positions: b.positions,
-            triangles: b.triangles,
-            colors: None,
-        },
-        object_triangles,
-        object_vertices,
-        material: b.material,
-        smooth: b.smooth,
-        vertex_normals: b.normals,
+
+    /// The finished geometry; the first `object_triangles` triangles (and `object_vertices`
+    /// vertices) are the objects.
+    pub(crate) fn finish(self, object_triangles: usize, object_vertices: usize) -> Geometry {
+        Geometry {
+            mesh: TriangleMesh {
+                positions: self.positions,
+                triangles: self.triangles,
+                colors: None,
+            },
+            object_triangles,
+            object_vertices,
+            material: self.material,
+            smooth: self.smooth,
+            vertex_normals: self.normals,
+        }
     }
 }
 

@@ -42,12 +42,21 @@
 pub mod bvh;
 pub mod error;
 pub mod geometry;
+mod objects;
 pub mod render;
+pub mod shapes;
+pub mod suite;
 pub mod texture;
+pub mod write;
 
 pub use bvh::{Bvh, ClosestPoint, Hit, ViewCast, pixel_ray};
 pub use error::{Result, SynthError};
-pub use render::{LIGHT_DIRECTION, ring_cameras};
+pub use render::{LIGHT_DIRECTION, RingSpec, Style, ring_cameras, ring_cameras_with};
+pub use suite::{
+    GENERATOR_VERSION, SUITE_SIZE, SceneSpec, SuiteOptions, SuiteScene, generate_suite_scene,
+    scene_spec, write_suite_scene,
+};
+pub use write::write_scene;
 
 use glam::DVec3;
 use gs_core::{Image, Rng, Scene, ScenePoint, TriangleMesh, View};
@@ -171,19 +180,52 @@ pub struct BuiltinScene {
 /// pool; the result is bit-identical for a given `opts`, whatever the thread count.
 pub fn generate(opts: &BuiltinOptions) -> Result<BuiltinScene> {
     opts.validate()?;
-    let renderer = render::Renderer::new(geometry::build())?;
+    let renderer = render::Renderer::new(geometry::build(), render::Style::builtin())?;
     let cameras = ring_cameras(opts.width, opts.height, opts.views, opts.seed)?;
+    let mut built = render_scene(&renderer, cameras, opts)?;
+    built.description = format!(
+        "gs-synth built-in scene: textured sphere, box and torus on a checkered floor in an \
+         open-top room ([-4,4]^2 x [0,2.2]), one directional light with hard shadows; \
+         {} views of {}x{} ({}x{} supersampling, seed {}), two camera rings (20 and 40 deg); \
+         {} object triangles, {} scene triangles; {} sparse points (sigma {:.4}); \
+         object bbox diagonal {:.4}, scene extent {:.4}",
+        opts.views,
+        opts.width,
+        opts.height,
+        opts.supersample,
+        opts.supersample,
+        opts.seed,
+        built.object_mesh.triangles.len(),
+        built.scene_mesh.triangles.len(),
+        built.scene.points.len(),
+        built.point_sigma,
+        bbox_diagonal(&built.object_mesh),
+        built.scene.extent(),
+    );
+    Ok(built)
+}
+
+/// Diagonal of a mesh's bounding box (0 for an empty mesh).
+pub(crate) fn bbox_diagonal(mesh: &TriangleMesh) -> f64 {
+    mesh.bounds().map_or(0.0, |(lo, hi)| {
+        (DVec3::from_array(hi.map(f64::from)) - DVec3::from_array(lo.map(f64::from))).length()
+    })
+}
+
+/// Renders every camera of a scene (in parallel) and samples its sparse points; the
+/// description is left empty for the caller.
+pub(crate) fn render_scene(
+    renderer: &render::Renderer,
+    cameras: Vec<gs_core::Camera>,
+    opts: &BuiltinOptions,
+) -> Result<BuiltinScene> {
     let renders: Vec<render::ViewRender> = cameras
         .par_iter()
         .map(|c| renderer.render_view(c, opts.supersample))
         .collect::<Result<_>>()?;
-
     let object_mesh = renderer.geom.object_mesh();
-    let (lo, hi) = object_mesh.bounds().expect("the objects have vertices");
-    let diag =
-        (DVec3::from_array(hi.map(f64::from)) - DVec3::from_array(lo.map(f64::from))).length();
-    let point_sigma = 0.003 * diag;
-    let (points, point_sources) = sample_points(&renderer, &cameras, opts, point_sigma);
+    let point_sigma = 0.003 * bbox_diagonal(&object_mesh);
+    let (points, point_sources) = sample_points(renderer, &cameras, opts, point_sigma);
 
     let mut views = Vec::with_capacity(cameras.len());
     let mut gt_depth = Vec::with_capacity(cameras.len());
@@ -198,36 +240,19 @@ pub fn generate(opts: &BuiltinOptions) -> Result<BuiltinScene> {
         gt_depth.push(r.depth);
         gt_normals.push(r.normal);
     }
-    let scene = Scene { views, points, held_out: None };
-    let scene_mesh = renderer.geom.mesh.clone();
-    let description = format!(
-        "gs-synth built-in scene: textured sphere, box and torus on a checkered floor in an \
-         open-top room ([-4,4]^2 x [0,2.2]), one directional light with hard shadows; \
-         {} views of {}x{} ({}x{} supersampling, seed {}), two camera rings (20 and 40 deg); \
-         {} object triangles, {} scene triangles; {} sparse points (sigma {:.4}); \
-         object bbox diagonal {:.4}, scene extent {:.4}",
-        opts.views,
-        opts.width,
-        opts.height,
-        opts.supersample,
-        opts.supersample,
-        opts.seed,
-        object_mesh.triangles.len(),
-        scene_mesh.triangles.len(),
-        scene.points.len(),
-        point_sigma,
-        diag,
-        scene.extent(),
-    );
     Ok(BuiltinScene {
-        scene,
+        scene: Scene {
+            views,
+            points,
+            held_out: None,
+        },
         gt_depth,
         gt_normals,
         object_mesh,
-        scene_mesh,
+        scene_mesh: renderer.geom.mesh.clone(),
         point_sources,
         point_sigma,
-        description,
+        description: String::new(),
     })
 }
 
@@ -274,7 +299,7 @@ fn sample_points(
             continue;
         }
         *slot += 1;
-        let a = texture::albedo(s.material, s.point);
+        let a = renderer.albedo(s.material, s.point);
         let noise = DVec3::new(
             rng.normal() as f64,
             rng.normal() as f64,

@@ -9,7 +9,7 @@
 use crate::bvh::{Bvh, pixel_ray};
 use crate::error::Result;
 use crate::geometry::{Geometry, Material};
-use crate::texture::{albedo, specular};
+use crate::texture::{albedo_styled, specular};
 use glam::{DMat3, DVec3};
 use gs_core::{Camera, Image, Intrinsics, Rng};
 use rayon::prelude::*;
@@ -37,12 +37,80 @@ pub(crate) fn light_dir() -> DVec3 {
     DVec3::from_array(LIGHT_DIRECTION).normalize()
 }
 
+/// Lighting and texturing of a scene: the built-in scene's constants, or a suite scene's.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Style {
+    /// Unit direction towards the directional light.
+    pub light_dir: DVec3,
+    /// Linear RGB of the light.
+    pub light_rgb: DVec3,
+    /// Linear RGB of the ambient term.
+    pub ambient_rgb: DVec3,
+    /// Texture contrast of the objects in `[0, 1]`: 1 = full-contrast textures, towards 0 the
+    /// albedo fades to each material's mean colour (weakly textured surfaces).
+    pub texture_strength: f64,
+    /// The same for the floor and the walls.
+    pub background_strength: f64,
+    /// Seed of the suite objects' texture noise.
+    pub texture_seed: u64,
+}
+
+impl Style {
+    /// The built-in scene's light and textures.
+    pub fn builtin() -> Self {
+        Self {
+            light_dir: light_dir(),
+            light_rgb: DVec3::from_array(LIGHT_RGB),
+            ambient_rgb: DVec3::from_array(AMBIENT_RGB),
+            texture_strength: 1.0,
+            background_strength: 1.0,
+            texture_seed: 0,
+        }
+    }
+}
+
+/// Where the cameras of a two-ring capture are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RingSpec {
+    /// Look-at target before jitter.
+    pub target: [f64; 3],
+    /// Distance of the cameras from the target before jitter.
+    pub radius: f64,
+    /// Elevations of the lower and the upper ring, degrees.
+    pub elevations: [f64; 2],
+    /// Field of view across the longer image side, degrees.
+    pub fov_deg: f64,
+}
+
+impl RingSpec {
+    /// The built-in scene's rings.
+    pub fn builtin() -> Self {
+        Self {
+            target: TARGET,
+            radius: RING_RADIUS,
+            elevations: RING_ELEVATIONS,
+            fov_deg: FOV_DEG,
+        }
+    }
+}
+
 /// The posed cameras: `views` look-at cameras on two rings (elevations 20° and 40°, the
 /// first `⌈views/2⌉` on the lower ring), all aimed at [`TARGET`], with seeded jitter of
 /// elevation ±2°, azimuth ±3°, radius ±4 %, target ±0.03 per axis and roll ±2°. Square
 /// pixels, `FOV_DEG` across the longer side, principal point at the image centre.
 pub fn ring_cameras(width: u32, height: u32, views: usize, seed: u64) -> Result<Vec<Camera>> {
-    let f = 0.5 * width.max(height) as f64 / (0.5 * FOV_DEG.to_radians()).tan();
+    ring_cameras_with(&RingSpec::builtin(), width, height, views, seed)
+}
+
+/// [`ring_cameras`] on the rings of `spec` (same jitter, same order of random draws).
+pub fn ring_cameras_with(
+    spec: &RingSpec,
+    width: u32,
+    height: u32,
+    views: usize,
+    seed: u64,
+) -> Result<Vec<Camera>> {
+    let f = 0.5 * width.max(height) as f64 / (0.5 * spec.fov_deg.to_radians()).tan();
     let k = Intrinsics::new(f, f, width as f64 / 2.0, height as f64 / 2.0);
     let mut rng = Rng::new(seed).fork(0x0CA3_E7A5);
     let n_low = views.div_ceil(2);
@@ -55,11 +123,11 @@ pub fn ring_cameras(width: u32, height: u32, views: usize, seed: u64) -> Result<
             (1, v - n_low, n_high)
         };
         let mut j = |a: f64| rng.uniform_range(-a as f32, a as f32) as f64;
-        let elev = (RING_ELEVATIONS[ring] + j(2.0)).to_radians();
+        let elev = (spec.elevations[ring] + j(2.0)).to_radians();
         let offset = if ring == 1 { 180.0 / n as f64 } else { 0.0 };
         let az = (360.0 * idx as f64 / n as f64 + offset + j(3.0)).to_radians();
-        let radius = RING_RADIUS * (1.0 + j(0.04));
-        let target = DVec3::from_array(TARGET) + DVec3::new(j(0.03), j(0.03), j(0.03));
+        let radius = spec.radius * (1.0 + j(0.04));
+        let target = DVec3::from_array(spec.target) + DVec3::new(j(0.03), j(0.03), j(0.03));
         let roll = j(2.0).to_radians();
         let eye =
             target + radius * DVec3::new(elev.cos() * az.cos(), elev.cos() * az.sin(), elev.sin());
@@ -96,10 +164,11 @@ pub(crate) struct Surface {
     pub face: DVec3,
 }
 
-/// Scene geometry plus its BVH.
+/// Scene geometry plus its BVH and style.
 pub(crate) struct Renderer {
     pub geom: Geometry,
     pub bvh: Bvh,
+    pub style: Style,
 }
 
 /// Per-view render results.
@@ -111,9 +180,14 @@ pub(crate) struct ViewRender {
 }
 
 impl Renderer {
-    pub fn new(geom: Geometry) -> Result<Self> {
+    pub fn new(geom: Geometry, style: Style) -> Result<Self> {
         let bvh = Bvh::new(&geom.mesh)?;
-        Ok(Self { geom, bvh })
+        Ok(Self { geom, bvh, style })
+    }
+
+    /// Linear-RGB albedo at surface point `p` of `material` under this renderer's style.
+    pub fn albedo(&self, material: Material, p: DVec3) -> DVec3 {
+        albedo_styled(material, p, &self.style)
     }
 
     pub fn surface(&self, o: DVec3, d: DVec3) -> Option<Surface> {
@@ -134,7 +208,7 @@ impl Renderer {
 
     /// Whether the light reaches `s` (front-lit and no shadow-ray hit).
     pub fn lit(&self, s: &Surface) -> bool {
-        let l = light_dir();
+        let l = self.style.light_dir;
         s.face.dot(l) > 0.0
             && s.normal.dot(l) > 0.0
             && !self
@@ -144,10 +218,10 @@ impl Renderer {
 
     /// Linear RGB of surface `s` seen along `d`, given its light visibility.
     pub fn shade_surface(&self, s: &Surface, d: DVec3, visible: bool) -> DVec3 {
-        let l = light_dir();
-        let light = DVec3::from_array(LIGHT_RGB);
-        let a = albedo(s.material, s.point);
-        let mut c = a * DVec3::from_array(AMBIENT_RGB);
+        let l = self.style.light_dir;
+        let light = self.style.light_rgb;
+        let a = self.albedo(s.material, s.point);
+        let mut c = a * self.style.ambient_rgb;
         if visible {
             let (ks, shininess) = specular(s.material);
             let h = (l - d.normalize()).normalize();
@@ -271,7 +345,7 @@ mod tests {
     /// and shadowed pixels must be the ones whose shadow ray is blocked.
     #[test]
     fn shadows_darken_part_of_the_floor() {
-        let r = Renderer::new(geometry::build()).unwrap();
+        let r = Renderer::new(geometry::build(), Style::builtin()).unwrap();
         // A view from the 40° ring looking down on the floor around the objects.
         let cams = ring_cameras(80, 60, 2, 3).unwrap();
         let cam = &cams[1];

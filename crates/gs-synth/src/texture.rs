@@ -119,6 +119,7 @@ pub fn albedo(material: Material, p: DVec3) -> DVec3 {
             let tint = DVec3::new(1.05, 0.95, 0.85).lerp(DVec3::new(0.85, 0.97, 1.08), broad);
             base * tint * detail(p, 10.0, 9)
         }
+        Material::Part(k) => part_albedo(k, p, 0),
         Material::Wall(k) => {
             let u = if k < 2 { p.y } else { p.x };
             let tints = [
@@ -142,7 +143,68 @@ pub fn specular(material: Material) -> (f64, f64) {
         Material::Torus => (0.20, 32.0),
         Material::Floor => (0.10, 24.0),
         Material::Wall(_) => (0.05, 16.0),
+        Material::Part(_) => (0.2, 32.0),
     }
+}
+
+/// Two colours per suite object part (`Material::Part(k)`, cycled by `k`).
+const PART_PALETTE: [([f64; 3], [f64; 3]); 6] = [
+    ([0.80, 0.50, 0.20], [0.35, 0.10, 0.06]),
+    ([0.25, 0.45, 0.75], [0.85, 0.85, 0.80]),
+    ([0.30, 0.60, 0.25], [0.80, 0.75, 0.25]),
+    ([0.70, 0.30, 0.55], [0.20, 0.18, 0.35]),
+    ([0.75, 0.72, 0.62], [0.30, 0.25, 0.20]),
+    ([0.20, 0.55, 0.55], [0.75, 0.40, 0.30]),
+];
+
+/// Albedo of a suite object part: two-colour fBm blotches times the fine grain and speckles.
+fn part_albedo(k: u8, p: DVec3, seed: u64) -> DVec3 {
+    let (a, b) = PART_PALETTE[k as usize % PART_PALETTE.len()];
+    let s = seed.wrapping_mul(7919).wrapping_add(k as u64 * 101);
+    let blot = smoothstep(0.38, 0.62, fbm(p * 4.5, 3, s + 1, 0.5));
+    DVec3::from_array(a).lerp(DVec3::from_array(b), blot) * detail(p, 12.0, s + 2)
+}
+
+/// The colour a material's texture fades to as its strength goes to 0.
+fn mean_albedo(material: Material) -> DVec3 {
+    match material {
+        Material::Part(k) => {
+            let (a, b) = PART_PALETTE[k as usize % PART_PALETTE.len()];
+            0.5 * (DVec3::from_array(a) + DVec3::from_array(b))
+        }
+        Material::Floor => DVec3::new(0.50, 0.50, 0.48),
+        Material::Wall(k) => {
+            let tints = [
+                [0.75, 0.45, 0.40],
+                [0.40, 0.60, 0.45],
+                [0.42, 0.50, 0.75],
+                [0.75, 0.68, 0.40],
+            ];
+            0.78 * DVec3::from_array(tints[k as usize % 4])
+        }
+        Material::Sphere => DVec3::new(0.6, 0.3, 0.12),
+        Material::Cuboid => DVec3::new(0.47, 0.52, 0.71),
+        Material::Torus => DVec3::new(0.5, 0.66, 0.2),
+    }
+}
+
+/// Albedo of `material` at `p` under a style's texture strengths: [`albedo`] (or a suite
+/// part's texture) blended towards the material's mean colour; exactly [`albedo`] for the
+/// built-in materials at strength 1.
+pub fn albedo_styled(material: Material, p: DVec3, style: &crate::render::Style) -> DVec3 {
+    let (a, strength) = match material {
+        Material::Part(k) => (
+            part_albedo(k, p, style.texture_seed),
+            style.texture_strength,
+        ),
+        Material::Floor | Material::Wall(_) => (albedo(material, p), style.background_strength),
+        _ => (albedo(material, p), style.texture_strength),
+    };
+    if strength >= 1.0 {
+        return a.clamp(DVec3::ZERO, DVec3::splat(0.95));
+    }
+    let m = mean_albedo(material);
+    (m + (a - m) * strength.max(0.0)).clamp(DVec3::ZERO, DVec3::splat(0.95))
 }
 
 #[cfg(test)]

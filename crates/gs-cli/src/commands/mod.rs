@@ -8,6 +8,7 @@ pub mod info;
 pub mod mesh;
 pub mod render;
 pub mod resume;
+pub mod synth;
 pub mod tradeoff;
 pub mod train;
 pub mod view;
