@@ -4,7 +4,7 @@
 //! (cups, knots, frames with holes, thin legs and rods, stairs, springs, colonnades) and with
 //! what a method's defaults must survive varied per scene: texture strength, walls close to
 //! the camera ring or seen at grazing angles, light direction, ring radius and elevation, and
-//! the number of views (20–60). See docs/architecture.md §validation suite.
+//! the number of views (20–60). See docs/architecture.md §Validation suite.
 
 use crate::error::{Result, SynthError};
 use crate::geometry::{Builder, Geometry};
