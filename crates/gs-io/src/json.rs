@@ -25,7 +25,7 @@ fn non_finite_at(text: &[u8], line: usize, column: usize) -> Option<(String, &'s
     let literal = ["-Infinity", "Infinity", "NaN", "-inf", "inf", "nan", "-nan"]
         .into_iter()
         .find_map(|l| rest.windows(l.len()).take(3).any(|w| w.eq_ignore_ascii_case(l.as_bytes())).then_some(l))?;
-    let before = &text[..from];
+    let before = &text[..at];
     let colon = before.iter().rposition(|&b| b == b':')?;
     let close = before[..colon].iter().rposition(|&b| b == b'"')?;
     let open = before[..close].iter().rposition(|&b| b == b'"')?;
