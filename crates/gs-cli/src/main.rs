@@ -7,8 +7,10 @@ mod commands;
 mod memory;
 mod metrics_log;
 mod out_folder;
+mod provenance;
 mod run_dir;
 mod scene_path;
+mod serve;
 mod signals;
 
 use clap::{Parser, Subcommand};

@@ -34,10 +34,11 @@ pub fn absolute_scene_path(p: &Path) -> PathBuf {
     std::fs::canonicalize(p).unwrap_or_else(|_| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()))
 }
 
-/// A cheap identity of a loaded scene, so a run is not reopened on another scene: the number of
-/// views and sparse points, and SHA-256 over every view's name, image size, intrinsics and pose.
-/// The photos' pixels are not hashed (that would re-read every photo at each check), so photos
-/// replaced by others of the same names and sizes under the same cameras go unnoticed.
+/// The identity of a loaded scene, so a run is not reopened on another scene: the number of
+/// views and sparse points, SHA-256 over every view's name, image size, intrinsics and pose,
+/// and SHA-256 over the photos' pixels as loaded (photos swapped between names, or edited,
+/// under the same cameras are noticed; the photos are in memory anyway, hashing them costs
+/// about a tenth of a second per 100 MB).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SceneFingerprint {
     /// Number of views.
@@ -46,6 +47,10 @@ pub struct SceneFingerprint {
     pub points: usize,
     /// SHA-256 (hex) of the views' names, sizes, intrinsics and poses.
     pub cameras_sha256: String,
+    /// SHA-256 (hex) of every view's pixels (f32 bits, in view order); absent in runs
+    /// written before it existed, whose pixels then go unchecked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixels_sha256: Option<String>,
 }
 
 impl SceneFingerprint {
@@ -66,19 +71,29 @@ impl SceneFingerprint {
             }
         }
         let cameras_sha256 = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
-        Self { views: scene.views.len(), points: scene.points.len(), cameras_sha256 }
+        let mut p = Sha256::new();
+        for v in &scene.views {
+            let bytes: Vec<u8> = v.image.data().iter().flat_map(|x| x.to_le_bytes()).collect();
+            p.update(&bytes);
+        }
+        let pixels_sha256 = Some(p.finalize().iter().map(|b| format!("{b:02x}")).collect());
+        Self { views: scene.views.len(), points: scene.points.len(), cameras_sha256, pixels_sha256 }
     }
 
-    /// How `now` differs from this fingerprint, in words (`None` when it does not).
+    /// How `now` differs from this fingerprint, in words (`None` when it does not; pixels are
+    /// compared only when both fingerprints have them).
     pub fn difference(&self, now: &Self) -> Option<String> {
-        if self == now {
+        let pixels_differ = matches!((&self.pixels_sha256, &now.pixels_sha256), (Some(a), Some(b)) if a != b);
+        if (self.views, self.points, &self.cameras_sha256) == (now.views, now.points, &now.cameras_sha256) && !pixels_differ {
             None
         } else if self.views != now.views {
             Some(format!("it has {} views, the run's scene had {}", now.views, self.views))
         } else if self.points != now.points {
             Some(format!("it has {} sparse points, the run's scene had {}", now.points, self.points))
-        } else {
+        } else if self.cameras_sha256 != now.cameras_sha256 {
             Some(format!("its {} views differ in image names, sizes or cameras", now.views))
+        } else {
+            Some(format!("its photos' pixels differ under the same {} names and cameras (photos swapped or edited?)", now.views))
         }
     }
 }
@@ -225,7 +240,7 @@ impl RunConfig {
 /// reports written before it existed) for [`check_model`].
 fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<Option<String>> {
     let report = dir.join("report.json");
-    let fields = std::fs::read_to_string(&report).ok().and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+    let fields = gs_io::read_capped(&report, gs_io::JSON_CAP, "a run report").ok().and_then(|t| serde_json::from_slice::<serde_json::Value>(&t).ok());
     let field = |k: &str| fields.as_ref().and_then(|v| v.get(k)?.as_str().map(String::from));
     let (model_id, fingerprint) = (field("run_id"), field("model_fingerprint"));
     if !dir.join("point_cloud.ply").is_file() {
@@ -259,10 +274,10 @@ fn check_pairing(dir: &Path, run_id: Option<&str>) -> Result<Option<String>> {
 /// model is missing or belongs to another run; the scene is not loaded (`export` needs none).
 pub fn read_run_model(dir: &Path) -> Result<(RunConfig, Gaussians)> {
     let cfg_path = dir.join("config.json");
-    let text = std::fs::read_to_string(&cfg_path)
+    let text = gs_io::read_capped(&cfg_path, gs_io::JSON_CAP, "a run configuration")
         .with_context(|| format!("{}: cannot read the run's configuration (is this a `vagsl train` output folder?)", cfg_path.display()))?;
     let config: RunConfig =
-        serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
+        serde_json::from_slice(&text).with_context(|| format!("{}: not a vagsl run configuration", cfg_path.display()))?;
     let fingerprint = check_pairing(dir, config.run_id.as_deref())?;
     let mut gaussians = gs_io::read_gaussian_ply(&dir.join("point_cloud.ply"))?;
     check_model(dir, &gaussians, fingerprint.as_deref())?;
@@ -302,6 +317,33 @@ pub fn model_fingerprint(g: &Gaussians) -> String {
     format!("{h:016x}")
 }
 
+/// Refuses a scene whose train/test split is no longer the run's (training views relisted as
+/// test views would be scored as held out). Runs written before fingerprints are not checked.
+fn check_split(config: &RunConfig, scene: &Scene, dir: &Path) -> Result<()> {
+    if config.fingerprint.is_none() {
+        return Ok(());
+    }
+    let (train, test) = scene.split(config.scene.eval);
+    let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<_>>();
+    let (mut now, mut then) = (names(&test), config.test_views.clone());
+    now.sort();
+    then.sort();
+    if now != then || train.len() != config.train_views.len() {
+        let moved: Vec<&String> = now.iter().filter(|n| !then.contains(n)).chain(then.iter().filter(|n| !now.contains(n))).take(3).collect();
+        bail!(
+            "{}: the scene {} now holds out {} views ({} in training), the run held out {} ({} in training): its split changed (e.g. {}), so held-out scores would include training views; restore the scene's split or train again",
+            dir.display(),
+            config.scene.describe(),
+            now.len(),
+            train.len(),
+            then.len(),
+            config.train_views.len(),
+            moved.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+        );
+    }
+    Ok(())
+}
+
 /// Indices of the named views in `scene` (an error names a missing view).
 pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
     names
@@ -324,6 +366,8 @@ pub struct OpenRun {
     test: Vec<usize>,
     raster: gs_raster::RasterConfig,
     extent: f64,
+    /// The run's model, for the records of the files made from it.
+    pub made_from: crate::provenance::MadeFrom,
 }
 
 impl OpenRun {
@@ -349,9 +393,11 @@ impl OpenRun {
         config.check_scene(&scene, &format!("the run in {}", dir.display()), "give the run's own scene folder with --scene PATH")?;
         let train = view_indices(&scene, &config.train_views)?;
         let test = view_indices(&scene, &config.test_views)?;
+        check_split(&config, &scene, dir)?;
         let extent = scene.extent_of(&train);
         let raster = config.train.raster_config();
-        Ok(Self { dir: dir.to_path_buf(), scene, gaussians, train, test, raster, extent })
+        let made_from = crate::provenance::MadeFrom::of(&config, &gaussians);
+        Ok(Self { dir: dir.to_path_buf(), scene, gaussians, train, test, raster, extent, made_from })
     }
 
     /// The trained model of the run.

@@ -77,3 +77,45 @@ fn bad_settings_are_named_and_nothing_is_trained() {
     let (ok, err) = vagsl(&["train", "-o", o, "--config", bad.to_str().unwrap()]);
     assert!(!ok && err.contains("bad.toml") && err.contains("TOML"), "{err}");
 }
+
+#[test]
+fn silently_wrong_settings_are_refused_naming_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = out.to_str().unwrap();
+    let file = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let fast = file("fast.toml", "preset = \"fast\"\n");
+    let short = file("short.toml", "iterations = 20\n");
+    let nan = file("nan.toml", "[weights]\nlambda_p = nan\n");
+    for (args, needles) in [
+        // A schedule longer than the run: named, with the way to scale it.
+        (vec!["--set", "iterations=20"], vec!["iterations = 20 ends before the schedule's boundaries", "warmup_end = ", "densify.until = ", "give --iterations 20"]),
+        (vec!["--config", short.as_str()], vec!["iterations = 20 ends before", "photometric_end = "]),
+        // Contradictory presets.
+        (vec!["--preset", "dtu", "--config", fast.as_str()], vec!["--preset dtu contradicts", "fast.toml, whose preset is fast"]),
+        (vec!["--set", "preset=dtu"], vec!["preset is not a setting", "use --preset dtu"]),
+        // Non-finite values name the key; a device is not read whole.
+        (vec!["--config", nan.as_str()], vec!["nan.toml: weights.lambda_p = NaN: must be a finite number"]),
+        (vec!["--config", "/dev/zero"], vec!["/dev/zero: it gives more than the cap of 4 MiB for a settings file"]),
+    ] {
+        let mut a = vec!["train", "-o", o, "--backend", "cpu"];
+        a.extend(args.iter().copied());
+        let t = std::time::Instant::now();
+        let (ok, err) = vagsl(&a);
+        assert!(!ok, "{a:?} was accepted");
+        for n in needles {
+            assert!(err.contains(n), "{a:?}: '{n}' not in {err}");
+        }
+        assert!(t.elapsed().as_secs() < 30 && !out.exists(), "{a:?}: work started");
+    }
+    // The same preset twice is no contradiction; --iterations scales the whole schedule.
+    let (ok, err) = vagsl(&["train", "-o", o, "--preset", "fast", "--config", &fast, "--iterations", "4", "--backend", "cpu", "--quiet"]);
+    assert!(ok, "{err}");
+    // eval-mesh's crop fraction is checked as an argument.
+    let (ok, err) = vagsl(&["eval-mesh", "--pred", "a.ply", "--gt", "b.ply", "--crop-to-gt", "-5"]);
+    assert!(!ok && err.contains("'-5'") && err.contains("must be a finite number above -0.5"), "{err}");
+}

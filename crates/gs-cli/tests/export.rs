@@ -154,7 +154,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
     let file = out_dir.join("a_file");
     std::fs::write(&file, b"x").unwrap();
     let under_file = file.join("model.spz");
-    refused(&["export", r, "-o", under_file.to_str().unwrap()], &["model.spz", "cannot write the spz file there"]);
+    refused(&["export", r, "-o", under_file.to_str().unwrap()], &["model.spz", "cannot write the spz file", &format!("{} is a file, not a folder", file.display())]);
     refused(&["export", r, "-o", "/nonexistent/folder/model.splat"], &["/nonexistent/folder", "does not exist"]);
     // The run's own files are never replaced by an export.
     let own = run.join("point_cloud.ply");

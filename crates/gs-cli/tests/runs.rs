@@ -147,6 +147,25 @@ fn a_run_keeps_its_scene_wherever_it_is_opened_from() {
     let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
     assert!(ok, "{err}");
 
+    // Two photos swapped between names, cameras unchanged: refused by the pixels' hash.
+    let (p1, p2) = (moved.join("images/0001.jpg"), moved.join("images/0002.jpg"));
+    let (b1, b2) = (read(&p1), read(&p2));
+    std::fs::write(&p1, &b2).unwrap();
+    std::fs::write(&p2, &b1).unwrap();
+    let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
+    assert!(!ok && err.contains("photos' pixels differ") && err.contains("swapped or edited"), "{err}");
+    std::fs::write(&p1, &b1).unwrap();
+    std::fs::write(&p2, &b2).unwrap();
+    // A split that no longer matches the run's (a training view now listed as held out).
+    let saved = read(&run.join("config.json"));
+    let mut cfg = config_of(&run);
+    let moved_view = cfg["train_views"].as_array_mut().unwrap().remove(0);
+    cfg["test_views"].as_array_mut().unwrap().push(moved_view);
+    std::fs::write(run.join("config.json"), serde_json::to_string_pretty(&cfg).unwrap()).unwrap();
+    let (ok, err) = render(&["--scene", moved.to_str().unwrap()]);
+    assert!(!ok && err.contains("its split changed"), "{err}");
+    std::fs::write(run.join("config.json"), saved).unwrap();
+
     // Another scene is refused, by its fingerprint.
     let mut images = std::fs::read_to_string(moved.join("sparse/0/images.txt")).unwrap();
     let pose = images.lines().find(|l| l.contains(".png")).unwrap().to_string();
@@ -230,21 +249,23 @@ fn a_folder_mixing_two_runs_is_refused() {
     let (ok, err) = render_test(&a);
     assert!(ok, "{err}");
 
-    // A re-train killed after it wrote its configuration: the folder does not reopen as a run.
+    // A training killed after it wrote its configuration: the folder does not reopen as a run.
+    // (A `--force` re-train killed so leaves the previous run whole: tests/outputs.rs.)
+    let c = dir.path().join("c");
     let mut child = Command::new(env!("CARGO_BIN_EXE_vagsl"))
-        .args(["train", "-o", a.to_str().unwrap(), "--force", "--eval", "--iterations", "100000", "--backend", "cpu", "--quiet"])
+        .args(["train", "-o", c.to_str().unwrap(), "--eval", "--iterations", "100000", "--backend", "cpu", "--quiet"])
         .env("RAYON_NUM_THREADS", "2")
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
     let t0 = std::time::Instant::now();
-    while std::fs::read(a.join("config.json")).ok().and_then(|t| serde_json::from_slice::<serde_json::Value>(&t).ok()).is_none_or(|c| c["run_id"] == id.as_str()) {
-        assert!(t0.elapsed().as_secs() < 120, "the re-train never wrote its config.json");
+    while std::fs::read(c.join("config.json")).ok().and_then(|t| serde_json::from_slice::<serde_json::Value>(&t).ok()).is_none() {
+        assert!(t0.elapsed().as_secs() < 120, "the training never wrote its config.json");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     child.kill().unwrap();
     child.wait().unwrap();
-    let (ok, err) = render_test(&a);
+    let (ok, err) = render_test(&c);
     assert!(!ok && err.contains("no point_cloud.ply") && err.contains("has not written its model"), "{err}");
 }
 
@@ -308,4 +329,14 @@ fn resume_refuses_options_it_would_ignore_or_that_change_the_run() {
     assert!(ok, "{err}");
     let (ok, err) = resume(&other, &[]);
     assert!(!ok && err.contains("so the folder holds another run"), "{err}");
+    // A checkpoint copied on its own names no scene: refused, not resumed on whatever SCENE,
+    // -r or --width say (issue #35).
+    let alone = dir.path().join("alone");
+    std::fs::create_dir(&alone).unwrap();
+    std::fs::copy(&ck, alone.join("checkpoint.bin")).unwrap();
+    let a = alone.join("checkpoint.bin");
+    let fresh = dir.path().join("fresh");
+    let (ok, _, err) = vagsl(&["train", "-o", fresh.to_str().unwrap(), "--resume", a.to_str().unwrap(), fox.to_str().unwrap(), "-r", "2", "--backend", "cpu"]);
+    assert!(!ok && err.contains("no config.json of the checkpoint's run") && err.contains("alone/checkpoint.bin"), "{err}");
+    assert!(!fresh.exists());
 }

@@ -16,11 +16,11 @@ pub const STALE_TEMP_AGE: Duration = Duration::from_secs(10 * 60);
 /// Writes a file atomically: `write` fills a buffered temporary file next to `path`
 /// (same folder, so the rename is atomic), which is flushed, synced and renamed onto `path`.
 /// On any error the temporary file is removed and `path` is left untouched.
+/// The target is checked first ([`crate::check_output_path`]): a symbolic link, device, pipe
+/// or folder is refused, never replaced.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
+    crate::check_output_path(path)?;
+    let dir = crate::output::folder_of(path).to_path_buf();
     let file_name = path
         .file_name()
         .ok_or_else(|| IoError::invalid(path, "output path has no file name"))?
@@ -43,10 +43,12 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
     Ok(())
 }
 
-/// Removes `dir/.FILE_NAME.PID.tmp` files left by killed writes of the same target: PID is not
-/// this process, `/proc/PID` does not exist (Linux, with `/proc` mounted; elsewhere nothing is
-/// removed, as liveness cannot be told) and the file is older than [`STALE_TEMP_AGE`]. Best
-/// effort: a failure to list or remove never fails the write. Returns the files removed.
+/// Removes `dir/.FILE_NAME.PID.tmp` files and folders left by killed writes of the same target
+/// (a file of [`write_atomic`], a folder assembled whole and swapped in, as `view`'s
+/// `.report.PID.tmp/`): PID is not this process, `/proc/PID` does not exist (Linux, with
+/// `/proc` mounted; elsewhere nothing is removed, as liveness cannot be told) and the entry is
+/// older than [`STALE_TEMP_AGE`]. A symbolic link is never followed or removed. Best effort: a
+/// failure to list or remove never fails the write. Returns the entries removed.
 pub fn remove_stale_temps(dir: &Path, file_name: &str) -> Vec<std::path::PathBuf> {
     let mut removed = Vec::new();
     let proc = Path::new("/proc");
@@ -65,7 +67,15 @@ pub fn remove_stale_temps(dir: &Path, file_name: &str) -> Vec<std::path::PathBuf
         }
         let Ok(meta) = entry.path().symlink_metadata() else { continue };
         let old = meta.modified().ok().and_then(|m| m.elapsed().ok()).is_some_and(|age| age >= STALE_TEMP_AGE);
-        if meta.is_file() && old && !proc.join(pid).exists() && std::fs::remove_file(entry.path()).is_ok() {
+        if !old || proc.join(pid).exists() {
+            continue;
+        }
+        let gone = if meta.is_file() {
+            std::fs::remove_file(entry.path()).is_ok()
+        } else {
+            meta.is_dir() && std::fs::remove_dir_all(entry.path()).is_ok()
+        };
+        if gone {
             removed.push(entry.path());
         }
     }

@@ -52,13 +52,16 @@
 //! ```
 
 pub mod atomic;
+pub mod capped;
 pub mod colmap;
 pub mod error;
 pub mod exr;
 pub mod integrity;
+pub mod json;
 pub mod layout;
 pub mod npy;
 pub mod obj;
+pub mod output;
 pub mod ply;
 pub mod png;
 pub mod scene;
@@ -66,6 +69,7 @@ pub mod transforms;
 pub mod undistort;
 
 pub use atomic::{remove_stale_temps, write_atomic};
+pub use capped::{JSON_CAP, SETTINGS_CAP, read_capped};
 pub use colmap::{ColmapModel, read_model};
 pub use layout::{SceneLayout, SceneModel, detect_layout, read_scene_model};
 pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, model_summary};
@@ -73,6 +77,8 @@ pub use error::{IoError, Result};
 pub use self::exr::{read_exr, write_depth_exr, write_exr, write_normal_exr};
 pub use npy::{NpyArray, read_npy, read_npy_array, read_npz, write_npy};
 pub use obj::read_obj;
+pub use json::json_error_words;
+pub use output::{check_output_path, check_output_writable};
 pub use png::{write_jpeg, write_png};
 pub use ply::gaussian::{parse_gaussian_ply, read_gaussian_ply, write_gaussian_ply};
 pub use ply::mesh::{parse_mesh_ply, read_mesh_ply, write_mesh_ply};

@@ -53,3 +53,30 @@ fn leftovers_of_dead_writers_are_removed_and_live_ones_kept() {
     assert_eq!(remove_stale_temps(d, "out.ply"), vec![of_live]);
     assert!(remove_stale_temps(d, "out.ply").is_empty());
 }
+
+#[test]
+fn folders_of_dead_writers_are_removed_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let hour = Duration::from_secs(3600);
+    let folder = |pid: &str, age: Duration| {
+        let p = d.join(format!(".report.{pid}.tmp"));
+        std::fs::create_dir_all(p.join("views")).unwrap();
+        std::fs::write(p.join("views/0000_photo.jpg"), b"partial").unwrap();
+        std::fs::File::open(&p).unwrap().set_modified(SystemTime::now() - age).unwrap();
+        p
+    };
+    let stale = folder(&dead_pid().to_string(), hour);
+    let fresh = folder(&dead_pid().to_string(), Duration::ZERO);
+    let mine = folder(&std::process::id().to_string(), hour);
+    // A link named like a leftover is neither followed nor removed.
+    let target = d.join("kept");
+    std::fs::create_dir(&target).unwrap();
+    let link = d.join(format!(".report.{}.tmp", dead_pid()));
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    assert_eq!(remove_stale_temps(d, "report"), vec![stale.clone()]);
+    assert!(!stale.exists());
+    for kept in [&fresh, &mine, &target, &link] {
+        assert!(kept.exists(), "{} must be kept", kept.display());
+    }
+}

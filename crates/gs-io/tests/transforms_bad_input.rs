@@ -124,3 +124,27 @@ fn a_folder_with_neither_layout_names_both() {
     let m = read_scene_model(&dir.path().join("nope"), None).unwrap_err().to_string();
     assert!(m.contains("does not exist"), "{m}");
 }
+
+#[test]
+fn absurd_cameras_are_refused_with_the_number() {
+    let frame = format!(r#"{{"file_path": "a.png", "transform_matrix": {IDENTITY_AT_4}}}"#);
+    for (lens, says) in [
+        (r#""camera_angle_x": 3.14159"#, "focal length fx = 2.654e-6 px gives a field of view of 179.9998° across 4 px, outside 0.01°–170°"),
+        (r#""fl_x": 1e-30"#, "focal length fx = 1.000e-30 px gives a field of view of 180°"),
+        (r#""fl_x": 1e30"#, "focal length fx = 1.000e30 px gives a field of view of 2.292e-28°"),
+        (r#""fl_x": 5, "cx": -1e9"#, "principal point cx = -1.000e9 px lies more than the image's size (4 px) outside the image"),
+        (r#""fl_x": 5, "k1": 1e6"#, "its distortion (1.000e6 0 0 0) moves the image corner (0, 0) to 250001 times its distance from the centre"),
+    ] {
+        let m = scene_error(&format!(r#"{{{lens}, "frames": [{frame}]}}"#));
+        assert!(m.contains(says), "{lens}: {m}");
+    }
+    // A real wide lens and a real barrel distortion pass.
+    let ok = scene_with(&format!(r#"{{"camera_angle_x": 2.0, "k1": -0.3, "k2": 0.1, "frames": [{frame}]}}"#));
+    read_scene_model(ok.path(), None).unwrap();
+}
+
+#[test]
+fn a_nan_in_the_json_names_its_key() {
+    let m = parse_error("{\n  \"fl_x\": NaN,\n  \"frames\": []\n}");
+    assert!(m.contains("'fl_x' at line 2") && m.contains("is NaN: it must be a finite number"), "{m}");
+}

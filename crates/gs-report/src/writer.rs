@@ -86,6 +86,8 @@ impl ReportWriter {
     /// [`finish`](Self::finish).
     pub fn new(run: &Path) -> Result<Self> {
         let staging = run.join(format!(".report.{}.tmp", std::process::id()));
+        // Folders of `view`s killed mid-way (their process gone) would otherwise stay forever.
+        gs_io::remove_stale_temps(run, "report");
         if staging.exists() {
             std::fs::remove_dir_all(&staging).map_err(|source| ReportError::Folder { path: staging.clone(), source })?;
         }

@@ -35,13 +35,16 @@ pub struct EvalImagesArgs {
 
 /// Runs `vagsl eval-images`; writes RUN/eval_images.json.
 pub fn run(args: &EvalImagesArgs) -> Result<()> {
+    let file = format!("eval_images{}{}.json", if args.train { "_train" } else { "" }, if args.masked { "_masked" } else { "" });
+    // A link, device or folder in the scores' place is refused before the work; a read-only
+    // run folder is not (the scores are printed first).
+    gs_io::check_output_path(&args.run.join(&file))?;
     let run = OpenRun::open(&args.run, args.scene.as_deref())?;
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
     let model = run.model();
     let views = if args.train { model.train } else { model.test };
     let mut rasterizer = super::rasterizer(args.backend)?;
     let metrics = gs_train::evaluate_images(&model, &mut rasterizer, views, lpips.as_ref(), args.masked)?;
-    let file = format!("eval_images{}{}.json", if args.train { "_train" } else { "" }, if args.masked { "_masked" } else { "" });
     // Scores first: a read-only run folder must not cost the numbers just computed.
     if args.json {
         println!("{}", serde_json::to_string_pretty(&metrics)?);
@@ -67,6 +70,6 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
             metrics.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
         );
     }
-    write_json(&run.dir.join(file), &metrics)
+    write_json(&run.dir.join(file), &crate::provenance::with_made_from(&metrics, &run.made_from)?)
         .map_err(|e| e.context("the scores above were computed but could not be saved"))
 }

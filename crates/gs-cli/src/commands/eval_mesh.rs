@@ -23,7 +23,7 @@ pub struct EvalMeshArgs {
     pub samples: usize,
     /// Crop the prediction to the GT's bounding box expanded by this fraction of its size per
     /// side (the object protocol uses 0.05).
-    #[arg(long)]
+    #[arg(long, value_parser = parse_crop, allow_hyphen_values = true)]
     pub crop_to_gt: Option<f64>,
     /// With --crop-to-gt: also drop everything below this z (e.g. a floor at z = 0: 0.005).
     #[arg(long)]
@@ -39,6 +39,17 @@ pub struct EvalMeshArgs {
     pub json: bool,
 }
 
+/// `--crop-to-gt`: a finite fraction above -0.5 (at -0.5 the box shrinks to nothing).
+fn parse_crop(s: &str) -> std::result::Result<f64, String> {
+    let f: f64 = s.trim().parse().map_err(|e| format!("'{s}': {e}"))?;
+    if !f.is_finite() || f <= -0.5 {
+        return Err(format!(
+            "'{s}': the ground truth's box grows by this fraction of its size on each side, so it must be a finite number above -0.5 (below, the box is empty); the object protocol uses 0.05"
+        ));
+    }
+    Ok(f)
+}
+
 /// Reads a PLY or OBJ triangle mesh.
 pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
@@ -52,6 +63,11 @@ pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
 /// Runs `vagsl eval-mesh`; a mesh inside a run folder gets its scores saved there as
 /// `eval_mesh.json` (shown by `vagsl view`).
 pub fn run(args: &EvalMeshArgs) -> Result<()> {
+    let saved_in = args.pred.parent().filter(|d| crate::out_folder::holds_run(d));
+    if let Some(run) = saved_in {
+        // A link, device or folder in the scores' place is refused before the work.
+        gs_io::check_output_path(&run.join("eval_mesh.json"))?;
+    }
     let pred = read_mesh(&args.pred)?;
     let gt = read_mesh(&args.gt)?;
     let b = Aabb::of_mesh(&gt).with_context(|| format!("{}: the ground-truth mesh has no vertices", args.gt.display()))?;
@@ -79,9 +95,13 @@ pub fn run(args: &EvalMeshArgs) -> Result<()> {
     }
     // A run's own mesh keeps its scores beside it, for `vagsl view` (after printing them, so a
     // read-only folder does not cost the numbers).
-    if let Some(run) = args.pred.parent().filter(|d| crate::out_folder::holds_run(d)) {
+    if let Some(run) = saved_in {
         let mut saved = serde_json::to_value(&report.metrics)?;
         saved["ground_truth"] = serde_json::Value::from(crate::run_dir::absolute_scene_path(&args.gt).display().to_string());
+        // The scores describe the mesh, so they carry the record of the model it came from.
+        if let Some(m) = crate::provenance::read_made_from(&args.pred.with_extension("json")) {
+            saved["made_from"] = serde_json::to_value(m)?;
+        }
         crate::run_dir::write_json(&run.join("eval_mesh.json"), &saved)
             .map_err(|e| e.context("the scores above were computed but could not be saved"))?;
     }

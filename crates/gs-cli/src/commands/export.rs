@@ -3,7 +3,7 @@
 use crate::run_dir::read_run_model;
 use anyhow::{Context, Result, bail};
 use gs_export::Format;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Options of `vagsl export`.
 #[derive(Debug, Clone, clap::Args)]
@@ -24,19 +24,6 @@ fn parse_format(s: &str) -> std::result::Result<Format, String> {
     Format::from_name(s).ok_or_else(|| format!("unknown format '{s}' (use one of {})", Format::ALL.map(Format::name).join(", ")))
 }
 
-/// Refuses an output that is one of the run's own files (a compressed copy must not replace the
-/// model or the mesh it was made from).
-fn check_not_run_file(run: &Path, out: &Path) -> Result<()> {
-    let canon = |p: &Path| std::fs::canonicalize(p).ok();
-    let Some(target) = canon(out) else { return Ok(()) };
-    for own in ["point_cloud.ply", "mesh.ply"] {
-        if canon(&run.join(own)).is_some_and(|p| p == target) {
-            bail!("{}: this is the run's own {own}; give another output file with -o", out.display());
-        }
-    }
-    Ok(())
-}
-
 /// Runs `vagsl export`.
 pub fn run(args: &ExportArgs) -> Result<()> {
     let format = match args.format {
@@ -46,14 +33,20 @@ pub fn run(args: &ExportArgs) -> Result<()> {
     if !args.run.is_dir() {
         bail!("{}: no such run folder (give a `vagsl train` output folder)", args.run.display());
     }
-    super::mesh::check_writable(&args.output, &format!("the {format} file"))?;
-    check_not_run_file(&args.run, &args.output)?;
+    // Never one of a run's own files: a compressed copy must not replace the model or mesh.
+    crate::out_folder::check_output_file(&args.output, &format!("the {format} file"), &[])?;
     let summary = if format.is_mesh() {
         let src = args.run.join("mesh.ply");
         if !src.is_file() {
             bail!("{}: the run has no mesh.ply; make it first with `vagsl mesh {}`", args.run.display(), args.run.display());
         }
+        let (config, gaussians) = read_run_model(&args.run)?;
+        let current = crate::provenance::MadeFrom::of(&config, &gaussians);
+        crate::provenance::check(&src, &args.run.join("mesh.json"), &current, &format!("vagsl mesh {}", args.run.display()))?;
         let mesh = gs_io::read_mesh_ply(&src)?;
+        if mesh.triangles.is_empty() {
+            bail!("{}: the mesh has no triangles (an empty mesh); nothing to export", src.display());
+        }
         gs_export::write_mesh(format, &args.output, &mesh)?;
         let colours = if mesh.colors.is_some() { "with vertex colours" } else { "without colours" };
         format!("{} vertices, {} triangles {colours}", mesh.positions.len(), mesh.triangles.len())

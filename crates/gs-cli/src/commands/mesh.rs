@@ -161,35 +161,48 @@ fn options(args: &MeshArgs) -> Result<MeshOptions> {
 /// fusion path of [`fuse_mesh`].
 pub fn run(args: &MeshArgs) -> Result<()> {
     let opts = options(args)?;
-    if let Some(out) = &args.output {
-        check_writable(out, "the mesh")?;
-    }
-    let (mesh, report, path) = match &args.depth_dir {
+    // Both outputs are checked before any rendering or fusing.
+    let home = args.depth_dir.as_deref().unwrap_or(&args.run);
+    let own = [home.join("mesh.ply"), home.join("mesh.json")];
+    let path = args.output.clone().unwrap_or_else(|| own[0].clone());
+    crate::out_folder::check_output_file(&path, "the mesh", &own)?;
+    crate::out_folder::check_output_file(&report_path(&path), "the mesh's report", &own)?;
+    let (mesh, report, made_from) = match &args.depth_dir {
         Some(dir) => {
             let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
             let views: Vec<usize> = (0..scene.views.len()).collect();
             let mut read = |v: &gs_core::View| read_depth(dir, &v.name).map_err(|e| gs_train::TrainError::InvalidScene(format!("{e:#}")));
             let (mesh, report) = fuse_mesh(&scene, &views, DepthSource::Given(&mut read), &opts)?;
-            (mesh, report, args.output.clone().unwrap_or_else(|| dir.join("mesh.ply")))
+            (mesh, report, None)
         }
         None => {
             let run = OpenRun::open(&args.run, args.scene.as_deref())?;
             let mut rasterizer = super::rasterizer(args.backend)?;
             let (mesh, report) = extract_mesh(&run.model(), &mut rasterizer, &opts)?;
-            (mesh, report, args.output.clone().unwrap_or_else(|| run.dir.join("mesh.ply")))
+            (mesh, report, Some(run.made_from))
         }
     };
+    if mesh.triangles.is_empty() {
+        bail!(
+            "the fused mesh is empty (0 triangles from {} TSDF blocks at voxel size {}): no surface crossed the volume; nothing written. Check --voxel-size (the default follows the scene), --bounds and --depth-trunc, or the run (a model of a few Gaussians renders no surface)",
+            report.blocks,
+            number(report.voxel_size)
+        );
+    }
     gs_io::write_mesh_ply(&path, &mesh)?;
-    write_json(&report_path(&path), &report)?;
+    match &made_from {
+        Some(m) => write_json(&report_path(&path), &crate::provenance::with_made_from(&report, m)?)?,
+        None => write_json(&report_path(&path), &report)?,
+    }
     let source = match args.depth_dir {
         Some(_) => format!("{} depth maps read in {:.1}s", report.views, report.render_seconds),
         None => format!("{} views rendered in {:.1}s", report.views, report.render_seconds),
     };
     println!(
-        "mesh: {} vertices, {} triangles (voxel {:.5}, {} blocks; {source}, fused in {:.1}s) → {}",
+        "mesh: {} vertices, {} triangles (voxel {}, {} blocks; {source}, fused in {:.1}s) → {}",
         report.vertices,
         report.triangles,
-        report.voxel_size,
+        number(report.voxel_size),
         report.blocks,
         report.fuse_seconds,
         path.display()
@@ -231,24 +244,10 @@ fn cleanup_line(r: &gs_train::MeshReport) -> String {
     line
 }
 
-/// Fails, before any work, when `path`'s folder is missing or refuses a new file (probed with a
-/// hidden temporary file, removed again); `what` names the file in the message.
-pub fn check_writable(path: &Path, what: &str) -> Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!("{}: cannot write {what} there: the folder {} does not exist", path.display(), dir.display());
-    }
-    let probe = dir.join(format!(".vagsl-write-test-{}", std::process::id()));
-    match std::fs::File::create(&probe) {
-        Ok(_) => {
-            let _ = std::fs::remove_file(&probe);
-            Ok(())
-        }
-        Err(e) => bail!("{}: cannot write {what} there: {e}", path.display()),
-    }
+/// A length for people: five decimals in the usual range, scientific notation outside it
+/// (1e300 as `1.000e300`, not as 301 digits).
+pub fn number(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) { format!("{x:.5}") } else { format!("{x:.3e}") }
 }
 
 fn report_path(mesh: &Path) -> PathBuf {

@@ -11,6 +11,7 @@ pub mod resume;
 pub mod synth;
 pub mod tradeoff;
 pub mod train;
+pub mod train_loop;
 pub mod view;
 
 /// The rasterizer of `--backend` (cpu, wgpu, or auto = wgpu on a hardware GPU, else the CPU),

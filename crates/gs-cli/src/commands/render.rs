@@ -130,6 +130,13 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let dir = args.output.clone().unwrap_or_else(|| run.dir.join("renders").join(name));
     let stems = output_stems(views.iter().map(|&i| run.scene.views[i].name.as_str()), &dir)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    // Every file checked before the first render (never a link, device, folder or run file).
+    for stem in &stems {
+        let kinds: &[&str] = if args.mesh.is_some() { &[".png", "_depth.exr", "_normal.png", "_mesh.png"] } else { &[".png", "_depth.exr", "_normal.png"] };
+        for kind in kinds {
+            crate::out_folder::check_output_file(&dir.join(format!("{stem}{kind}")), "a render", &[])?;
+        }
+    }
     let req = RenderRequest { color: true, alpha: true, normal: true, distance: true, plane_depth: true, ..Default::default() };
     let mut rasterizer = super::rasterizer(args.backend)?;
     let bvh = match &args.mesh {

@@ -43,8 +43,8 @@ fn scene_changes(a: &TrainArgs, run: &SceneSource) -> Vec<String> {
 }
 
 /// The run a resume from `checkpoint` (with settings `ck_config`) continues: the `config.json`
-/// in the output folder, else the one beside the checkpoint; `None` when neither exists (a
-/// checkpoint copied on its own: the scene options on the command line then give the scene).
+/// in the output folder, else the one beside the checkpoint; an error when neither exists (a
+/// checkpoint copied on its own could otherwise resume on any scene).
 /// Refuses options that would be ignored or change the run, and a folder holding another run.
 pub fn run_of_checkpoint(args: &TrainArgs, checkpoint: &Path, ck_config: &TrainConfig) -> Result<Option<(RunConfig, PathBuf)>> {
     let ignored = given_training_options(args);
@@ -58,8 +58,11 @@ pub fn run_of_checkpoint(args: &TrainArgs, checkpoint: &Path, ck_config: &TrainC
     let beside = checkpoint.parent().map(|d| d.join("config.json"));
     let candidates = [Some(args.output.join("config.json")), beside];
     let Some(file) = candidates.into_iter().flatten().find(|f| f.is_file()) else {
-        eprintln!("note: no config.json of the checkpoint's run in {} or beside the checkpoint; the scene options given here are used", args.output.display());
-        return Ok(None);
+        bail!(
+            "{}: no config.json of the checkpoint's run in {} or beside the checkpoint; a checkpoint resumes only on the scene, resolution and views it was trained on, which that file records: put the run's config.json beside the checkpoint",
+            checkpoint.display(),
+            args.output.display()
+        );
     };
     let text = std::fs::read_to_string(&file).with_context(|| format!("{}: cannot read the run's configuration", file.display()))?;
     let run: RunConfig = serde_json::from_str(&text).with_context(|| format!("{}: not a vagsl run configuration", file.display()))?;

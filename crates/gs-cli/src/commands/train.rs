@@ -5,9 +5,7 @@ use anyhow::{Context, Result, bail};
 use gs_train::{InitMode, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
 use gs_train::checkpoint::Elapsed;
 use gs_train::config::SettingsFile;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -145,7 +143,7 @@ pub struct TrainArgs {
 /// A configuration file's settings as JSON: a run's `config.json` gives its "train" table and
 /// scene, anything else is a partial configuration.
 fn read_config_file(path: &Path) -> Result<(SettingsFile, Option<RunConfig>)> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the configuration file", path.display()))?;
+    let bytes = gs_io::read_capped(path, gs_io::SETTINGS_CAP, "a settings file")?;
     let file = gs_train::config::parse_settings_file(&bytes, path)?;
     let run = match &file.run {
         Some(doc) => Some(serde_json::from_value(doc.clone()).with_context(|| format!("{}: not a vagsl run configuration", path.display()))?),
@@ -164,9 +162,16 @@ pub fn build_config(args: &TrainArgs) -> Result<(TrainConfig, Option<RunConfig>)
         }
         None => (None, None),
     };
-    let preset = match (args.preset, &file) {
-        (Some(p), _) => p,
-        (None, Some((f, p))) => f.preset(p)?.unwrap_or_default(),
+    let file_preset = match &file {
+        Some((f, p)) => f.preset(p)?,
+        None => None,
+    };
+    let preset = match (args.preset, file_preset) {
+        (Some(a), Some(b)) if a != b => bail!(
+            "--preset {a} contradicts {}, whose preset is {b}: the run would be labelled with one and use the other's values; give one of them",
+            args.config.as_deref().unwrap_or(Path::new("")).display()
+        ),
+        (Some(p), _) | (None, Some(p)) => p,
         (None, None) => Preset::default(),
     };
     let mut c = TrainConfig::preset(preset);
@@ -268,7 +273,7 @@ pub struct TrainReport {
     pub last: Option<StepReport>,
 }
 
-fn describe(r: &StepReport) -> String {
+pub(super) fn describe(r: &StepReport) -> String {
     let l = &r.losses;
     let mut s = format!("L {:.4} L1 {:.4}", l.total, l.l1);
     for (name, v) in [("nc", l.normal_consistency), ("ns", l.normal_smoothing), ("Lp", l.photometric), ("Lf", l.features)] {
@@ -397,8 +402,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
     // Everything that can refuse the run has run: only now is the folder touched.
-    crate::out_folder::prepare(out, args.force, args.resume.is_some())?;
-    write_json(&out.join("config.json"), &run_config)?;
+    let mut folder = crate::out_folder::prepare(out, args.force, args.resume.is_some())?;
+    let work = folder.work.clone();
+    write_json(&work.join("config.json"), &run_config)?;
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
     let b = *trainer.budget();
     if b.active {
@@ -409,16 +415,16 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     }
 
     let mut elapsed = earlier.unwrap_or_default();
-    let mut curves = crate::metrics_log::MetricsLog::open(out, resumed_from, config.iterations, !test_idx.is_empty(), mesh_track)?;
+    let mut curves = crate::metrics_log::MetricsLog::open(&work, resumed_from, config.iterations, !test_idx.is_empty(), mesh_track)?;
     let t0 = Instant::now();
-    let Looped { last, sh_bands, growth, floaters_removed, signal } =
-        train_loop(args, &config, &mut trainer, &mut elapsed, (&mut curves, &test_idx))?;
+    let super::train_loop::Looped { last, sh_bands, growth, floaters_removed, signal } =
+        super::train_loop::train_loop((args, &work), &config, &mut trainer, &mut elapsed, (&mut curves, &test_idx))?;
     let ckpt_path = out.join("checkpoint.bin");
     let segment_seconds = t0.elapsed().as_secs_f64();
     let train_seconds = elapsed.total();
     let interrupted = !trainer.finished();
     if interrupted || args.checkpoint_every.is_some() {
-        checkpoint::save(&ckpt_path, &config, trainer.state(), &elapsed)?;
+        checkpoint::save(&work.join("checkpoint.bin"), &config, trainer.state(), &elapsed)?;
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
     let report = TrainReport {
@@ -445,9 +451,12 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     };
     // The report first, then the model it describes: a run stopped between the two leaves a
     // folder whose model is missing or older than its report, which `OpenRun::open` names.
-    write_json(&out.join("report.json"), &report)?;
-    gs_io::write_gaussian_ply(&out.join("point_cloud.ply"), trainer.gaussians())?;
-    write_exposure(out, &run_config, &trainer)?;
+    write_json(&work.join("report.json"), &report)?;
+    gs_io::write_gaussian_ply(&work.join("point_cloud.ply"), trainer.gaussians())?;
+    write_exposure(&work, &run_config, &trainer)?;
+    drop(curves);
+    folder.commit()?;
+    warn_degenerate(&report, &config);
     let done_here = report.iterations - resumed_from.unwrap_or(0);
     println!(
         "trained {} iterations in {:.1}s ({:.1} it/s{}): {} Gaussians, peak memory {}; wrote point_cloud.ply, report.json and metrics.jsonl to {}",
@@ -470,6 +479,22 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     Ok(())
 }
 
+/// A loud warning for a model that ended nearly empty (e.g. `densify.min_opacity = 0.999`
+/// pruning thousands of Gaussians to one): it renders little or nothing and meshes to nothing.
+fn warn_degenerate(report: &TrainReport, config: &TrainConfig) {
+    let floor = (report.budget.gaussians / 100).clamp(1, 100);
+    if report.gaussians < floor && report.gaussians * 10 < report.budget.initial {
+        eprintln!(
+            "warning: the model ended with only {} Gaussian{} of the {} it started with (the scene's budget is {}): almost everything was pruned, so renders and the mesh will be nearly empty; check densify.min_opacity ({}), the learning rates and the schedule",
+            report.gaussians,
+            if report.gaussians == 1 { "" } else { "s" },
+            report.budget.initial,
+            report.budget.gaussians,
+            config.densify.min_opacity
+        );
+    }
+}
+
 /// `OUT/exposure.json`: each training photo's learned gain and bias (with `--exposure`).
 fn write_exposure(out: &Path, run_config: &RunConfig, trainer: &Trainer) -> Result<()> {
     if let Some(e) = &trainer.state().exposure {
@@ -487,18 +512,6 @@ fn write_exposure(out: &Path, run_config: &RunConfig, trainer: &Trainer) -> Resu
     Ok(())
 }
 
-/// What the training loop hands back for the report.
-struct Looped {
-    last: Option<StepReport>,
-    sh_bands: Vec<gs_train::ShBandDecision>,
-    /// The iteration and the limit of the last densification step.
-    growth: Option<(u64, gs_train::GrowthLimit)>,
-    /// Floaters removed.
-    floaters_removed: usize,
-    /// The signal that stopped the loop early.
-    signal: Option<i32>,
-}
-
 /// Why the model stopped growing, from the last densification step of this process.
 fn growth_stopped(last: Option<(u64, gs_train::GrowthLimit)>, b: &gs_train::Budget, n: usize) -> String {
     match last {
@@ -510,114 +523,4 @@ fn growth_stopped(last: Option<(u64, gs_train::GrowthLimit)>, b: &gs_train::Budg
             if b.active { "" } else { " (no budget: ρ = 0)" }
         ),
     }
-}
-
-/// The training loop with progress (a bar on a terminal, else a line every 500 iterations),
-/// notices, periodic checkpoints and Ctrl-C / SIGTERM / SIGHUP (stop after the current
-/// iteration, [`crate::signals`]). `elapsed`
-/// gains this segment's time per phase.
-fn train_loop(
-    args: &TrainArgs,
-    config: &TrainConfig,
-    trainer: &mut Trainer,
-    elapsed: &mut Elapsed,
-    (curves, test): (&mut crate::metrics_log::MetricsLog, &[usize]),
-) -> Result<Looped> {
-    let stop = crate::signals::StopRequest::install().context("installing the Ctrl-C / SIGTERM / SIGHUP handlers")?;
-    // Without a terminal indicatif draws nothing, so a redirected run logs lines instead.
-    let log_lines = args.quiet || !std::io::stderr().is_terminal();
-    let bar = if log_lines {
-        ProgressBar::hidden()
-    } else {
-        let b = ProgressBar::new(config.iterations);
-        b.set_style(
-            ProgressStyle::with_template("{bar:30} {pos}/{len} {per_sec} ETA {eta} {msg}")
-                .expect("valid template"),
-        );
-        b.set_position(trainer.iteration());
-        b
-    };
-    let ckpt_path = args.output.join("checkpoint.bin");
-    let mut last: Option<StepReport> = None;
-    let mut checkpoint_error: Option<anyhow::Error> = None;
-    let mut curve_error: Option<anyhow::Error> = None;
-    let mut warned_cap = false;
-    let mut sh_bands = Vec::new();
-    let mut growth = None;
-    let mut floaters_removed = 0;
-    let t0 = Instant::now();
-    let mut t_prev = Instant::now();
-    trainer.run(|tr, r| {
-        let now = Instant::now();
-        elapsed.add(config, r.iteration, (now - t_prev).as_secs_f64());
-        t_prev = now;
-        // The held-out scoring of the curves is not training time.
-        match curves.record(tr, r, elapsed.total(), test, r.iteration == config.iterations) {
-            Ok(scoring) => t_prev += scoring,
-            Err(e) => {
-                curve_error = Some(e);
-                return false;
-            }
-        }
-        if r.iteration % 10 == 0 || r.iteration == config.iterations {
-            bar.set_position(r.iteration);
-            bar.set_message(describe(r));
-        }
-        if log_lines && (r.iteration % 500 == 0 || r.iteration == config.iterations) {
-            eprintln!("[{:>6}/{}] {} ({:.1}s)", r.iteration, config.iterations, describe(r), t0.elapsed().as_secs_f64());
-        }
-        // A hidden bar (log-line mode) prints nothing, so notices go to stderr directly there.
-        let notice = |m: String| if log_lines { eprintln!("{m}") } else { bar.println(m) };
-        if let Some(b) = r.sh_band {
-            sh_bands.push(b);
-            notice(format!(
-                "[{:>6}] SH band {}: L1 {:.5} → {:.5} ({:+.2} %), {}; degree {}",
-                r.iteration,
-                b.band,
-                b.l1_without,
-                b.l1_with,
-                -100.0 * b.gain,
-                if b.kept { "pays" } else { "does not pay, dropped" },
-                b.degree
-            ));
-        }
-        if let Some(d) = r.densify {
-            growth = Some((r.iteration, d.limit));
-        }
-        if let Some(f) = r.floaters
-            && f.removed() > 0
-        {
-            floaters_removed += f.removed();
-            notice(format!(
-                "[{:>6}] removed {} floaters ({} seen through by training views, {} in no training view)",
-                r.iteration,
-                f.removed(),
-                f.see_through,
-                f.outside_all_frusta
-            ));
-        }
-        if r.densify.is_some_and(|d| d.capped) && !warned_cap {
-            warned_cap = true;
-            notice(format!("warning: reached --max-gaussians {}; densification stops", config.max_gaussians));
-        }
-        if let Some(every) = args.checkpoint_every
-            && every > 0
-            && r.iteration % every == 0
-            && r.iteration < config.iterations
-            && let Err(e) = checkpoint::save(&ckpt_path, config, tr.state(), elapsed)
-        {
-            checkpoint_error = Some(e.into());
-            return false;
-        }
-        last = Some(r.clone());
-        stop.signal().is_none()
-    })?;
-    bar.finish_and_clear();
-    if let Some(e) = curve_error {
-        return Err(e);
-    }
-    if let Some(e) = checkpoint_error {
-        return Err(e.context(format!("writing {}", ckpt_path.display())));
-    }
-    Ok(Looped { last, sh_bands, growth, floaters_removed, signal: stop.signal() })
 }

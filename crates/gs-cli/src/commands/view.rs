@@ -31,7 +31,16 @@ pub struct ViewArgs {
 
 /// Runs `vagsl view`.
 pub fn run(args: &ViewArgs) -> Result<()> {
+    crate::out_folder::check_output_file(&args.run.join("report.html"), "the report page", &[args.run.join("report.html")])?;
+    let folder = args.run.join("report");
+    if std::fs::symlink_metadata(&folder).is_ok_and(|m| !m.is_dir()) {
+        anyhow::bail!("{}: is a link or a file, not the report's folder, and the report would replace it; move it away", folder.display());
+    }
     let run = OpenRun::open(&args.run, args.scene.as_deref())?;
+    // The mesh and its scores shown must come from this model.
+    let remake = format!("vagsl mesh {}", run.dir.display());
+    crate::provenance::check(&run.dir.join("mesh.ply"), &run.dir.join("mesh.json"), &run.made_from, &remake)?;
+    crate::provenance::check(&run.dir.join("eval_mesh.json"), &run.dir.join("eval_mesh.json"), &run.made_from, "vagsl eval-mesh --pred RUN/mesh.ply --gt GT")?;
     let model = run.model();
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
     let mut rasterizer = super::rasterizer(args.backend)?;
@@ -83,7 +92,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         if args.serve { "" } else { ", or serve it with `vagsl view RUN --serve`" }
     );
     if args.serve {
-        serve(&run.dir, args.port)?;
+        crate::serve::serve(&run.dir, args.port)?;
     }
     Ok(())
 }
@@ -115,6 +124,7 @@ fn facts(run: &OpenRun, test_psnr: &[f64], mesh: Option<&gs_report::MeshData>) -
     if let Some(m) = mesh {
         f.push(("Mesh".into(), format!("{} triangles (mesh.ply)", m.source_triangles)));
     }
+    f.push(("Model".into(), run.made_from.describe()));
     f
 }
 
@@ -147,66 +157,4 @@ fn read_json_if_present(path: &Path) -> Result<Option<serde_json::Value>> {
 /// The tradeoff plot of the run's folder, or of the `vagsl tradeoff` output it is a rung of.
 fn tradeoff_svg(run: &Path) -> Option<String> {
     [run.join("tradeoff.svg"), run.join("..").join("tradeoff.svg")].iter().find_map(|p| std::fs::read_to_string(p).ok())
-}
-
-/// Serves the run folder's page on 127.0.0.1:`port` until the process is stopped. Only
-/// `report.html` and files under `report/` are served; anything else is 404.
-fn serve(dir: &Path, port: u16) -> Result<()> {
-    let server = tiny_http::Server::http(("127.0.0.1", port))
-        .map_err(|e| anyhow::anyhow!("cannot listen on 127.0.0.1:{port}: {e}; choose another port with --port"))?;
-    let addr = server.server_addr().to_ip().context("the server has no IP address")?;
-    println!("serving http://{addr}/report.html (Ctrl-C to stop)");
-    for request in server.incoming_requests() {
-        let response = match served_file(dir, request.url()) {
-            Some((path, kind)) => match std::fs::read(&path) {
-                Ok(bytes) => tiny_http::Response::from_data(bytes).with_header(
-                    tiny_http::Header::from_bytes("Content-Type", kind).expect("a valid header"),
-                ),
-                Err(_) => tiny_http::Response::from_string("not found").with_status_code(404),
-            },
-            None => tiny_http::Response::from_string("not found").with_status_code(404),
-        };
-        // A client that went away is not an error of ours.
-        let _ = request.respond(response);
-    }
-    Ok(())
-}
-
-/// The file and content type for a request path: `/` and `/report.html` are the page,
-/// `/report/...` its folder; paths with `..`, absolute parts or other files give `None`.
-fn served_file(dir: &Path, url: &str) -> Option<(PathBuf, &'static str)> {
-    let path = url.split(['?', '#']).next().unwrap_or("/");
-    let rel = match path {
-        "/" | "/report.html" => "report.html",
-        p if p.starts_with("/report/") => &p[1..],
-        _ => return None,
-    };
-    if rel.split('/').any(|c| c.is_empty() || c == "." || c == ".." || c.contains('\\')) {
-        return None;
-    }
-    let kind = match Path::new(rel).extension().and_then(|e| e.to_str()) {
-        Some("html") => "text/html; charset=utf-8",
-        Some("js") => "text/javascript; charset=utf-8",
-        Some("jpg") => "image/jpeg",
-        Some("png") => "image/png",
-        Some("svg") => "image/svg+xml",
-        _ => "application/octet-stream",
-    };
-    Some((dir.join(rel), kind))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn only_the_page_and_its_folder_are_served() {
-        let d = Path::new("/run");
-        assert_eq!(served_file(d, "/").unwrap().0, d.join("report.html"));
-        assert_eq!(served_file(d, "/report/data.js?x=1").unwrap(), (d.join("report/data.js"), "text/javascript; charset=utf-8"));
-        assert!(served_file(d, "/report/../config.json").is_none());
-        assert!(served_file(d, "/report//etc/passwd").is_none());
-        assert!(served_file(d, "/point_cloud.ply").is_none());
-        assert!(served_file(d, "/report/views/0000_photo.jpg").is_some());
-    }
 }

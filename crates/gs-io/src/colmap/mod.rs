@@ -165,6 +165,18 @@ pub fn read_model(dir: &Path) -> Result<ColmapModel> {
 
 /// Largest accepted magnitude of a camera centre or point coordinate: far beyond any real
 /// capture (Earth-centred coordinates are ~6.4e6 m), small enough that squared distances and
+/// A number for people: as written in the usual range, in scientific notation outside it (1e300
+/// as `1e300`, not 301 digits).
+pub fn readable(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) { format!("{}", (x * 1e4).round() / 1e4) } else { format!("{x:.3e}") }
+}
+
+/// The widest field of view a camera may have, degrees (a pinhole model reaches 180° only at
+/// a zero focal length; the widest rectilinear lenses are about 120°).
+pub const MAX_FOV_DEG: f64 = 170.0;
+/// The narrowest field of view, degrees (a 2000 mm lens on a full-frame sensor is about 1°).
+pub const MIN_FOV_DEG: f64 = 0.01;
+
 /// sums over thousands of cameras stay finite in f64 and positions finite in f32.
 pub const MAX_COORDINATE: f64 = 1e12;
 
@@ -200,6 +212,57 @@ impl ColmapCamera {
         let [fx, fy, _, _] = self.pinhole();
         if fx <= 0.0 || fy <= 0.0 {
             return Err(format!("camera {}: focal lengths must be positive, got {fx} {fy}", self.id));
+        }
+        self.check_lens()
+    }
+
+    /// Refuses a lens no photograph has (a corrupt or mistyped file, such as
+    /// `camera_angle_x = 3.14159`): a field of view above [`MAX_FOV_DEG`] or below
+    /// [`MIN_FOV_DEG`], a principal point more than one image size outside the image, or a
+    /// distortion that moves an image corner to less than a tenth or more than ten times its
+    /// distance from the centre (undistorting would shrink or blow up the photo).
+    fn check_lens(&self) -> std::result::Result<(), String> {
+        let [fx, fy, cx, cy] = self.pinhole();
+        let (w, h) = (self.width as f64, self.height as f64);
+        for (axis, f, size) in [("x", fx, w), ("y", fy, h)] {
+            let fov = 2.0 * (0.5 * size / f).atan().to_degrees();
+            if !(MIN_FOV_DEG..=MAX_FOV_DEG).contains(&fov) {
+                return Err(format!(
+                    "camera {}: focal length f{axis} = {} px gives a field of view of {}° across {size} px, outside {MIN_FOV_DEG}°–{MAX_FOV_DEG}° (a corrupt or mistyped camera?)",
+                    self.id,
+                    readable(f),
+                    readable(fov)
+                ));
+            }
+        }
+        for (axis, c, size) in [("x", cx, w), ("y", cy, h)] {
+            if c < -size || c > 2.0 * size {
+                return Err(format!(
+                    "camera {}: principal point c{axis} = {} px lies more than the image's size ({size} px) outside the image",
+                    self.id,
+                    readable(c)
+                ));
+            }
+        }
+        if self.is_undistorted() {
+            return Ok(());
+        }
+        for corner in [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]] {
+            let uv = [(corner[0] - cx) / fx, (corner[1] - cy) / fy];
+            let moved = self.img_from_cam(uv);
+            let r0 = ((corner[0] - cx) / fx).hypot((corner[1] - cy) / fy);
+            let r1 = ((moved[0] - cx) / fx).hypot((moved[1] - cy) / fy);
+            let scale = r1 / r0;
+            if r0 > 1e-9 && !(0.1..=10.0).contains(&scale) {
+                return Err(format!(
+                    "camera {}: its distortion ({}) moves the image corner ({}, {}) to {} times its distance from the centre (a real lens: 0.1 to 10); undistorting would shrink or blow up the photo",
+                    self.id,
+                    self.extra_params().iter().map(|&p| readable(p)).collect::<Vec<_>>().join(" "),
+                    corner[0],
+                    corner[1],
+                    readable(scale)
+                ));
+            }
         }
         Ok(())
     }

@@ -38,7 +38,7 @@ pub const IMAGE_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "PNG", "JPG", "JP
 
 /// Reads and parses one transforms file.
 pub fn read_transforms(path: &Path) -> Result<TransformsFile> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::read_capped(path, crate::JSON_CAP, "a transforms file")?;
     parse_transforms(&bytes, path)
 }
 

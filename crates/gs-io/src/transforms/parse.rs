@@ -86,7 +86,7 @@ fn frame_label(index: usize, file_path: Option<&str>) -> String {
 /// Parses a transforms file held in memory; `path` only names the file in errors. Every
 /// problem is an [`IoError`] naming the file and, where there is one, the frame.
 pub fn parse_transforms(bytes: &[u8], path: &Path) -> Result<TransformsFile> {
-    let root: Value = serde_json::from_slice(bytes).map_err(|e| IoError::format(path, format!("malformed JSON: {e}")))?;
+    let root: Value = serde_json::from_slice(bytes).map_err(|e| IoError::format(path, crate::json_error_words(bytes, &e)))?;
     let Value::Object(root) = root else {
         return Err(IoError::format(path, "expected a JSON object at the top level"));
     };

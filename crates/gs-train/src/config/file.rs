@@ -29,11 +29,21 @@ pub fn parse_settings_file(bytes: &[u8], path: &Path) -> Result<SettingsFile> {
         file_error(path, format!("not UTF-8 text (byte offset {}); a configuration file is TOML or JSON text", e.valid_up_to()))
     })?;
     let value: Value = match path.extension().and_then(|e| e.to_str()) {
-        Some("toml") => toml::from_str(text).map_err(|e| {
-            let line = 1 + e.span().map_or(0, |s| text.as_bytes()[..s.start.min(text.len())].iter().filter(|&&b| b == b'\n').count());
-            file_error(path, format!("not valid TOML at line {line}: {}", e.message().trim_end()))
+        Some("toml") => {
+            let table: toml::Table = toml::from_str(text).map_err(|e| {
+                let line = 1 + e.span().map_or(0, |s| text.as_bytes()[..s.start.min(text.len())].iter().filter(|&&b| b == b'\n').count());
+                file_error(path, format!("not valid TOML at line {line}: {}", e.message().trim_end()))
+            })?;
+            // JSON (the settings' form) has no NaN or infinity: they would arrive as null.
+            if let Some((key, v)) = non_finite(&toml::Value::Table(table.clone()), "") {
+                return Err(file_error(path, format!("{key} = {v}: must be a finite number")));
+            }
+            serde_json::to_value(table).map_err(|e| file_error(path, format!("not a table of settings: {e}")))?
+        }
+        _ => serde_json::from_str(text).map_err(|e| {
+            let words = gs_io::json_error_words(bytes, &e).replacen("malformed JSON", "not valid JSON (use .toml for TOML)", 1);
+            file_error(path, words)
         })?,
-        _ => serde_json::from_str(text).map_err(|e| file_error(path, format!("not valid JSON (use .toml for TOML): {e}")))?,
     };
     if !value.is_object() {
         return Err(file_error(path, "a configuration file must hold a table of settings".into()));
@@ -42,6 +52,16 @@ pub fn parse_settings_file(bytes: &[u8], path: &Path) -> Result<SettingsFile> {
         return Ok(SettingsFile { settings: value["train"].clone(), run: Some(value) });
     }
     Ok(SettingsFile { settings: value, run: None })
+}
+
+/// The first non-finite float of a TOML value, as (dotted key, value).
+fn non_finite(v: &toml::Value, key: &str) -> Option<(String, f64)> {
+    match v {
+        toml::Value::Float(f) if !f.is_finite() => Some((key.to_string(), *f)),
+        toml::Value::Table(t) => t.iter().find_map(|(k, x)| non_finite(x, &if key.is_empty() { k.clone() } else { format!("{key}.{k}") })),
+        toml::Value::Array(a) => a.iter().enumerate().find_map(|(i, x)| non_finite(x, &format!("{key}[{i}]"))),
+        _ => None,
+    }
 }
 
 impl SettingsFile {
@@ -85,6 +105,9 @@ mod tests {
             (b"{\"seed\": ", "b.json", "not valid JSON"),
             (b"[1, 2]", "b.json", "table of settings"),
             (b"\xff\xfe", "b.json", "not UTF-8"),
+            (b"[weights]\nlambda_p = nan\n", "n.toml", "weights.lambda_p = NaN: must be a finite number"),
+            (b"background = [0, inf, 0]\n", "n.toml", "background[1] = inf: must be a finite number"),
+            (b"{\"seed\": 1, \"near\": NaN}", "n.json", "'near' at line 1 column"),
         ] {
             let e = parse_settings_file(bytes, Path::new(name)).unwrap_err().to_string();
             assert!(e.starts_with(name) && e.contains(says), "{e}");

@@ -615,9 +615,18 @@ mod tests {
             (TrainConfig { weights: LossWeights { lambda_p: f32::NAN, ..Default::default() }, ..Default::default() }, "lambda_p"),
             (TrainConfig { max_gaussians: 0, ..Default::default() }, "max_gaussians"),
             (TrainConfig { sh_min_gain: f32::NAN, ..Default::default() }, "sh_min_gain"),
+            // A schedule longer than the run (`--set iterations=20`) names its boundaries.
+            (TrainConfig { iterations: 20, ..Default::default() }, "warmup_end = 7000 (the colour warm-up), photometric_end = 15000"),
+            (TrainConfig { iterations: 20, ..Default::default() }, "--iterations 20"),
         ] {
             let e = c.validate().unwrap_err().to_string();
             assert!(e.contains(name), "{e}");
+        }
+        for p in [Preset::Fast, Preset::Standard, Preset::Dtu, Preset::Tnt, Preset::Mip360] {
+            TrainConfig::preset(p).validate().unwrap();
+            for n in [1, 4, 20, 100_000] {
+                TrainConfig::preset(p).scaled(n).validate().unwrap();
+            }
         }
         assert!("bogus".parse::<Preset>().is_err());
         assert_eq!("mip360".parse::<Preset>(), Ok(Preset::Mip360));

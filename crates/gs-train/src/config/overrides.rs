@@ -64,6 +64,13 @@ impl TrainConfig {
             .split_once('=')
             .ok_or_else(|| bad(format!("'{assignment}' is not KEY=VALUE (e.g. weights.lambda_p=0.2)")))?;
         let value = serde_json::from_str(text.trim()).unwrap_or_else(|_| Value::String(text.trim().to_string()));
+        if key.trim() == "preset" {
+            // The preset picks the base values; setting it afterwards would only relabel them.
+            return Err(bad(format!(
+                "preset is not a setting: it picks the values every other setting starts from, so '{assignment}' would only relabel this run's values; use --preset {}",
+                text.trim()
+            )));
+        }
         self.with_setting(key.trim(), value)
     }
 
@@ -104,6 +111,7 @@ mod tests {
         assert!(e.contains("weights.lambda_p") && e.contains("f32"), "{e}");
         assert!(c.with_assignment("weights=1").unwrap_err().to_string().contains("is a table"));
         assert!(c.with_assignment("lambda_p").is_err());
+        assert!(c.with_assignment("preset=fast").unwrap_err().to_string().contains("--preset fast"));
         // Every leaf key round-trips through the setter.
         for (k, v) in c.settings() {
             assert_eq!(c.with_setting(&k, v).unwrap(), c, "{k}");

@@ -16,6 +16,7 @@ impl TrainConfig {
                 self.warmup_end, self.photometric_end, self.features_end
             ));
         }
+        self.check_schedule_fits()?;
         if self.source_views == 0 || self.source_views > 16 {
             return bad(format!("source_views = {} must be in 1..=16", self.source_views));
         }
@@ -132,4 +133,34 @@ impl TrainConfig {
         Ok(())
     }
 
+    /// Refuses phase boundaries beyond the last iteration (e.g. `--set iterations=20` on a
+    /// schedule of thousands): the phases after them would never run, and the run would end
+    /// in the colour warm-up without a word. A boundary equal to `iterations` is allowed (that
+    /// phase runs to the end, or the next one is empty).
+    fn check_schedule_fits(&self) -> Result<()> {
+        let d = &self.densify;
+        let boundaries = [
+            ("warmup_end", self.warmup_end, "the colour warm-up"),
+            ("photometric_end", self.photometric_end, "the L_p phase"),
+            ("features_end", self.features_end, "the L_f phase"),
+            ("densify.from", d.from, "densification"),
+            ("densify.until", d.until, "densification"),
+            ("densify.prune_big_after", d.prune_big_after, "large-Gaussian pruning"),
+        ];
+        let beyond: Vec<String> = boundaries
+            .iter()
+            .filter(|(_, v, _)| *v > self.iterations)
+            .map(|(k, v, what)| format!("{k} = {v} ({what})"))
+            .collect();
+        if beyond.is_empty() {
+            return Ok(());
+        }
+        Err(TrainError::InvalidConfig(format!(
+            "iterations = {} ends before the schedule's boundaries {}, so the phases after them would never run; give --iterations {} to scale the whole schedule, or set those boundaries to at most {} too",
+            self.iterations,
+            beyond.join(", "),
+            self.iterations,
+            self.iterations
+        )))
+    }
 }
