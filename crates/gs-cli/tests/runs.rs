@@ -336,7 +336,7 @@ fn resume_refuses_options_it_would_ignore_or_that_change_the_run() {
     std::fs::copy(&ck, alone.join("checkpoint.bin")).unwrap();
     let a = alone.join("checkpoint.bin");
     let fresh = dir.path().join("fresh");
-    let (ok, _, err) = vagsl(&["train", "-o", fresh.to_str().unwrap(), "--resume", a.to_str().unwrap(), fox.to_str().unwrap(), "-r", "2", "--backend", "cpu"]);
+    let (ok, _, err) = vagsl(&["train", "-o", fresh.to_str().unwrap(), "--resume", a.to_str().unwrap(), builtin_dir(8).to_str().unwrap(), "-r", "2", "--backend", "cpu"]);
     assert!(!ok && err.contains("no config.json of the checkpoint's run") && err.contains("alone/checkpoint.bin"), "{err}");
     assert!(!fresh.exists());
 }

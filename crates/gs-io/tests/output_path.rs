@@ -4,7 +4,6 @@
 #![cfg(unix)]
 
 use gs_io::{check_output_path, check_output_writable, write_atomic};
-use std::io::Write;
 
 fn write(p: &std::path::Path) -> String {
     write_atomic(p, |w| w.write_all(b"new")).unwrap_err().to_string()
