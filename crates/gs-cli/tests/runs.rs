@@ -148,7 +148,7 @@ fn a_run_keeps_its_scene_wherever_it_is_opened_from() {
     assert!(ok, "{err}");
 
     // Two photos swapped between names, cameras unchanged: refused by the pixels' hash.
-    let (p1, p2) = (moved.join("images/0001.jpg"), moved.join("images/0002.jpg"));
+    let (p1, p2) = (moved.join("images/0001.png"), moved.join("images/0002.png"));
     let (b1, b2) = (read(&p1), read(&p2));
     std::fs::write(&p1, &b2).unwrap();
     std::fs::write(&p2, &b1).unwrap();
