@@ -60,7 +60,7 @@ pub use exposure::{Exposure, ExposureParams};
 pub use floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
 pub use mesh::{
     ComponentCleanup, DEFAULT_COMPONENT_SHARE, DEFAULT_SIMPLIFY_ERROR, DepthFilterReport, DepthSource, FINE_VOXEL_FRACTION, MIN_COMPONENT_TRIANGLES,
-    MeshOptions, MeshReport, Simplify, SimplifyApplied, default_voxel, extract_mesh, fuse_mesh,
+    MeshOptions, MeshReport, Simplify, SimplifyApplied, default_voxel, extract_mesh, fuse_mesh, length_text,
 };
 pub use model::TrainedModel;
 pub use params::Param;

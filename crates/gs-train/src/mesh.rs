@@ -391,7 +391,7 @@ fn integrate(volume: &mut TsdfVolume, scene: &Scene, f: &Fetched, opts: &MeshOpt
                 view.name,
                 format_bytes(MemoryEstimate::for_blocks(needed as u64, true).peak_bytes()),
                 format_bytes(limit),
-                short(voxel)
+                length_text(voxel)
             )),
             (e, _) => TrainError::InvalidScene(format!("view '{}': {e}", view.name)),
         })?;
@@ -422,9 +422,10 @@ fn finish(raw: &TriangleMesh, opts: &MeshOptions, footprint: f64) -> Result<(Tri
     Ok((mesh, components, Some(SimplifyApplied { target: opts.simplify, result, seconds: t.elapsed().as_secs_f64() })))
 }
 
-/// A voxel size in few digits (`0.01293`, `1.000e-9`).
-fn short(v: f64) -> String {
-    if v.abs() >= 1e-3 { format!("{v:.5}") } else { format!("{v:.3e}") }
+/// A length for people: five decimals in the usual range, scientific notation outside it
+/// (`0.01293`, `1.000e-9`, and 1e300 as `1.000e300`, not as 301 digits).
+pub fn length_text(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) { format!("{x:.5}") } else { format!("{x:.3e}") }
 }
 
 /// Refuses a fusion whose [`BlockCensus`] estimate over the `probed` depth maps, plus `kept`
@@ -454,7 +455,7 @@ fn check_memory(
         TrainError::MemoryLimit(format!(
             "{what} at voxel size {} needs about {} ({blocks} TSDF blocks of {} each, with marching cubes),{held} \
              more than the memory limit of {}; use --voxel-size {fits:.3e} or larger, or raise --max-memory",
-            short(voxel),
+            length_text(voxel),
             format_bytes(bytes),
             format_bytes(MemoryEstimate::bytes_per_block(true)),
             format_bytes(limit)

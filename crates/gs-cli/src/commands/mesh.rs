@@ -186,7 +186,7 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         bail!(
             "the fused mesh is empty (0 triangles from {} TSDF blocks at voxel size {}): no surface crossed the volume; nothing written. Check --voxel-size (the default follows the scene), --bounds and --depth-trunc, or the run (a model of a few Gaussians renders no surface)",
             report.blocks,
-            number(report.voxel_size)
+            gs_train::length_text(report.voxel_size)
         );
     }
     gs_io::write_mesh_ply(&path, &mesh)?;
@@ -202,7 +202,7 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         "mesh: {} vertices, {} triangles (voxel {}, {} blocks; {source}, fused in {:.1}s) → {}",
         report.vertices,
         report.triangles,
-        number(report.voxel_size),
+        gs_train::length_text(report.voxel_size),
         report.blocks,
         report.fuse_seconds,
         path.display()
@@ -242,12 +242,6 @@ fn cleanup_line(r: &gs_train::MeshReport) -> String {
         ));
     }
     line
-}
-
-/// A length for people: five decimals in the usual range, scientific notation outside it
-/// (1e300 as `1.000e300`, not as 301 digits).
-pub fn number(x: f64) -> String {
-    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) { format!("{x:.5}") } else { format!("{x:.3e}") }
 }
 
 fn report_path(mesh: &Path) -> PathBuf {
