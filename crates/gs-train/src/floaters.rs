@@ -18,11 +18,14 @@
 //! - i is a floater when at least `min_views` views see through it and they are at least
 //!   `fraction` of the views that see through or support it. The fraction protects the
 //!   silhouettes of real objects, whose centre pixels render the background in a few views.
-//! - i is also removed when it lies in no training frustum at all.
+//! - i is also removed when it lies in no training frustum at all,
+//! - and when its centre lies in the free space just in front of the training cameras' path
+//!   ([`crate::capture_path`]): the veils no training view contradicts.
 //!
 //! Thin real structure survives: where it is opaque, the views render its own depth there and
 //! support it.
 
+use crate::capture_path::CapturePath;
 use crate::error::{Result, TrainError};
 use crate::trainer::Trainer;
 use gs_core::glam::DVec3;
@@ -47,11 +50,18 @@ pub struct FloaterRule {
     pub margin: f32,
     /// Pixels rendering less alpha than this carry no surface (neutral).
     pub min_alpha: f32,
+    /// Clearance κ of the capture path, as a share of the camera spacing (0 = no path rule).
+    #[serde(default = "default_path_clearance")]
+    pub path_clearance: f32,
+}
+
+fn default_path_clearance() -> f32 {
+    FloaterRule::default().path_clearance
 }
 
 impl Default for FloaterRule {
     fn default() -> Self {
-        Self { enabled: false, min_views: 2, fraction: 0.5, margin: 0.1, min_alpha: 0.5 }
+        Self { enabled: false, min_views: 2, fraction: 0.5, margin: 0.1, min_alpha: 0.5, path_clearance: 0.5 }
     }
 }
 
@@ -62,12 +72,14 @@ pub struct FloaterReport {
     pub see_through: usize,
     /// Gaussians inside no training frustum.
     pub outside_all_frusta: usize,
+    /// Gaussians in the free space in front of the capture path.
+    pub on_capture_path: usize,
 }
 
 impl FloaterReport {
     /// Gaussians removed.
     pub fn removed(&self) -> usize {
-        self.see_through + self.outside_all_frusta
+        self.see_through + self.outside_all_frusta + self.on_capture_path
     }
 }
 
@@ -80,12 +92,14 @@ pub struct FreeSpaceVotes {
     pub support: Vec<u32>,
     /// Views whose frustum holds the Gaussian's centre.
     pub in_frustum: Vec<u32>,
+    /// Whether the centre lies in front of the capture path ([`Self::mark_capture_path`]).
+    pub on_path: Vec<bool>,
 }
 
 impl FreeSpaceVotes {
     /// Zero votes for `n` Gaussians.
     pub fn new(n: usize) -> Self {
-        Self { through: vec![0; n], support: vec![0; n], in_frustum: vec![0; n] }
+        Self { through: vec![0; n], support: vec![0; n], in_frustum: vec![0; n], on_path: vec![false; n] }
     }
 
     /// Adds the votes of one view: `depth` and `alpha` are its rendered plane depth and alpha
@@ -139,6 +153,11 @@ impl FreeSpaceVotes {
         Ok(())
     }
 
+    /// Marks the Gaussians whose centre lies in the free space in front of `path`.
+    pub fn mark_capture_path(&mut self, g: &Gaussians, path: &CapturePath) {
+        self.on_path = g.means.par_iter().map(|m| path.contains(DVec3::from(m.map(f64::from)))).collect();
+    }
+
     /// The keep mask of the rule and what it removes.
     pub fn verdict(&self, rule: &FloaterRule) -> (Vec<bool>, FloaterReport) {
         let mut report = FloaterReport::default();
@@ -147,6 +166,9 @@ impl FreeSpaceVotes {
                 let (t, s) = (self.through[i], self.support[i]);
                 if self.in_frustum[i] == 0 {
                     report.outside_all_frusta += 1;
+                    false
+                } else if self.on_path.get(i).copied().unwrap_or(false) {
+                    report.on_capture_path += 1;
                     false
                 } else if t >= rule.min_views && t as f32 >= rule.fraction * (t + s) as f32 {
                     report.see_through += 1;
@@ -181,6 +203,8 @@ impl Trainer<'_> {
             let (depth, alpha) = (out.plane_depth.expect("requested"), out.alpha.expect("requested"));
             votes.add_view(&self.state.gaussians, camera, &depth, &alpha, self.raster.near, rule)?;
         }
+        let cameras: Vec<&Camera> = self.train_views.iter().map(|&v| &self.scene.views[v].camera).collect();
+        votes.mark_capture_path(&self.state.gaussians, &CapturePath::new(&cameras, rule.path_clearance as f64));
         Ok(votes)
     }
 
@@ -264,6 +288,29 @@ mod tests {
         assert!(wall.chain(rod.clone()).all(|i| keep[i]));
         // The rod is supported by the views that see it, not merely left alone.
         assert!(rod.clone().all(|i| v.support[i] >= 3), "{:?}", rod.map(|i| v.support[i]).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_veil_in_front_of_the_path_goes_the_scene_stays() {
+        let (mut g, wall, rod, _) = scene();
+        // An opaque veil 0.2 in front of the camera at x = 0.3 (spacing 0.6): it covers most of
+        // that view, and no other view's frustum holds it, so no two views can see through it.
+        let veil = g.len();
+        push(&mut g, [0.3, 0.2, 0.0], [0.1, 0.01, 0.1], 0.95);
+        let rule = FloaterRule::default();
+        let mut v = votes(&g, &rule);
+        let cams = cameras();
+        let refs: Vec<&Camera> = cams.iter().collect();
+        v.mark_capture_path(&g, &CapturePath::new(&refs, rule.path_clearance as f64));
+        let (keep, report) = v.verdict(&rule);
+        assert!(v.in_frustum[veil] == 1, "in {} frusta", v.in_frustum[veil]);
+        assert!(!keep[veil] && report.on_capture_path == 1, "{report:?}");
+        assert!(wall.chain(rod).all(|i| keep[i]));
+        // Without the path rule it stays: no view sees through it.
+        let off = FloaterRule { path_clearance: 0.0, ..rule };
+        let mut v = votes(&g, &off);
+        v.mark_capture_path(&g, &CapturePath::new(&refs, 0.0));
+        assert!(v.verdict(&off).0[veil], "through {} support {}", v.through[veil], v.support[veil]);
     }
 
     #[test]

@@ -38,6 +38,7 @@ pub mod error;
 pub mod evaluate;
 mod executor;
 pub mod exposure;
+pub mod capture_path;
 pub mod floaters;
 pub mod init;
 pub mod memory;

@@ -102,6 +102,9 @@ impl TrainConfig {
         if f.min_views == 0 {
             return bad("densify.floaters.min_views must be positive".into());
         }
+        if !(f.path_clearance.is_finite() && (0.0..=1.0).contains(&f.path_clearance)) {
+            return bad(format!("densify.floaters.path_clearance = {} must be in [0, 1] (a share of the camera spacing)", f.path_clearance));
+        }
         if !(d.growth_window > 0.0 && d.growth_window <= 1.0) {
             return bad(format!("densify.growth_window = {} must be in (0, 1]", d.growth_window));
         }
