@@ -81,6 +81,15 @@ impl FloaterReport {
     pub fn removed(&self) -> usize {
         self.see_through + self.outside_all_frusta + self.on_capture_path
     }
+
+    /// What was removed, in words: "removed 12 floaters (9 seen through by training views, …)".
+    pub fn describe(&self) -> String {
+        let mut parts = vec![format!("{} seen through by training views", self.see_through), format!("{} in no training view", self.outside_all_frusta)];
+        if self.on_capture_path > 0 {
+            parts.push(format!("{} in front of the capture path", self.on_capture_path));
+        }
+        format!("removed {} floaters ({})", self.removed(), parts.join(", "))
+    }
 }
 
 /// Per-Gaussian counts over the training views.

@@ -98,13 +98,7 @@ pub fn train_loop(
             && f.removed() > 0
         {
             floaters_removed += f.removed();
-            notice(format!(
-                "[{:>6}] removed {} floaters ({} seen through by training views, {} in no training view)",
-                r.iteration,
-                f.removed(),
-                f.see_through,
-                f.outside_all_frusta
-            ));
+            notice(format!("[{:>6}] {}", r.iteration, f.describe()));
         }
         if r.densify.is_some_and(|d| d.capped) && !warned_cap {
             warned_cap = true;
