@@ -8,40 +8,41 @@
 //!
 //! The free region is a chain of capsules. Camera i's spacing dᵢ is the distance to its nearest
 //! other training camera. Each camera links to its neighbours: the nearest few, no farther than
-//! [`LINK_REACH`]·dᵢ (so a held-out camera between two training cameras lies on a link). The
-//! capsule of a link (or the ball of a lone camera) has radius κ·min(dᵢ, dⱼ) (κ =
-//! `FloaterRule::path_clearance`), and only its front part counts: a point must lie within
-//! [`FRONT_CONE_DEG`] of the direction the cameras look. Walls close behind the cameras are
-//! behind them, so they stay.
+//! [`LINK_REACH`]·dᵢ (so a held-out camera between two training cameras of a sparse ring, whose
+//! nearest neighbour is on the other ring, lies on a link). The capsule of a link (or the ball
+//! of a camera) has radius κ·min(dᵢ, dⱼ) (κ = `FloaterRule::path_clearance`), and only its
+//! front part counts: a point must lie in front of the image plane of each camera of the link.
+//! Walls close behind the cameras are behind them, so they stay.
 
 use gs_core::glam::DVec3;
 use gs_core::Camera;
 
-/// Links reach at most this multiple of a camera's spacing (2 spans a left-out view).
-pub const LINK_REACH: f64 = 2.5;
+/// Links reach at most this multiple of a camera's spacing: 2 spans a left-out view on a ring;
+/// 3 also where the nearest camera is on the other ring of a sparse capture (pillars: spacing
+/// 0.85, the cameras beside a held-out one 2.5 apart).
+pub const LINK_REACH: f64 = 3.0;
 /// Neighbours each camera links to at most.
-pub const LINKS_PER_CAMERA: usize = 4;
-/// Half-angle of the cone in front of the path that counts as free, degrees.
-pub const FRONT_CONE_DEG: f64 = 60.0;
-
-/// One capsule of the path: the segment a–b swept by a ball of `radius`, facing `forward`.
+pub const LINKS_PER_CAMERA: usize = 8;
+/// One capsule of the path: the segment a–b swept by a ball of `radius`; `fa` and `fb` are the
+/// viewing directions of the cameras at a and b.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Capsule {
     a: DVec3,
     b: DVec3,
     radius: f64,
-    forward: DVec3,
+    fa: DVec3,
+    fb: DVec3,
 }
 
 impl Capsule {
-    fn contains(&self, p: DVec3, cos_cone: f64) -> bool {
+    fn contains(&self, p: DVec3) -> bool {
+        if (p - self.a).dot(self.fa) <= 0.0 || (p - self.b).dot(self.fb) <= 0.0 {
+            return false; // behind a camera of the link
+        }
         let ab = self.b - self.a;
         let len2 = ab.length_squared();
         let t = if len2 > 0.0 { ((p - self.a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-        let q = self.a + t * ab;
-        let off = p - q;
-        let dist = off.length();
-        dist < self.radius && off.dot(self.forward) > cos_cone * dist
+        (p - (self.a + t * ab)).length() < self.radius
     }
 }
 
@@ -49,16 +50,14 @@ impl Capsule {
 #[derive(Debug, Clone, PartialEq)]
 pub struct CapturePath {
     capsules: Vec<Capsule>,
-    cos_cone: f64,
 }
 
 impl CapturePath {
     /// The path of `cameras` with clearance κ = `clearance` (a share of the camera spacing).
     /// Empty (contains nothing) when κ ≤ 0 or there are fewer than two cameras.
     pub fn new(cameras: &[&Camera], clearance: f64) -> Self {
-        let cos_cone = FRONT_CONE_DEG.to_radians().cos();
         if !(clearance > 0.0) || cameras.len() < 2 {
-            return Self { capsules: Vec::new(), cos_cone };
+            return Self { capsules: Vec::new() };
         }
         let centres: Vec<DVec3> = cameras.iter().map(|c| c.center()).collect();
         let forward: Vec<DVec3> = cameras.iter().map(|c| c.rotation.transpose() * DVec3::Z).collect();
@@ -67,26 +66,26 @@ impl CapturePath {
             .collect();
         // Each camera's ball, then each link once (a BTreeSet keeps the order fixed).
         let mut capsules: Vec<Capsule> =
-            (0..centres.len()).map(|i| Capsule { a: centres[i], b: centres[i], radius: clearance * spacing[i], forward: forward[i] }).collect();
+            (0..centres.len()).map(|i| Capsule { a: centres[i], b: centres[i], radius: clearance * spacing[i], fa: forward[i], fb: forward[i] }).collect();
         let mut links = std::collections::BTreeSet::new();
         for i in 0..centres.len() {
             let mut near: Vec<(f64, usize)> = (0..centres.len()).filter(|&j| j != i).map(|j| (centres[i].distance(centres[j]), j)).collect();
             near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
             links.extend(near.iter().take(LINKS_PER_CAMERA).filter(|(d, _)| *d <= LINK_REACH * spacing[i]).map(|&(_, j)| (i.min(j), i.max(j))));
         }
-        for (i, j) in links {
-            let f = (forward[i] + forward[j]).normalize_or_zero();
-            if f != DVec3::ZERO {
-                // Cameras facing opposite ways have no common front.
-                capsules.push(Capsule { a: centres[i], b: centres[j], radius: clearance * spacing[i].min(spacing[j]), forward: f });
-            }
-        }
-        Self { capsules, cos_cone }
+        capsules.extend(links.into_iter().map(|(i, j)| Capsule {
+            a: centres[i],
+            b: centres[j],
+            radius: clearance * spacing[i].min(spacing[j]),
+            fa: forward[i],
+            fb: forward[j],
+        }));
+        Self { capsules }
     }
 
     /// Whether point `p` lies in the free space in front of the path.
     pub fn contains(&self, p: DVec3) -> bool {
-        self.capsules.iter().any(|c| c.contains(p, self.cos_cone))
+        self.capsules.iter().any(|c| c.contains(p))
     }
 
     /// Capsules (camera balls and links) of the path.
@@ -135,6 +134,34 @@ mod tests {
         // Just in front of a training camera: free.
         let c0 = all[0].center();
         assert!(path.contains(c0 - 0.2 * spacing * c0.normalize()));
+    }
+
+    /// Two sparse rings (10 cameras each, radius 2.1, at heights 0.7 and 1.3, alternating in
+    /// azimuth), as the pillars scene: a camera's nearest neighbour is on the other ring.
+    fn two_rings() -> Vec<Camera> {
+        (0..20)
+            .map(|k| {
+                let a = (k as f64 * 0.5) / 10.0 * std::f64::consts::TAU;
+                let (r, z) = if k % 2 == 0 { (2.1, 0.7) } else { (1.9, 1.3) };
+                let c = DVec3::new(r * a.cos(), r * a.sin(), z);
+                Camera::look_at(64, 48, Intrinsics::new(60.0, 60.0, 32.0, 24.0), c, DVec3::new(0.0, 0.0, 0.3), DVec3::Z).unwrap()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_sparse_two_ring_capture_frees_the_front_of_a_left_out_camera() {
+        let all = two_rings();
+        let held = 8;
+        let train: Vec<&Camera> = all.iter().enumerate().filter(|(k, _)| *k != held).map(|(_, c)| c).collect();
+        let path = CapturePath::new(&train, 0.5);
+        let c = all[held].center();
+        let f = all[held].rotation.transpose() * DVec3::Z;
+        for depth in [0.1, 0.2, 0.3] {
+            assert!(path.contains(c + depth * f), "{depth} in front of the left-out camera");
+        }
+        assert!(!path.contains(c - 0.2 * f), "a wall 0.2 behind it");
+        assert!(!path.contains(DVec3::new(0.0, 0.0, 0.3)), "the object");
     }
 
     #[test]

@@ -53,6 +53,10 @@ pub struct FloaterRule {
     /// Clearance κ of the capture path, as a share of the camera spacing (0 = no path rule).
     #[serde(default = "default_path_clearance")]
     pub path_clearance: f32,
+    /// Run the capture-path rule even where `enabled` is off: alone it renders nothing and
+    /// removes only what lies in front of the path.
+    #[serde(default)]
+    pub capture_path: bool,
 }
 
 fn default_path_clearance() -> f32 {
@@ -61,7 +65,7 @@ fn default_path_clearance() -> f32 {
 
 impl Default for FloaterRule {
     fn default() -> Self {
-        Self { enabled: false, min_views: 2, fraction: 0.5, margin: 0.1, min_alpha: 0.5, path_clearance: 0.5 }
+        Self { enabled: false, min_views: 2, fraction: 0.5, margin: 0.1, min_alpha: 0.5, path_clearance: 0.5, capture_path: false }
     }
 }
 
@@ -167,19 +171,20 @@ impl FreeSpaceVotes {
         self.on_path = g.means.par_iter().map(|m| path.contains(DVec3::from(m.map(f64::from)))).collect();
     }
 
-    /// The keep mask of the rule and what it removes.
+    /// The keep mask of the rule and what it removes: the view votes count only where
+    /// `rule.enabled`, the capture path wherever it was marked.
     pub fn verdict(&self, rule: &FloaterRule) -> (Vec<bool>, FloaterReport) {
         let mut report = FloaterReport::default();
         let keep = (0..self.through.len())
             .map(|i| {
                 let (t, s) = (self.through[i], self.support[i]);
-                if self.in_frustum[i] == 0 {
+                if rule.enabled && self.in_frustum[i] == 0 {
                     report.outside_all_frusta += 1;
                     false
                 } else if self.on_path.get(i).copied().unwrap_or(false) {
                     report.on_capture_path += 1;
                     false
-                } else if t >= rule.min_views && t as f32 >= rule.fraction * (t + s) as f32 {
+                } else if rule.enabled && t >= rule.min_views && t as f32 >= rule.fraction * (t + s) as f32 {
                     report.see_through += 1;
                     false
                 } else {
@@ -202,11 +207,12 @@ fn extent_along(g: &Gaussians, i: usize, r: DVec3) -> f64 {
 
 impl Trainer<'_> {
     /// Renders every training view's plane depth and alpha and collects the free-space votes
-    /// of the current model.
+    /// of the current model (no renders when only the capture path is asked for).
     pub fn free_space_votes(&mut self, rule: &FloaterRule) -> Result<FreeSpaceVotes> {
         let mut votes = FreeSpaceVotes::new(self.state.gaussians.len());
         let req = RenderRequest { color: false, alpha: true, plane_depth: true, ..RenderRequest::default() };
-        for &v in &self.train_views {
+        let views = if rule.enabled { self.train_views.as_slice() } else { &[] };
+        for &v in views {
             let camera = &self.scene.views[v].camera;
             let out = self.rasterizer.render(&self.state.gaussians, camera, &req, &self.raster)?;
             let (depth, alpha) = (out.plane_depth.expect("requested"), out.alpha.expect("requested"));
@@ -288,7 +294,7 @@ mod tests {
     #[test]
     fn floaters_go_thin_structure_stays() {
         let (g, wall, rod, [faint, behind]) = scene();
-        let rule = FloaterRule::default();
+        let rule = FloaterRule { enabled: true, ..FloaterRule::default() };
         let v = votes(&g, &rule);
         let (keep, report) = v.verdict(&rule);
         assert!(!keep[faint], "faint floater kept: through {} support {}", v.through[faint], v.support[faint]);
@@ -306,7 +312,7 @@ mod tests {
         // that view, and no other view's frustum holds it, so no two views can see through it.
         let veil = g.len();
         push(&mut g, [0.3, 0.2, 0.0], [0.1, 0.01, 0.1], 0.95);
-        let rule = FloaterRule::default();
+        let rule = FloaterRule { enabled: true, ..FloaterRule::default() };
         let mut v = votes(&g, &rule);
         let cams = cameras();
         let refs: Vec<&Camera> = cams.iter().collect();
@@ -320,12 +326,18 @@ mod tests {
         let mut v = votes(&g, &off);
         v.mark_capture_path(&g, &CapturePath::new(&refs, 0.0));
         assert!(v.verdict(&off).0[veil], "through {} support {}", v.through[veil], v.support[veil]);
+        // The path rule alone (view votes off) removes the veil and nothing else.
+        let alone = FloaterRule { enabled: false, capture_path: true, ..rule };
+        let mut v = votes(&g, &alone);
+        v.mark_capture_path(&g, &CapturePath::new(&refs, alone.path_clearance as f64));
+        let (keep, report) = v.verdict(&alone);
+        assert_eq!((report.removed(), keep[veil]), (1, false), "{report:?}");
     }
 
     #[test]
     fn one_view_is_not_enough_and_bad_maps_are_errors() {
         let (g, _, _, [faint, _]) = scene();
-        let rule = FloaterRule { min_views: 7, ..FloaterRule::default() };
+        let rule = FloaterRule { enabled: true, min_views: 7, ..FloaterRule::default() };
         let (keep, _) = votes(&g, &rule).verdict(&rule);
         assert!(keep[faint], "six views cannot reach min_views = 7");
         let cam = &cameras()[0];

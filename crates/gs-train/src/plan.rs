@@ -158,7 +158,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
     };
     // Floaters: with the trims once the surfaces have formed (after the colour warm-up), and
     // after the last iteration so the model handed out carries none.
-    refine.remove_floaters = d.floaters.enabled && ((refine.trim && it > config.warmup_end) || it == config.iterations);
+    refine.remove_floaters = (d.floaters.enabled || d.floaters.capture_path) && ((refine.trim && it > config.warmup_end) || it == config.iterations);
     StepPlan {
         iteration: it,
         slot,
