@@ -195,9 +195,13 @@ impl VggWeights {
 
     /// Reads and verifies a blob file.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| FeatureError::Io {
+        let bytes = gs_io::capped::WEIGHTS.read(path).map_err(|e| FeatureError::Io {
             path: path.display().to_string(),
-            message: e.to_string(),
+            message: match e {
+                gs_io::IoError::Io { source, .. } => source.to_string(),
+                gs_io::IoError::Invalid { message, .. } => message,
+                other => other.to_string(),
+            },
         })?;
         Self::from_blob(&bytes, &path.display().to_string())
     }

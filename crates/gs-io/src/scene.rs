@@ -148,16 +148,20 @@ fn is_16bit(img: &image::DynamicImage) -> bool {
 
 /// The size of an image file from its header; an error naming a missing or unreadable file.
 pub(crate) fn image_size(path: &Path) -> Result<(u32, u32)> {
-    if !path.is_file() {
+    if !path.exists() {
         return Err(IoError::invalid(path, "missing image file"));
     }
-    image::image_dimensions(path).map_err(|e| IoError::format(path, format!("cannot read image header: {e}")))
+    if !path.is_file() {
+        return Err(IoError::invalid(path, "not a regular file (an image is read from a file, not a folder, pipe or device)"));
+    }
+    let mut reader = image::ImageReader::open(path).map_err(|e| IoError::io(path, e))?;
+    reader.limits(decoder_limits());
+    reader.into_dimensions().map_err(|e| image_error(path, e, "cannot read image header"))
 }
 
 fn open_checked(path: &Path) -> Result<image::DynamicImage> {
     check_pixel_cap(image_size(path)?, path)?;
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
-    decode_checked(&bytes, path)
+    decode_checked(&crate::capped::IMAGE.read(path)?, path)
 }
 
 /// Refuses an image larger than [`gs_core::image::MAX_IMAGE_PIXELS`] before it is decoded.
@@ -176,12 +180,44 @@ fn check_pixel_cap((w, h): (u32, u32), path: &Path) -> Result<()> {
 /// from the extension of `path`).
 fn decode_checked(bytes: &[u8], path: &Path) -> Result<image::DynamicImage> {
     let reader = || -> image::ImageResult<image::ImageReader<std::io::Cursor<&[u8]>>> {
-        Ok(image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::from_path(path)?))
+        let mut r = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::from_path(path)?);
+        r.limits(decoder_limits());
+        Ok(r)
     };
     let size = reader().and_then(|r| r.into_dimensions());
-    check_pixel_cap(size.map_err(|e| IoError::format(path, format!("cannot read image header: {e}")))?, path)?;
+    check_pixel_cap(size.map_err(|e| image_error(path, e, "cannot read image header"))?, path)?;
     crate::integrity::check_complete(path, bytes)?;
-    reader().and_then(|r| r.decode()).map_err(|e| IoError::format(path, format!("cannot decode image: {e}")))
+    reader().and_then(|r| r.decode()).map_err(|e| image_error(path, e, "cannot decode image"))
+}
+
+/// An `image` crate error in words; one over the [`decoder_limits`] names the caps.
+fn image_error(path: &Path, e: image::ImageError, stage: &str) -> IoError {
+    match e {
+        image::ImageError::Limits(e) => IoError::invalid(
+            path,
+            format!(
+                "{stage}: {e} (caps: {MAX_IMAGE_SIDE} pixels a side, {} pixels, {} decoded)",
+                gs_core::image::MAX_IMAGE_PIXELS,
+                crate::capped::bytes(DECODE_ALLOC_CAP)
+            ),
+        ),
+        e => IoError::format(path, format!("{stage}: {e}")),
+    }
+}
+
+/// The widest side of an image the decoders accept: the pixel cap as one strip 1024 rows high.
+const MAX_IMAGE_SIDE: u32 = (gs_core::image::MAX_IMAGE_PIXELS >> 10) as u32;
+/// The most the decoders allocate for one image: four 16-bit channels at the pixel cap (512 MiB).
+const DECODE_ALLOC_CAP: u64 = gs_core::image::MAX_IMAGE_PIXELS as u64 * 8;
+
+/// The `image` crate's decoder limits: sides and allocation, enforced inside the decoders
+/// (the pixel count itself is [`check_pixel_cap`]'s, which `Limits` does not express).
+fn decoder_limits() -> image::Limits {
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    limits.max_alloc = Some(DECODE_ALLOC_CAP);
+    limits
 }
 
 /// The mask file of an image name, if one exists: `masks/<stem>.png`, then `masks/<name>.png`.

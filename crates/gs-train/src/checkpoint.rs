@@ -355,6 +355,5 @@ pub fn save(path: &Path, config: &TrainConfig, state: &TrainState, elapsed: &Ela
 
 /// Reads and verifies a checkpoint.
 pub fn load(path: &Path) -> Result<Checkpoint> {
-    let bytes = std::fs::read(path).map_err(|source| TrainError::Io { path: path.to_path_buf(), source })?;
-    decode(&bytes, path)
+    decode(&gs_io::capped::CHECKPOINT.read(path)?, path)
 }
