@@ -212,6 +212,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_file_over_the_weights_cap_is_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("w.bin");
+        std::fs::File::create(&p).unwrap().set_len(gs_io::capped::WEIGHTS.bytes + 1).unwrap();
+        let e = VggWeights::from_file(&p).unwrap_err().to_string();
+        assert!(e.ends_with("w.bin: the file holds 64.0 MiB, more than the cap of 64 MiB for a weights file"), "{e}");
+    }
+
+    #[test]
     fn crc32_matches_zlib() {
         // zlib.crc32(b"123456789") == 0xCBF43926 (the standard check value).
         assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
