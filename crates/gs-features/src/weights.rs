@@ -195,9 +195,13 @@ impl VggWeights {
 
     /// Reads and verifies a blob file.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| FeatureError::Io {
+        let bytes = gs_io::capped::WEIGHTS.read(path).map_err(|e| FeatureError::Io {
             path: path.display().to_string(),
-            message: e.to_string(),
+            message: match e {
+                gs_io::IoError::Io { source, .. } => source.to_string(),
+                gs_io::IoError::Invalid { message, .. } => message,
+                other => other.to_string(),
+            },
         })?;
         Self::from_blob(&bytes, &path.display().to_string())
     }
@@ -206,6 +210,15 @@ impl VggWeights {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_over_the_weights_cap_is_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("w.bin");
+        std::fs::File::create(&p).unwrap().set_len(gs_io::capped::WEIGHTS.bytes + 1).unwrap();
+        let e = VggWeights::from_file(&p).unwrap_err().to_string();
+        assert!(e.ends_with("w.bin: the file holds 64.0 MiB, more than the cap of 64 MiB for a weights file"), "{e}");
+    }
 
     #[test]
     fn crc32_matches_zlib() {

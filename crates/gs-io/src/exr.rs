@@ -19,9 +19,8 @@ use gs_core::image::MAX_IMAGE_PIXELS;
 use std::io::Cursor;
 use std::path::Path;
 
-/// The most sample bytes of one layer the reader decodes: four f32 channels (RGBA, the largest
-/// map vagsl writes) at the pixel cap.
-const MAX_SAMPLE_BYTES: usize = MAX_IMAGE_PIXELS * 16;
+/// The most sample bytes of one layer the reader decodes ([`crate::capped::IMAGE_SAMPLE_CAP`]).
+const MAX_SAMPLE_BYTES: usize = crate::capped::IMAGE_SAMPLE_CAP as usize;
 
 /// Sample bytes any EXR may name regardless of its size (a 2048 × 1024 RGBA f32 map).
 const PLAUSIBLE_FLOOR: usize = 32 << 20;
@@ -86,7 +85,7 @@ pub fn encode_exr(image: &Image) -> std::result::Result<Vec<u8>, String> {
 
 /// Reads a float EXR map (see the module docs for the channel rules).
 pub fn read_exr(path: &Path) -> Result<Image> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::capped::IMAGE.read(path)?;
     parse_exr(&bytes, path)
 }
 

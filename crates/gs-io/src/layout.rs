@@ -7,9 +7,8 @@
 //! `transforms.json` beside it was most often derived from it. Within the transforms layout a
 //! `transforms.json` wins over the split files; `transforms_val.json` is not read (as in 3DGS).
 
-use crate::colmap::{ColmapModel, ModelFormat, detect_format, read_model};
+use crate::colmap::{ColmapModel, ModelFormat, detect_format};
 use crate::error::{IoError, Result};
-use crate::scene::find_model_dir;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -93,25 +92,13 @@ pub struct SceneModel {
     pub held_out: Option<Vec<String>>,
 }
 
-/// Reads the model of the scene folder `dir` in whichever layout it has. `images_dir`
-/// (relative to `dir`, default `images`) is where a COLMAP scene's photos lie; a transforms
-/// scene names its files itself.
-pub fn read_scene_model(dir: &Path, images_dir: Option<&Path>) -> Result<SceneModel> {
-    let layout = detect_layout(dir)?;
-    match &layout {
-        SceneLayout::Colmap { model_dir, .. } => {
-            let model = read_model(model_dir)?;
-            let images = dir.join(images_dir.unwrap_or(Path::new("images")));
-            let image_paths = model.images.values().map(|i| (i.id, images.join(&i.name))).collect();
-            Ok(SceneModel {
-                origin: model_dir.clone(),
-                model,
-                image_paths,
-                mask_paths: BTreeMap::new(),
-                held_out: None,
-                layout,
-            })
+/// The COLMAP model folder of a scene: `dir` itself when it holds a model, else
+/// `dir/sparse/0`, else `dir/sparse`.
+pub fn find_model_dir(dir: &Path) -> Result<PathBuf> {
+    for cand in [dir.to_path_buf(), dir.join("sparse").join("0"), dir.join("sparse")] {
+        if cand.is_dir() && detect_format(&cand).is_ok() {
+            return Ok(cand);
         }
-        SceneLayout::Transforms(files) => crate::transforms::read_transforms_scene(files),
     }
+    Err(IoError::invalid(dir, "no COLMAP model found (looked in ., sparse/0 and sparse)"))
 }

@@ -18,13 +18,13 @@ const MAGIC: &[u8] = b"\x93NUMPY";
 
 /// Reads a `.npy` file of any rank (see the module docs for what is accepted).
 pub fn read_npy_array(path: &Path) -> Result<NpyArray> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::capped::NPY.read(path)?;
     parse_npy_array(&bytes, path)
 }
 
 /// Reads a `.npy` file into an [`Image`] (see the module docs for what is accepted).
 pub fn read_npy(path: &Path) -> Result<Image> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::capped::NPY.read(path)?;
     parse_npy(&bytes, path)
 }
 
@@ -100,15 +100,16 @@ pub fn parse_npy_array(bytes: &[u8], path: &Path) -> Result<NpyArray> {
         .filter(|s| !s.is_empty())
         .map(|s| s.parse::<usize>().map_err(|_| fmt(format!("bad shape entry '{s}'"))))
         .collect::<Result<_>>()?;
-    let count = dims
-        .iter()
-        .try_fold(1usize, |p, &d| p.checked_mul(d))
-        .ok_or_else(|| fmt(format!("shape {dims:?} overflows")))?;
+    let cap = crate::capped::NPY;
+    let count = dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d as u64)).ok_or_else(|| {
+        fmt(format!("shape {dims:?} declares more than 2^64 values; the cap for {} is {}", cap.what, crate::capped::bytes(cap.bytes)))
+    })?;
     let data = &bytes[end..];
-    if count.checked_mul(item).is_none_or(|need| need != data.len()) {
+    cap.check_declared(path, &format!("shape {dims:?} of {descr}"), (count, "values"), item as u64, data.len() as u64)?;
+    if count * item as u64 != data.len() as u64 {
         return Err(fmt(format!(
             "shape {dims:?} of {descr} needs {} data bytes but the file has {} (truncated or wrong shape)",
-            count.saturating_mul(item),
+            count * item as u64,
             data.len()
         )));
     }
@@ -124,7 +125,7 @@ pub fn parse_npy_array(bytes: &[u8], path: &Path) -> Result<NpyArray> {
 /// of `.npy` members), in archive order, as `(name without ".npy", array)`. Compressed
 /// members (`numpy.savez_compressed`) are rejected with a clear error.
 pub fn read_npz(path: &Path) -> Result<Vec<(String, NpyArray)>> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::capped::NPY.read(path)?;
     parse_npz(&bytes, path)
 }
 

@@ -11,7 +11,7 @@ use std::path::Path;
 
 /// Reads an OBJ file into one triangle mesh (see the module docs).
 pub fn read_obj(path: &Path) -> Result<TriangleMesh> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = crate::capped::OBJ.read(path)?;
     parse_obj(&bytes, path)
 }
 

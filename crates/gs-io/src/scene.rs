@@ -1,7 +1,7 @@
 //! Scene loading: a scene folder → [`gs_core::Scene`] of undistorted PINHOLE views.
 //!
 //! The folder holds a COLMAP model or a `transforms.json` ([`crate::layout`],
-//! [`crate::transforms`]); both become the same [`crate::layout::SceneModel`], so everything
+//! [`crate::transforms`]); both become the same [`SceneModel`] ([`read_scene_model`]), so everything
 //! below applies to both. COLMAP: `SCENE/sparse/0` (text or binary; `SCENE/sparse` is accepted
 //! too), `SCENE/images/<name>`
 //! (PNG/JPEG, 8- or 16-bit, grey or RGB(A); values / 255 or / 65535, no gamma; alpha dropped)
@@ -11,13 +11,16 @@
 //! Images are decoded in parallel with rayon.
 
 use crate::colmap::{ColmapCamera, ColmapModel, ColmapPoint3D, ModelFormat, detect_format, read_model};
-use crate::layout::read_scene_model;
+use crate::layout::{SceneLayout, SceneModel, detect_layout, find_model_dir};
+use crate::photo::image_size;
 use crate::error::{IoError, Result};
 use crate::undistort::{UndistortMap, UndistortOptions, undistort_camera};
 use gs_core::{Camera, Image, Intrinsics, Scene, View};
 use rayon::prelude::*;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+
+pub use crate::photo::{decode_mask, decode_mask_bytes, decode_rgb, decode_rgb_bytes};
 
 /// Default maximum width of the [`Resolution::Auto`] rule (3DGS/PGSR).
 pub const AUTO_MAX_WIDTH: u32 = 1600;
@@ -87,103 +90,6 @@ pub struct LoadOptions {
     pub only_images: Option<Vec<String>>,
 }
 
-/// The COLMAP model folder of a scene: `dir` itself when it holds a model, else
-/// `dir/sparse/0`, else `dir/sparse`.
-pub fn find_model_dir(dir: &Path) -> Result<PathBuf> {
-    for cand in [dir.to_path_buf(), dir.join("sparse").join("0"), dir.join("sparse")] {
-        if cand.is_dir() && detect_format(&cand).is_ok() {
-            return Ok(cand);
-        }
-    }
-    Err(IoError::invalid(dir, "no COLMAP model found (looked in ., sparse/0 and sparse)"))
-}
-
-/// Decodes an 8- or 16-bit PNG/JPEG as RGB f32 (value / 255 or / 65535, grey replicated,
-/// alpha dropped). A truncated or structurally broken file is an error naming it
-/// ([`crate::integrity`]), never a partial image.
-pub fn decode_rgb(path: &Path) -> Result<Image> {
-    rgb_of(open_checked(path)?, path)
-}
-
-/// [`decode_rgb`] of a file's bytes held in memory; `path` names the file in errors and its
-/// extension gives the format, as for a file on disk.
-pub fn decode_rgb_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
-    rgb_of(decode_checked(bytes, path)?, path)
-}
-
-/// Decodes a mask as one channel in `[0, 1]` (grey, or the luma of a colour file).
-pub fn decode_mask(path: &Path) -> Result<Image> {
-    mask_of(open_checked(path)?, path)
-}
-
-/// [`decode_mask`] of a file's bytes held in memory (see [`decode_rgb_bytes`]).
-pub fn decode_mask_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
-    mask_of(decode_checked(bytes, path)?, path)
-}
-
-fn rgb_of(img: image::DynamicImage, path: &Path) -> Result<Image> {
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let data: Vec<f32> = if is_16bit(&img) {
-        img.to_rgb16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
-    } else {
-        img.to_rgb8().into_raw().into_iter().map(|v| v as f32 / 255.0).collect()
-    };
-    Image::from_vec(w, h, 3, data).map_err(|e| IoError::Core { path: path.to_path_buf(), source: e })
-}
-
-fn mask_of(img: image::DynamicImage, path: &Path) -> Result<Image> {
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let data: Vec<f32> = if is_16bit(&img) {
-        img.to_luma16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
-    } else {
-        img.to_luma8().into_raw().into_iter().map(|v| v as f32 / 255.0).collect()
-    };
-    Image::from_vec(w, h, 1, data).map_err(|e| IoError::Core { path: path.to_path_buf(), source: e })
-}
-
-fn is_16bit(img: &image::DynamicImage) -> bool {
-    use image::DynamicImage::*;
-    matches!(img, ImageLuma16(_) | ImageLumaA16(_) | ImageRgb16(_) | ImageRgba16(_))
-}
-
-/// The size of an image file from its header; an error naming a missing or unreadable file.
-pub(crate) fn image_size(path: &Path) -> Result<(u32, u32)> {
-    if !path.is_file() {
-        return Err(IoError::invalid(path, "missing image file"));
-    }
-    image::image_dimensions(path).map_err(|e| IoError::format(path, format!("cannot read image header: {e}")))
-}
-
-fn open_checked(path: &Path) -> Result<image::DynamicImage> {
-    check_pixel_cap(image_size(path)?, path)?;
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
-    decode_checked(&bytes, path)
-}
-
-/// Refuses an image larger than [`gs_core::image::MAX_IMAGE_PIXELS`] before it is decoded.
-fn check_pixel_cap((w, h): (u32, u32), path: &Path) -> Result<()> {
-    if (w as usize).saturating_mul(h as usize) > gs_core::image::MAX_IMAGE_PIXELS {
-        return Err(IoError::invalid(
-            path,
-            format!("image {w}x{h} exceeds the cap of {} pixels", gs_core::image::MAX_IMAGE_PIXELS),
-        ));
-    }
-    Ok(())
-}
-
-/// Checks the size cap (from the header) and that the container is complete (a cut JPEG would
-/// otherwise decode with grey rows), then decodes the bytes as `image::open` would (format
-/// from the extension of `path`).
-fn decode_checked(bytes: &[u8], path: &Path) -> Result<image::DynamicImage> {
-    let reader = || -> image::ImageResult<image::ImageReader<std::io::Cursor<&[u8]>>> {
-        Ok(image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::from_path(path)?))
-    };
-    let size = reader().and_then(|r| r.into_dimensions());
-    check_pixel_cap(size.map_err(|e| IoError::format(path, format!("cannot read image header: {e}")))?, path)?;
-    crate::integrity::check_complete(path, bytes)?;
-    reader().and_then(|r| r.decode()).map_err(|e| IoError::format(path, format!("cannot decode image: {e}")))
-}
-
 /// The mask file of an image name, if one exists: `masks/<stem>.png`, then `masks/<name>.png`.
 fn mask_path(masks_dir: &Path, name: &str) -> Option<PathBuf> {
     let rel = Path::new(name);
@@ -198,6 +104,29 @@ struct CameraPlan {
     pinhole: ColmapCamera,
     /// The resampling map; `None` when the camera has no distortion.
     map: Option<UndistortMap>,
+}
+
+/// Reads the model of the scene folder `dir` in whichever layout it has. `images_dir`
+/// (relative to `dir`, default `images`) is where a COLMAP scene's photos lie; a transforms
+/// scene names its files itself.
+pub fn read_scene_model(dir: &Path, images_dir: Option<&Path>) -> Result<SceneModel> {
+    let layout = detect_layout(dir)?;
+    match &layout {
+        SceneLayout::Colmap { model_dir, .. } => {
+            let model = read_model(model_dir)?;
+            let images = dir.join(images_dir.unwrap_or(Path::new("images")));
+            let image_paths = model.images.values().map(|i| (i.id, images.join(&i.name))).collect();
+            Ok(SceneModel {
+                origin: model_dir.clone(),
+                model,
+                image_paths,
+                mask_paths: BTreeMap::new(),
+                held_out: None,
+                layout,
+            })
+        }
+        SceneLayout::Transforms(files) => crate::transforms::read_transforms_scene(files),
+    }
 }
 
 /// Loads a scene folder, COLMAP or transforms.json (see the module docs), into a [`Scene`]

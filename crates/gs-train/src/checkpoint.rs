@@ -355,6 +355,21 @@ pub fn save(path: &Path, config: &TrainConfig, state: &TrainState, elapsed: &Ela
 
 /// Reads and verifies a checkpoint.
 pub fn load(path: &Path) -> Result<Checkpoint> {
-    let bytes = std::fs::read(path).map_err(|source| TrainError::Io { path: path.to_path_buf(), source })?;
-    decode(&bytes, path)
+    decode(&gs_io::capped::CHECKPOINT.read(path)?, path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_over_the_checkpoint_cap_or_a_device_is_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("ck.bin");
+        std::fs::File::create(&p).unwrap().set_len(gs_io::capped::CHECKPOINT.bytes + 1).unwrap();
+        let e = load(&p).unwrap_err().to_string();
+        assert!(e.ends_with("ck.bin: the file holds 40.0 GiB, more than the cap of 40 GiB for a checkpoint"), "{e}");
+        let e = load(Path::new("/dev/zero")).unwrap_err().to_string();
+        assert_eq!(e, "/dev/zero: it gives more than the cap of 1 GiB for a checkpoint read from a pipe or device");
+    }
 }

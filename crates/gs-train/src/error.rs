@@ -40,14 +40,6 @@ pub enum TrainError {
     /// A job whose estimated memory exceeds the caller's limit (names both, and what to change).
     #[error("{0}")]
     MemoryLimit(String),
-    /// Plain I/O on a named file.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
     /// From gs-core.
     #[error(transparent)]
     Core(#[from] gs_core::CoreError),

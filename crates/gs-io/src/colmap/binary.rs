@@ -13,7 +13,7 @@
 
 use super::{
     CameraModel, ColmapCamera, ColmapImage, ColmapModel, ColmapPoint3D, ModelFormat, ModelLookup,
-    ModelPaths, Point2D, check_count,
+    ModelPaths, Point2D,
 };
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
@@ -81,20 +81,13 @@ impl<'a> Reader<'a> {
         Ok(v)
     }
 
-    /// A count prefix that must fit `min_record` bytes per element in the rest of the file.
+    /// A count prefix that must fit `min_record` bytes per element in the rest of the file
+    /// (checked before anything is allocated for them, [`crate::capped::Cap::check_declared`]).
     fn count(&mut self, min_record: usize, what: &dyn Fn() -> String) -> Result<usize> {
         let at = self.pos;
         let n = self.u64(what)?;
-        if !check_count(n, min_record, self.remaining()) {
-            return Err(IoError::format(
-                self.path,
-                format!(
-                    "{} at byte offset {at} is {n}, but only {} bytes follow (at least {min_record} per record): wrong count or truncated file",
-                    what(),
-                    self.remaining()
-                ),
-            ));
-        }
+        let subject = format!("the {} at byte offset {at}", what());
+        crate::capped::COLMAP.check_declared(self.path, &subject, (n, "records"), min_record as u64, self.remaining() as u64)?;
         Ok(n as usize)
     }
 
@@ -235,7 +228,7 @@ pub fn parse_points3d_bin(bytes: &[u8], path: &Path) -> Result<BTreeMap<u64, Col
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| IoError::io(path, e))
+    crate::capped::COLMAP.read(path)
 }
 
 /// Reads a binary model from `dir` (`cameras.bin`, `images.bin`, `points3D.bin`) and

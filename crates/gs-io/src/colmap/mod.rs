@@ -491,9 +491,3 @@ impl ColmapModel {
         (n_points > 0).then(|| sum / n_points as f64)
     }
 }
-
-/// Checks a length prefix against the bytes left: `count × min_record_bytes` must fit, so a
-/// corrupt count can never trigger a huge allocation.
-pub(crate) fn check_count(count: u64, min_record_bytes: usize, remaining: usize) -> bool {
-    count.checked_mul(min_record_bytes as u64).is_some_and(|need| need <= remaining as u64)
-}

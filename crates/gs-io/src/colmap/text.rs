@@ -17,8 +17,7 @@ use std::str::FromStr;
 
 /// Reads the whole file as UTF-8, naming the first invalid byte's line on failure.
 fn read_utf8(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
-    utf8(bytes, path)
+    utf8(crate::capped::COLMAP.read(path)?, path)
 }
 
 /// The bytes of `path` as UTF-8 text, naming the first invalid byte's line on failure.

@@ -199,7 +199,7 @@ impl PlyHeader {
 
 /// Reads and parses only the header of the PLY file at `path` (e.g. to list property names).
 pub fn read_header(path: &Path) -> Result<PlyHeader> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = read_file(path)?;
     parse_header(&bytes, path)
 }
 
@@ -311,22 +311,11 @@ pub fn parse_header(bytes: &[u8], path: &Path) -> Result<PlyHeader> {
 
 /// Rejects headers whose element counts cannot fit in `data_len` bytes (before allocating).
 fn check_counts(header: &PlyHeader, data_len: usize, path: &Path) -> Result<()> {
-    let mut need = 0usize;
+    let mut left = data_len as u64;
     for e in &header.elements {
-        let min = e.min_record_bytes(header.encoding);
-        let bytes = e.count.checked_mul(min).and_then(|b| need.checked_add(b));
-        match bytes {
-            Some(b) if b <= data_len => need = b,
-            _ => {
-                return Err(IoError::format(
-                    path,
-                    format!(
-                        "element '{}' declares {} records, which cannot fit in the {data_len} data bytes of the file (truncated file or wrong count)",
-                        e.name, e.count
-                    ),
-                ));
-            }
-        }
+        let min = e.min_record_bytes(header.encoding) as u64;
+        crate::capped::PLY.check_declared(path, &format!("element '{}'", e.name), (e.count as u64, "records"), min, left)?;
+        left -= e.count as u64 * min;
     }
     Ok(())
 }
@@ -498,9 +487,9 @@ pub(crate) fn decode_binary(b: &[u8], ty: ScalarType, big_endian: bool) -> f64 {
     }
 }
 
-/// Reads a whole file into memory, mapping the OS error to [`IoError::Io`].
+/// Reads a whole PLY file into memory under the PLY cap ([`crate::capped::PLY`]).
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| IoError::io(path, e))
+    crate::capped::PLY.read(path)
 }
 
 #[cfg(test)]
@@ -539,7 +528,7 @@ mod tests {
             (b"ply\nformat ascii 1.0\nbogus\nend_header\n", "unknown PLY header keyword 'bogus'"),
             (b"ply\nelement vertex 1\nend_header\n", "before the 'format' line"),
             (b"ply\nend_header\n", "no 'format' line"),
-            (b"ply\nformat binary_little_endian 1.0\nelement vertex 99999999999999\nproperty float x\nend_header\n", "cannot fit"),
+            (b"ply\nformat binary_little_endian 1.0\nelement vertex 99999999999999\nproperty float x\nend_header\n", "element 'vertex' declares 99999999999999 records of at least 4 bytes each"),
             (b"ply\nformat ascii 1.0\ncomment \xff\xfe\nend_header\n", "not valid UTF-8"),
         ];
         for (bytes, expect) in cases {

@@ -103,7 +103,7 @@ impl Collected {
             }
             let (width, height) = match frame.lens.size {
                 [Some(w), Some(h)] => (w, h),
-                _ => crate::scene::image_size(&path)?,
+                _ => crate::photo::image_size(&path)?,
             };
             let cam = frame.lens.camera(0, width, height).map_err(|m| IoError::format(json, format!("{}: {m}", frame.label())))?;
             let camera_id = match self.cameras.iter().find(|c| (c.model, c.width, c.height, &c.params) == (cam.model, cam.width, cam.height, &cam.params)) {
