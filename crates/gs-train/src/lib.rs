@@ -40,7 +40,7 @@ mod executor;
 pub mod exposure;
 pub mod floaters;
 pub mod init;
-pub mod memory;
+pub mod training_memory;
 pub mod mesh;
 pub mod model;
 pub mod params;
