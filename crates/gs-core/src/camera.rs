@@ -265,6 +265,19 @@ pub fn rotation_from_quaternion(qvec: [f64; 4]) -> Result<DMat3> {
     Ok(DMat3::from_quat(DQuat::from_xyzw(x / norm, y / norm, z / norm, w / norm)))
 }
 
+/// `n` 64×48 cameras evenly on a circle of radius 3 at height 1 around the z axis, all looking
+/// at the origin: a small, exactly known capture for tests and examples.
+pub fn camera_ring(n: usize) -> Vec<Camera> {
+    (0..n)
+        .map(|k| {
+            let a = k as f64 / n as f64 * std::f64::consts::TAU;
+            let eye = DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 1.0);
+            Camera::look_at(64, 48, Intrinsics::new(60.0, 60.0, 32.0, 24.0), eye, DVec3::ZERO, DVec3::Z)
+                .expect("eye off the z axis, not at the target")
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -18,7 +18,7 @@
 
 use crate::camera::Camera;
 use crate::error::{CoreError, Result};
-use crate::scene::ScenePoint;
+use crate::point::ScenePoint;
 use glam::DVec3;
 
 /// A centre farther than this many median distances from the median centre is an outlier.
@@ -175,7 +175,7 @@ impl ExtentReport {
 mod tests {
     use super::*;
     use crate::camera::Intrinsics;
-    use crate::scene::camera_ring;
+    use crate::camera::camera_ring;
 
     fn look_at(eye: DVec3, target: DVec3) -> Camera {
         Camera::look_at(64, 48, Intrinsics::new(60.0, 60.0, 32.0, 24.0), eye, target, DVec3::Z).unwrap()

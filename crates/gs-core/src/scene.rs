@@ -9,6 +9,8 @@ use crate::error::Result;
 pub use crate::extent::scene_extent;
 use crate::extent::{ExtentReport, extent_report};
 use crate::image::Image;
+pub use crate::camera::camera_ring;
+pub use crate::point::ScenePoint;
 use glam::DVec3;
 
 /// One posed training or test image.
@@ -22,15 +24,6 @@ pub struct View {
     pub image: Image,
     /// Optional object mask, `[H][W][1]`, 1 = object.
     pub mask: Option<Image>,
-}
-
-/// A sparse 3D point (from SfM) with its colour.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ScenePoint {
-    /// World position.
-    pub position: DVec3,
-    /// RGB colour in `[0, 1]`.
-    pub color: [f32; 3],
 }
 
 /// Posed images plus sparse points.
@@ -142,19 +135,6 @@ impl Scene {
         }
         (train, test)
     }
-}
-
-/// `n` 64×48 cameras evenly on a circle of radius 3 at height 1 around the z axis, all looking
-/// at the origin: a small, exactly known capture for tests and examples.
-pub fn camera_ring(n: usize) -> Vec<Camera> {
-    (0..n)
-        .map(|k| {
-            let a = k as f64 / n as f64 * std::f64::consts::TAU;
-            let eye = DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 1.0);
-            Camera::look_at(64, 48, crate::camera::Intrinsics::new(60.0, 60.0, 32.0, 24.0), eye, DVec3::ZERO, DVec3::Z)
-                .expect("eye off the z axis, not at the target")
-        })
-        .collect()
 }
 
 #[cfg(test)]

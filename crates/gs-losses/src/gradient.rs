@@ -6,7 +6,8 @@
 //! as constants in the backward pass); border pixels are 1. Images narrower or lower than 3 pixels
 //! have no interior: ∇I is 1 everywhere and its gradient is 0.
 
-use crate::real::{Dims, Real, ordered_sum};
+use crate::Real;
+use crate::dims::{Dims, ordered_sum};
 use rayon::prelude::*;
 
 /// ε of the min–max normalisation (ours; PGSR has none and gives NaN on constant images).

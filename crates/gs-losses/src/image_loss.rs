@@ -4,7 +4,7 @@
 use crate::error::{LossError, Result};
 use crate::gradient::{edge_l1, edge_weight, image_gradient, image_gradient_backward};
 use crate::l1::{l1, l1_backward};
-use crate::real::Dims;
+use crate::dims::Dims;
 use crate::ssim::{SsimRegion, ssim_backward};
 use gs_core::Image;
 

@@ -1,6 +1,7 @@
 //! L1 = mean over pixels and channels of |Ĩ − I| (docs/method.md §L_I), with its backward.
 
-use crate::real::{Real, ordered_sum};
+use crate::Real;
+use crate::dims::ordered_sum;
 use rayon::prelude::*;
 
 const CHUNK: usize = 1 << 14;

@@ -35,6 +35,7 @@
 //! assert_eq!(out.depth_normal.pixel(5, 5), &[0.0, 0.0, -1.0]);
 //! ```
 
+pub mod dims;
 pub mod error;
 pub mod gradient;
 pub mod image_loss;
@@ -43,13 +44,13 @@ pub mod lpips;
 pub mod metrics;
 pub mod normal;
 pub mod normal_loss;
-pub mod real;
 pub mod ssim;
 
+pub use dims::Dims;
 pub use error::{LossError, Result};
+pub use gs_core::float::Real;
 pub use image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, image_loss};
 pub use lpips::Lpips;
 pub use metrics::{masked_on_black, psnr, psnr_masked, ssim_metric, ssim_metric_with};
 pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, normal_losses};
-pub use real::{Dims, Real};
 pub use ssim::SsimRegion;

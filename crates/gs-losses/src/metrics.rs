@@ -1,7 +1,7 @@
 //! Image metrics for evaluation (docs/method.md §Metrics): PSNR and SSIM; LPIPS lives in [`crate::lpips`].
 
 use crate::error::{LossError, Result};
-use crate::real::{Dims, ordered_sum};
+use crate::dims::{Dims, ordered_sum};
 use crate::ssim::{SsimRegion, ssim};
 use gs_core::Image;
 

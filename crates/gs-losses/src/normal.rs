@@ -8,7 +8,7 @@
 //! not special-cased: they produce the formula's literal value (and a zero normal where every
 //! neighbour is 0).
 
-use crate::real::Real;
+use crate::Real;
 use gs_core::Intrinsics;
 use rayon::prelude::*;
 

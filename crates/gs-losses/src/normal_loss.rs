@@ -4,7 +4,8 @@
 use crate::error::{LossError, Result};
 use crate::image_loss::EdgeGuide;
 use crate::normal::{depth_normal, depth_normal_backward};
-use crate::real::{Real, ordered_sum};
+use crate::Real;
+use crate::dims::ordered_sum;
 use gs_core::{Image, Intrinsics};
 use rayon::prelude::*;
 

@@ -12,7 +12,8 @@
 //! then crops 5 pixels before averaging).
 
 use crate::error::{LossError, Result};
-use crate::real::{Dims, Real, ordered_sum};
+use crate::Real;
+use crate::dims::{Dims, ordered_sum};
 use rayon::prelude::*;
 
 /// Window radius (11 taps).

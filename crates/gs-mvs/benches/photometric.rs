@@ -5,7 +5,7 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Intrinsics, Rng};
-use gs_mvs::synthetic::{AnalyticMaps, AnalyticScene};
+use gs_mvs::analytic_scene::{AnalyticMaps, AnalyticScene};
 use gs_mvs::{
     FeatureReference, FeatureSource, GridFeatureMaps, PhotometricConfig, PhotometricReference,
     PhotometricSource, feature_loss, photometric_loss,

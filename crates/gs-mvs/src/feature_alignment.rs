@@ -10,7 +10,7 @@
 
 use crate::error::{MvsError, Result};
 use crate::geometry::{MapView, PairGeometry, mat_vec};
-use crate::real::Real;
+use crate::Real;
 use crate::visibility::{Visibility, VisibilityStats, check_weights, visibility_unchecked};
 use gs_core::Camera;
 use rayon::prelude::*;

@@ -2,7 +2,7 @@
 //! the per-pixel plane homography H_rs = K_s (R_rs − t_rs Ñᵀ/D) K_r⁻¹ (docs/method.md §L_p).
 
 use crate::error::{MvsError, Result};
-use crate::real::Real;
+use crate::Real;
 use gs_core::glam::{DMat3, DVec3};
 use gs_core::{Camera, Image};
 

@@ -14,7 +14,7 @@
 //!
 //! ```
 //! use gs_core::{Camera, Intrinsics, glam::DVec3};
-//! use gs_mvs::synthetic::{AnalyticScene, AxisBox};
+//! use gs_mvs::analytic_scene::{AnalyticScene, AxisBox};
 //! use gs_mvs::{photometric_loss, PhotometricConfig, PhotometricReference, PhotometricSource};
 //!
 //! let k = Intrinsics::new(40.0, 40.0, 24.0, 16.0);
@@ -39,19 +39,19 @@
 // `!(x > 0)` is deliberate throughout: it is true for NaN, which must be rejected.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod analytic_scene;
 pub mod error;
 pub mod feature_alignment;
 pub mod geometry;
 pub mod photometric;
-pub mod real;
 pub mod selection;
-pub mod synthetic;
 pub mod visibility;
 
 #[cfg(test)]
 mod testutil;
 
 pub use error::{MvsError, Result};
+pub use gs_core::float::Real;
 pub use feature_alignment::{
     FeatureMaps, FeatureOutput, FeatureReference, FeatureSource, FeatureSourceStats,
     GridFeatureMaps, feature_loss, feature_loss_with_weights,
@@ -61,6 +61,5 @@ pub use photometric::{
     DEFAULT_MAX_PIXELS_PER_SOURCE, NccMode, PhotometricConfig, PhotometricOutput, PhotometricReference, PhotometricSource,
     SourceStats, photometric_loss, photometric_loss_with_weights,
 };
-pub use real::Real;
 pub use selection::{SourceSelection, SourceViewSelector};
 pub use visibility::{Visibility, VisibilityStats, compute_visibility};

@@ -27,7 +27,7 @@
 
 use crate::error::{MvsError, Result};
 use crate::geometry::{MapView, PairGeometry, dot3, sample_bilinear_grad};
-use crate::real::Real;
+use crate::Real;
 use crate::visibility::{Visibility, VisibilityStats, check_weights, visibility_unchecked};
 use gs_core::{Camera, Image, Rng};
 use rayon::prelude::*;

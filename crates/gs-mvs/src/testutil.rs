@@ -1,6 +1,6 @@
 //! Small f64 scenes for the unit tests (analytic ground plane + box, two or three cameras).
 
-use crate::synthetic::{AnalyticMaps, AnalyticScene, AxisBox};
+use crate::analytic_scene::{AnalyticMaps, AnalyticScene, AxisBox};
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Intrinsics};
 

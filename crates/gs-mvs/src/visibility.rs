@@ -9,7 +9,7 @@
 
 use crate::error::{MvsError, Result};
 use crate::geometry::{MapView, PairGeometry, sample_bilinear};
-use crate::real::Real;
+use crate::Real;
 use gs_core::Camera;
 use rayon::prelude::*;
 

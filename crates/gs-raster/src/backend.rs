@@ -2,12 +2,13 @@
 //! object with the same `render` / `backward` signatures.
 
 use crate::{
-    GaussianGradients, OutputGradients, RasterConfig, RasterError, RenderOutput, RenderRequest,
+    GaussianGradients, OutputGradients, RasterConfig, RenderOutput, RenderRequest,
     Result,
 };
 use gs_core::{Camera, Gaussians};
 
-/// Which rasterizer backend to use (`"cpu" | "wgpu" | "auto"` via [`std::str::FromStr`]).
+/// Which rasterizer backend to use (`"cpu" | "wgpu" | "auto"` via [`std::str::FromStr`], in any
+/// letter case; `"gpu"` also names wgpu).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Backend {
     /// The CPU backend (rayon over tiles; the numerical reference).
@@ -19,29 +20,11 @@ pub enum Backend {
     Auto,
 }
 
-impl std::str::FromStr for Backend {
-    type Err = RasterError;
-    fn from_str(s: &str) -> Result<Self> {
-        match s.to_ascii_lowercase().as_str() {
-            "cpu" => Ok(Backend::Cpu),
-            "wgpu" | "gpu" => Ok(Backend::Wgpu),
-            "auto" => Ok(Backend::Auto),
-            other => Err(RasterError::InvalidConfig(format!(
-                "unknown backend {other:?}; expected cpu, wgpu or auto"
-            ))),
-        }
-    }
-}
-
-impl std::fmt::Display for Backend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Backend::Cpu => "cpu",
-            Backend::Wgpu => "wgpu",
-            Backend::Auto => "auto",
-        })
-    }
-}
+gs_core::named_choices!(Backend, "backend", {
+    Backend::Cpu => "cpu",
+    Backend::Wgpu => "wgpu",
+    Backend::Auto => "auto",
+}, ignore_case, aliases { "gpu" => Backend::Wgpu });
 
 enum Inner {
     Cpu,
@@ -62,7 +45,7 @@ impl std::fmt::Debug for Rasterizer {
 }
 
 impl Rasterizer {
-    /// Creates the rasterizer. `Backend::Wgpu` fails with [`RasterError::BackendUnavailable`]
+    /// Creates the rasterizer. `Backend::Wgpu` fails with [`crate::RasterError::BackendUnavailable`]
     /// when there is no adapter or the crate was built without the `wgpu` feature;
     /// `Backend::Auto` picks wgpu on a hardware (non-CPU) adapter and the CPU otherwise.
     pub fn new(backend: Backend) -> Result<Self> {
@@ -73,7 +56,7 @@ impl Rasterizer {
                 inner: Inner::Wgpu(Box::new(crate::gpu::WgpuRasterizer::new()?)),
             }),
             #[cfg(not(feature = "wgpu"))]
-            Backend::Wgpu => Err(RasterError::BackendUnavailable(
+            Backend::Wgpu => Err(crate::RasterError::BackendUnavailable(
                 "gs-raster was built without the `wgpu` feature".into(),
             )),
             #[cfg(feature = "wgpu")]
@@ -169,10 +152,8 @@ mod tests {
         for b in [Backend::Cpu, Backend::Wgpu, Backend::Auto] {
             assert_eq!(b.to_string().parse::<Backend>().unwrap(), b);
         }
-        assert!(matches!(
-            "metal".parse::<Backend>(),
-            Err(RasterError::InvalidConfig(_))
-        ));
+        assert_eq!(("WGPU".parse::<Backend>(), "Gpu".parse::<Backend>()), (Ok(Backend::Wgpu), Ok(Backend::Wgpu)));
+        assert_eq!("metal".parse::<Backend>().unwrap_err(), "unknown backend 'metal' (one of: cpu, wgpu, auto)");
         let r = Rasterizer::new(Backend::Cpu).unwrap();
         assert_eq!((r.backend(), r.backend_name()), (Backend::Cpu, "cpu"));
     }
@@ -182,7 +163,7 @@ mod tests {
     fn without_the_feature_wgpu_is_an_error_and_auto_is_cpu() {
         assert!(matches!(
             Rasterizer::new(Backend::Wgpu),
-            Err(RasterError::BackendUnavailable(_))
+            Err(crate::RasterError::BackendUnavailable(_))
         ));
         assert_eq!(Rasterizer::new(Backend::Auto).unwrap().backend(), Backend::Cpu);
     }

@@ -41,7 +41,7 @@ pub mod exposure;
 pub mod capture_path;
 pub mod floaters;
 pub mod init;
-pub mod memory;
+pub mod training_memory;
 pub mod mesh;
 pub mod model;
 pub mod params;

@@ -1,11 +1,12 @@
 //! The SH degree of each iteration (docs/method.md §Parameters): the paper's schedule, or under
-//! [`ShPolicy::Adaptive`] only while the newest band pays on the training views.
+//! [`ShPolicy::Adaptive`] only while the newest band pays on the training views. Free functions
+//! over the parts of the training state they change; the trainer calls them once per step.
 
-use crate::config::ShPolicy;
+use crate::config::{ShPolicy, TrainConfig};
 use crate::error::Result;
 use crate::params::Param;
-use crate::trainer::Trainer;
-use gs_raster::RenderRequest;
+use gs_core::{Adam, Gaussians, Scene};
+use gs_raster::{RasterConfig, RenderRequest, Rasterizer};
 use serde::Serialize;
 
 /// Training views rendered to judge an SH band (evenly spread over the training set).
@@ -28,62 +29,74 @@ pub struct ShBandDecision {
     pub degree: u32,
 }
 
-impl Trainer<'_> {
-    /// Sets the SH degree of iteration `it` from the schedule and, under
-    /// [`ShPolicy::Adaptive`], judges the newest band at a scheduled rise. The rule only
-    /// reads the degree of the previous iteration (stored in checkpoints), so a resumed run
-    /// takes the same decisions.
-    pub(crate) fn update_sh_degree(&mut self, it: u64) -> Result<Option<ShBandDecision>> {
-        let cfg = &self.config;
-        let scheduled = cfg.sh_degree(it);
-        let current = self.state.gaussians.sh_degree;
-        let adaptive = cfg.sh_policy == ShPolicy::Adaptive && cfg.sh_degree_interval > 0 && it > 1;
-        if !adaptive || scheduled <= current {
-            self.state.gaussians.sh_degree = scheduled;
-            return Ok(None);
-        }
-        if scheduled > current + 1 || current == 0 {
-            // Behind the schedule: an earlier band did not pay, the degree stays. Degree 0 → 1:
-            // band 1 is always tried.
-            if current == 0 && scheduled == 1 {
-                self.state.gaussians.sh_degree = 1;
-            }
-            return Ok(None);
-        }
-        // A scheduled rise from `band` to `band + 1`: does band `band` pay on the training views?
-        let band = current;
-        let [l1_without, l1_with] = [self.judge_l1(band - 1)?, self.judge_l1(band)?];
-        let gain = if l1_without > 0.0 { (l1_without - l1_with) / l1_without } else { 0.0 };
-        let kept = gain >= self.config.sh_min_gain as f64;
-        let degree = if kept {
-            band + 1
-        } else {
-            // Drop band `band`: zero its coefficients and moments so nothing drifts there.
-            let coeffs = (band * band) as usize..((band + 1) * (band + 1)) as usize;
-            for sh in &mut self.state.gaussians.sh {
-                sh[coeffs.clone()].iter_mut().for_each(|c| *c = [0.0; 3]);
-            }
-            // The SH-rest rows hold coefficients 1..16, three floats each.
-            self.state.adam.zero_columns(Param::ShRest.name(), (coeffs.start - 1) * 3..(coeffs.end - 1) * 3)?;
-            band - 1
-        };
-        self.state.gaussians.sh_degree = degree;
-        Ok(Some(ShBandDecision { band, l1_without, l1_with, gain, kept, degree }))
+/// Sets the SH degree of iteration `it` from the schedule and, under
+/// [`ShPolicy::Adaptive`], judges the newest band at a scheduled rise: `judge_l1(g, degree)`
+/// renders `g` at `degree` and returns the mean L1 of the judged views ([`judge_l1`]). The rule
+/// only reads the degree of the previous iteration (stored in checkpoints), so a resumed run
+/// takes the same decisions.
+pub(crate) fn update_sh_degree(
+    cfg: &TrainConfig,
+    gaussians: &mut Gaussians,
+    adam: &mut Adam,
+    it: u64,
+    mut judge_l1: impl FnMut(&mut Gaussians, u32) -> Result<f64>,
+) -> Result<Option<ShBandDecision>> {
+    let scheduled = cfg.sh_degree(it);
+    let current = gaussians.sh_degree;
+    let adaptive = cfg.sh_policy == ShPolicy::Adaptive && cfg.sh_degree_interval > 0 && it > 1;
+    if !adaptive || scheduled <= current {
+        gaussians.sh_degree = scheduled;
+        return Ok(None);
     }
+    if scheduled > current + 1 || current == 0 {
+        // Behind the schedule: an earlier band did not pay, the degree stays. Degree 0 → 1:
+        // band 1 is always tried.
+        if current == 0 && scheduled == 1 {
+            gaussians.sh_degree = 1;
+        }
+        return Ok(None);
+    }
+    // A scheduled rise from `band` to `band + 1`: does band `band` pay on the training views?
+    let band = current;
+    let [l1_without, l1_with] = [judge_l1(gaussians, band - 1)?, judge_l1(gaussians, band)?];
+    let gain = if l1_without > 0.0 { (l1_without - l1_with) / l1_without } else { 0.0 };
+    let kept = gain >= cfg.sh_min_gain as f64;
+    let degree = if kept {
+        band + 1
+    } else {
+        // Drop band `band`: zero its coefficients and moments so nothing drifts there.
+        let coeffs = (band * band) as usize..((band + 1) * (band + 1)) as usize;
+        for sh in &mut gaussians.sh {
+            sh[coeffs.clone()].iter_mut().for_each(|c| *c = [0.0; 3]);
+        }
+        // The SH-rest rows hold coefficients 1..16, three floats each.
+        adam.zero_columns(Param::ShRest.name(), (coeffs.start - 1) * 3..(coeffs.end - 1) * 3)?;
+        band - 1
+    };
+    gaussians.sh_degree = degree;
+    Ok(Some(ShBandDecision { band, l1_without, l1_with, gain, kept, degree }))
+}
 
-    /// Mean L1 of the judged training views rendered at SH degree `degree`.
-    fn judge_l1(&mut self, degree: u32) -> Result<f64> {
-        let n = SH_JUDGE_VIEWS.min(self.train_views.len());
-        let views: Vec<usize> = (0..n).map(|k| self.train_views[k * self.train_views.len() / n]).collect();
-        let req = RenderRequest { color: true, alpha: false, ..RenderRequest::default() };
-        self.state.gaussians.sh_degree = degree;
-        let mut l1 = 0.0f64;
-        for &v in &views {
-            let view = &self.scene.views[v];
-            let img = self.rasterizer.render(&self.state.gaussians, &view.camera, &req, &self.raster)?.color.expect("requested");
-            let sum: f64 = img.data().iter().zip(view.image.data()).map(|(a, b)| (a - b).abs() as f64).sum();
-            l1 += sum / img.data().len() as f64 / views.len() as f64;
-        }
-        Ok(l1)
+/// Mean L1 of the judged training views (up to [`SH_JUDGE_VIEWS`] of `train_views`, evenly
+/// spread) with `g` rendered at SH degree `degree` (left set on `g`).
+pub(crate) fn judge_l1(
+    g: &mut Gaussians,
+    degree: u32,
+    scene: &Scene,
+    train_views: &[usize],
+    rasterizer: &mut Rasterizer,
+    raster: &RasterConfig,
+) -> Result<f64> {
+    let n = SH_JUDGE_VIEWS.min(train_views.len());
+    let views: Vec<usize> = (0..n).map(|k| train_views[k * train_views.len() / n]).collect();
+    let req = RenderRequest { color: true, alpha: false, ..RenderRequest::default() };
+    g.sh_degree = degree;
+    let mut l1 = 0.0f64;
+    for &v in &views {
+        let view = &scene.views[v];
+        let img = rasterizer.render(g, &view.camera, &req, raster)?.color.expect("requested");
+        let sum: f64 = img.data().iter().zip(view.image.data()).map(|(a, b)| (a - b).abs() as f64).sum();
+        l1 += sum / img.data().len() as f64 / views.len() as f64;
     }
+    Ok(l1)
 }

@@ -16,7 +16,7 @@ use crate::exposure::Exposure;
 use crate::init::initial_gaussians;
 use crate::model::TrainedModel;
 use crate::plan::{StepPlan, plan_step};
-use crate::sh_policy::ShBandDecision;
+use crate::sh_policy::{self, ShBandDecision};
 use crate::source_depths::SourceDepths;
 use crate::terms::LossValues;
 use gs_core::{Adam, Gaussians, Image, NeighbourRule, Scene};
@@ -197,10 +197,10 @@ impl<'s> Trainer<'s> {
         })
     }
 
-    /// The run's estimated peak memory ([`crate::memory`]), before training allocates its
+    /// The run's estimated peak memory ([`crate::training_memory`]), before training allocates its
     /// caches and grows the model.
-    pub fn memory_estimate(&self) -> crate::memory::TrainMemoryEstimate {
-        crate::memory::estimate(self.scene, &self.train_views, &self.config, &self.budget, self.state.gaussians.len())
+    pub fn memory_estimate(&self) -> crate::training_memory::TrainMemoryEstimate {
+        crate::training_memory::estimate(self.scene, &self.train_views, &self.config, &self.budget, self.state.gaussians.len())
     }
 
     /// The scene's Gaussian budget ([`crate::budget`]).
@@ -343,7 +343,11 @@ impl<'s> Trainer<'s> {
     /// One training iteration: plan it, set the SH degree, execute the plan, then refine.
     pub fn step(&mut self) -> Result<StepReport> {
         let plan = self.plan();
-        let sh_band = self.update_sh_degree(plan.iteration)?;
+        let (scene, views, rasterizer, raster) = (self.scene, &self.train_views, &mut self.rasterizer, &self.raster);
+        let s = &mut self.state;
+        let sh_band = sh_policy::update_sh_degree(&self.config, &mut s.gaussians, &mut s.adam, plan.iteration, |g, degree| {
+            sh_policy::judge_l1(g, degree, scene, views, rasterizer, raster)
+        })?;
         let losses = self.execute(&plan)?;
         let refined = self.refine(&plan)?;
         self.state.iteration = plan.iteration;

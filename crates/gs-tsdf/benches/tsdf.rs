@@ -6,7 +6,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use gs_core::glam::DVec3;
-use gs_tsdf::synthetic::{Primitive, orbit_cameras, render_depth};
+use gs_tsdf::analytic_depth::{Primitive, orbit_cameras, render_depth};
 use gs_tsdf::{TsdfConfig, TsdfVolume, point_metrics};
 
 fn scene() -> Vec<Primitive> {

@@ -177,7 +177,7 @@ pub fn filter_depths(cameras: &[&Camera], depths: &mut [&mut Image], neighbours:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synthetic::{Primitive, orbit_cameras, render_depth};
+    use crate::analytic_depth::{Primitive, orbit_cameras, render_depth};
     use gs_core::glam::{DVec2, DVec3};
 
     /// The f64 reference of [`round_trip`] through [`Camera`]'s own projection.

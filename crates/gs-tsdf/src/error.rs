@@ -32,7 +32,7 @@ pub enum TsdfError {
     /// The operating system refused the memory for the blocks of a view.
     #[error(
         "out of memory: {blocks} TSDF blocks need {} of block storage; use a larger voxel size",
-        crate::memory::format_bytes(*bytes)
+        format_bytes(*bytes)
     )]
     OutOfMemory {
         /// Blocks that would exist after this view.
@@ -58,3 +58,31 @@ pub enum TsdfError {
 
 /// `Result` with [`TsdfError`].
 pub type Result<T> = std::result::Result<T, TsdfError>;
+
+/// `bytes` in words with binary units ("512 B", "3.2 MiB", "14.1 GiB"), as this crate's messages
+/// and its callers' print them.
+pub fn format_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["KiB", "MiB", "GiB", "TiB", "PiB"];
+    if bytes < 1024 {
+        return format!("{bytes} B");
+    }
+    let mut v = bytes as f64 / 1024.0;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    format!("{v:.1} {}", UNITS[u])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bytes_in_words() {
+        assert_eq!(format_bytes(512), "512 B");
+        assert_eq!(format_bytes(3 * 1024 * 1024 + 200 * 1024), "3.2 MiB");
+        assert_eq!(format_bytes(8 << 30), "8.0 GiB");
+    }
+}

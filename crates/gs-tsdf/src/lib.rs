@@ -1,7 +1,7 @@
 //! Sparse voxel-block TSDF fusion, marching cubes, mesh clean-up and mesh metrics.
 //!
 //! ```
-//! use gs_tsdf::{TsdfConfig, TsdfVolume, synthetic::{Primitive, orbit_cameras, render_depth}};
+//! use gs_tsdf::{TsdfConfig, TsdfVolume, analytic_depth::{Primitive, orbit_cameras, render_depth}};
 //! use gs_core::glam::DVec3;
 //!
 //! // Fuse exact depth maps of a unit sphere seen from 30 cameras and extract its surface.
@@ -29,25 +29,25 @@
 //! * [`clean`]: connected components (absolute or relative size), degenerate / unreferenced
 //!   elements, mask culling.
 //! * [`simplify`]: quadric-error simplification to a world-space error bound or a count.
-//! * [`memory`]: the peak-memory estimate of a fusion, made before allocating it.
+//! * [`fusion_memory`]: the peak-memory estimate of a fusion, made before allocating it.
 //! * [`metrics`]: area-weighted sampling, accuracy / completeness / Chamfer / F1.
 
+pub mod analytic_depth;
 pub mod clean;
 pub mod consistency;
 pub mod error;
 pub mod extract;
-pub mod memory;
+pub mod fusion_memory;
 mod mc_table;
 pub mod metrics;
 pub mod simplify;
-pub mod synthetic;
 pub mod volume;
 
 pub use clean::{ComponentFilter, ComponentReport, clean_mesh, cull_by_masks, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
 pub use consistency::{ConsistencyConfig, ConsistencyReport, filter_depths};
-pub use error::{Result, TsdfError};
+pub use error::{Result, TsdfError, format_bytes};
 pub use extract::ExtractOptions;
-pub use memory::{BlockCensus, MemoryEstimate, format_bytes};
+pub use fusion_memory::{BlockCensus, MemoryEstimate};
 pub use metrics::{Aabb, EvalOptions, EvalReport, PointMetrics, evaluate_meshes, point_metrics, sample_surface};
 pub use simplify::{SimplifyReport, SimplifyTarget, simplify_mesh};
 pub use volume::{IntegrateStats, TsdfConfig, TsdfVolume};

@@ -3,7 +3,7 @@
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Image, Intrinsics, TriangleMesh};
-use gs_tsdf::synthetic::{Primitive, orbit_cameras, render_depth};
+use gs_tsdf::analytic_depth::{Primitive, orbit_cameras, render_depth};
 use gs_tsdf::{ExtractOptions, TsdfConfig, TsdfError, TsdfVolume};
 use std::collections::HashMap;
 

@@ -15,7 +15,7 @@ use crate::budget::Budget;
 use crate::config::TrainConfig;
 use gs_core::Scene;
 use gs_features::ExtractOptions;
-use gs_tsdf::memory::format_bytes;
+use gs_tsdf::format_bytes;
 
 /// Bytes per Gaussian at the peak: 59 parameters (236 B), Adam's two moments (472 B), their
 /// gradients (236 B), densification statistics (16 B), the rasterizer's projected record and

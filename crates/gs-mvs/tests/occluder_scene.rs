@@ -2,7 +2,7 @@
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Image, Intrinsics, NeighbourRule, Rng};
-use gs_mvs::synthetic::{AnalyticScene, AxisBox};
+use gs_mvs::analytic_scene::{AnalyticScene, AxisBox};
 use gs_mvs::{
     MapView, NccMode, PhotometricConfig, PhotometricReference, PhotometricSource, SourceSelection,
     SourceViewSelector, compute_visibility, photometric_loss,

@@ -2,7 +2,7 @@
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Image};
-use gs_tsdf::synthetic::{Primitive, orbit_cameras, render_depth};
+use gs_tsdf::analytic_depth::{Primitive, orbit_cameras, render_depth};
 use gs_tsdf::{BlockCensus, ComponentFilter, TsdfConfig, TsdfVolume, clean_mesh};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::Mutex;

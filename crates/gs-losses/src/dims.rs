@@ -1,6 +1,5 @@
-//! The shared float trait (re-exported from gs-core) and image dimensions for the kernels.
-
-pub use gs_core::real::Real;
+//! Image dimensions of the kernels' row-major buffers, and the deterministic parallel sum they
+//! reduce with. (The float trait [`crate::Real`] is gs-core's, re-exported at the crate root.)
 
 /// Size of a row-major `[H][W][C]` buffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -29,7 +29,7 @@ pub fn block_bytes(with_color: bool) -> u64 {
 /// sort order, neighbour table and per-block vertex lists (≈ 100 B/block), the crossing-edge
 /// masks of surface blocks (288 B), the vertices (15 B) and triangles (12 B) of a surface
 /// crossing a block in growing vectors, held again while they are joined and again while the
-/// clean-up copies the mesh. Measured on a fused sphere at ≈ 8 kB per block (tests/memory.rs);
+/// clean-up copies the mesh. Measured on a fused sphere at ≈ 8 kB per block (tests/fusion_memory.rs);
 /// this rounds that up by half.
 pub const EXTRACT_BYTES_PER_BLOCK: u64 = 12 * 1024;
 
@@ -63,21 +63,6 @@ impl MemoryEstimate {
     pub fn peak_bytes(&self) -> u64 {
         self.volume_bytes.saturating_add(self.extract_bytes)
     }
-}
-
-/// `bytes` in words with binary units ("512 B", "3.2 MiB", "14.1 GiB").
-pub fn format_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 5] = ["KiB", "MiB", "GiB", "TiB", "PiB"];
-    if bytes < 1024 {
-        return format!("{bytes} B");
-    }
-    let mut v = bytes as f64 / 1024.0;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    format!("{v:.1} {}", UNITS[u])
 }
 
 /// Counts the blocks probe views would allocate, without allocating voxels (see the module
@@ -172,12 +157,5 @@ mod tests {
         assert!((e as f64 - 900.0 * 1.5f64.powi(2)).abs() < 2.0, "{e}");
         // Every view probed: exact.
         assert_eq!(extrapolate_blocks(3, 2, 5, 3, 3), 5);
-    }
-
-    #[test]
-    fn bytes_in_words() {
-        assert_eq!(format_bytes(512), "512 B");
-        assert_eq!(format_bytes(3 * 1024 * 1024 + 200 * 1024), "3.2 MiB");
-        assert_eq!(format_bytes(8 << 30), "8.0 GiB");
     }
 }
