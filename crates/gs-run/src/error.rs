@@ -1,4 +1,4 @@
-//! The error type of gs-run (docs/architecture.md §Errors): a refusal in words, or a library
+//! The error type of gs-run (docs/architecture.md §Errors and files): a refusal in words, or a library
 //! error with the context it happened in. Messages name the file and the problem.
 
 use thiserror::Error;
