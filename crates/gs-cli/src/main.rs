@@ -1,14 +1,9 @@
 //! `vagsl`: posed photographs → surface mesh and Gaussian splats (VA-GS).
 //!
-//! A thin front end: every subcommand parses its arguments, calls the gs-* crates and prints
-//! a report. Errors are reported with their full cause chain and a non-zero exit status.
+//! A thin front end: every subcommand parses its arguments, calls the gs-* crates (run folders,
+//! fingerprints and pairing checks live in gs-run) and prints a report. Errors are reported with their full cause chain and a non-zero exit status.
 
 mod commands;
-mod memory;
-mod metrics_log;
-mod out_folder;
-mod provenance;
-mod run_dir;
 mod scene_path;
 mod serve;
 mod signals;

@@ -194,6 +194,16 @@ fn a_mesh_of_another_model_is_refused_by_its_readers() {
     let obj = dir.path().join("m.obj");
     let (ok, _, err) = vagsl(&["export", a.to_str().unwrap(), "-o", obj.to_str().unwrap()]);
     assert!(ok, "{err}");
+    // The export and the renders record the model they came from, as the mesh does.
+    assert_eq!(fa.len(), 32, "the model fingerprint covers every parameter, SH included");
+    let index: serde_json::Value = serde_json::from_slice(&std::fs::read(a.join("exports.json")).unwrap()).unwrap();
+    assert_eq!(index["exports"][0]["made_from"]["model_fingerprint"], fa.as_str(), "{index}");
+    assert_eq!(index["exports"][0]["format"], "obj", "{index}");
+    let renders = dir.path().join("a_renders");
+    let (ok, _, err) = vagsl(&["render", a.to_str().unwrap(), "--backend", "cpu", "-o", renders.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let record: serde_json::Value = serde_json::from_slice(&std::fs::read(renders.join("renders.json")).unwrap()).unwrap();
+    assert_eq!(record["made_from"]["model_fingerprint"], fa.as_str(), "{record}");
     // A's mesh beside B's model (as a mesh made while B was re-trained): refused, naming both.
     for f in ["mesh.ply", "mesh.json"] {
         std::fs::copy(a.join(f), b.join(f)).unwrap();

@@ -1,6 +1,6 @@
 //! `vagsl eval-images`: PSNR / SSIM / LPIPS of a run's held-out views (docs/method.md §Metrics).
 
-use crate::run_dir::{OpenRun, write_json};
+use gs_run::{OpenRun, write_json};
 use anyhow::Result;
 use std::path::PathBuf;
 
@@ -70,6 +70,6 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
             metrics.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
         );
     }
-    write_json(&run.dir.join(file), &crate::provenance::with_made_from(&metrics, &run.made_from)?)
-        .map_err(|e| e.context("the scores above were computed but could not be saved"))
+    write_json(&run.dir.join(file), &gs_run::provenance::with_made_from(&metrics, &run.made_from)?)
+        .map_err(|e| anyhow::Error::new(e).context("the scores above were computed but could not be saved"))
 }

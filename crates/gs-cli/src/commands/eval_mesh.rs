@@ -63,7 +63,7 @@ pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
 /// Runs `vagsl eval-mesh`; a mesh inside a run folder gets its scores saved there as
 /// `eval_mesh.json` (shown by `vagsl view`).
 pub fn run(args: &EvalMeshArgs) -> Result<()> {
-    let saved_in = args.pred.parent().filter(|d| crate::out_folder::holds_run(d));
+    let saved_in = args.pred.parent().filter(|d| gs_run::run_folder::holds_run(d));
     if let Some(run) = saved_in {
         // A link, device or folder in the scores' place is refused before the work.
         gs_io::check_output_path(&run.join("eval_mesh.json"))?;
@@ -97,13 +97,13 @@ pub fn run(args: &EvalMeshArgs) -> Result<()> {
     // read-only folder does not cost the numbers).
     if let Some(run) = saved_in {
         let mut saved = serde_json::to_value(&report.metrics)?;
-        saved["ground_truth"] = serde_json::Value::from(crate::run_dir::absolute_scene_path(&args.gt).display().to_string());
+        saved["ground_truth"] = serde_json::Value::from(gs_run::run_config::absolute_scene_path(&args.gt).display().to_string());
         // The scores describe the mesh, so they carry the record of the model it came from.
-        if let Some(m) = crate::provenance::read_made_from(&args.pred.with_extension("json")) {
+        if let Some(m) = gs_run::provenance::read_made_from(&args.pred.with_extension("json")) {
             saved["made_from"] = serde_json::to_value(m)?;
         }
-        crate::run_dir::write_json(&run.join("eval_mesh.json"), &saved)
-            .map_err(|e| e.context("the scores above were computed but could not be saved"))?;
+        gs_run::write_json(&run.join("eval_mesh.json"), &saved)
+            .map_err(|e| anyhow::Error::new(e).context("the scores above were computed but could not be saved"))?;
     }
     Ok(())
 }

@@ -1,6 +1,6 @@
 //! `vagsl export`: a run's model or mesh in another format (gs-export does the encoding).
 
-use crate::run_dir::read_run_model;
+use gs_run::read_run_model;
 use anyhow::{Context, Result, bail};
 use gs_export::Format;
 use std::path::PathBuf;
@@ -34,15 +34,15 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         bail!("{}: no such run folder (give a `vagsl train` output folder)", args.run.display());
     }
     // Never one of a run's own files: a compressed copy must not replace the model or mesh.
-    crate::out_folder::check_output_file(&args.output, &format!("the {format} file"), &[])?;
+    gs_run::run_folder::check_output_file(&args.output, &format!("the {format} file"), &[])?;
+    let src = args.run.join("mesh.ply");
+    if format.is_mesh() && !src.is_file() {
+        bail!("{}: the run has no mesh.ply; make it first with `vagsl mesh {}`", args.run.display(), args.run.display());
+    }
+    let (config, gaussians) = read_run_model(&args.run)?;
+    let current = gs_run::MadeFrom::of(&config, &gaussians);
     let summary = if format.is_mesh() {
-        let src = args.run.join("mesh.ply");
-        if !src.is_file() {
-            bail!("{}: the run has no mesh.ply; make it first with `vagsl mesh {}`", args.run.display(), args.run.display());
-        }
-        let (config, gaussians) = read_run_model(&args.run)?;
-        let current = crate::provenance::MadeFrom::of(&config, &gaussians);
-        crate::provenance::check(&src, &args.run.join("mesh.json"), &current, &format!("vagsl mesh {}", args.run.display()))?;
+        gs_run::provenance::check(&src, &args.run.join("mesh.json"), &current, &format!("vagsl mesh {}", args.run.display()))?;
         let mesh = gs_io::read_mesh_ply(&src)?;
         if mesh.triangles.is_empty() {
             bail!("{}: the mesh has no triangles (an empty mesh); nothing to export", src.display());
@@ -51,12 +51,24 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         let colours = if mesh.colors.is_some() { "with vertex colours" } else { "without colours" };
         format!("{} vertices, {} triangles {colours}", mesh.positions.len(), mesh.triangles.len())
     } else {
-        let (_, gaussians) = read_run_model(&args.run)?;
         gs_export::write_gaussians(format, &args.output, &gaussians)?;
         let degree = if matches!(format, Format::Splat) { 0 } else { gaussians.sh_degree };
         format!("{} Gaussians, SH degree {degree}", gaussians.len())
     };
+    record(&args.run, &args.output, format, &current);
     let size = std::fs::metadata(&args.output).with_context(|| format!("{}: written but cannot be read back", args.output.display()))?.len();
     println!("export: {format}: {summary} → {} ({size} bytes)", args.output.display());
     Ok(())
+}
+
+/// Records the export in the run's index `RUN/exports.json` with the model it was made from
+/// (docs/architecture.md §Provenance). The export itself is written by then, so an index that
+/// cannot be written (a read-only run, a link in its place) is a warning, not a failure.
+fn record(run: &std::path::Path, output: &std::path::Path, format: Format, made_from: &gs_run::MadeFrom) {
+    let index = run.join(gs_run::provenance::EXPORTS_INDEX);
+    let recorded = gs_run::run_folder::check_output_file(&index, "the run's index of exports", std::slice::from_ref(&index))
+        .and_then(|()| gs_run::provenance::record_export(run, output, format.name(), made_from));
+    if let Err(e) = recorded {
+        eprintln!("warning: the export was written, but not recorded in {}: {e}", index.display());
+    }
 }

@@ -1,6 +1,7 @@
 //! `vagsl mesh`: TSDF fusion of a trained run's rendered plane depths (docs/method.md §TSDF).
 
-use crate::run_dir::{OpenRun, SceneSource, load_scene, write_json};
+use gs_run::run_config::{SceneSource, load_scene};
+use gs_run::{OpenRun, write_json};
 use anyhow::{Result, bail};
 use gs_train::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, Simplify, extract_mesh, fuse_mesh};
 use std::path::{Path, PathBuf};
@@ -77,7 +78,7 @@ pub struct MeshArgs {
     pub bounds: Option<gs_tsdf::Aabb>,
     /// Refuse, before fusing, a mesh whose estimated memory exceeds this (e.g. 8GiB, 500MB;
     /// default 60 % of the available memory, or of 4 GiB when /proc/meminfo is unreadable).
-    #[arg(long, value_parser = crate::memory::bytes_arg)]
+    #[arg(long, value_parser = gs_run::budget_check::bytes_arg)]
     pub max_memory: Option<u64>,
 }
 
@@ -151,7 +152,7 @@ fn options(args: &MeshArgs) -> Result<MeshOptions> {
         simplify,
         use_masks: args.masks,
         bounds: args.bounds,
-        max_memory: Some(crate::memory::limit(args.max_memory)),
+        max_memory: Some(gs_run::budget_check::limit(args.max_memory)),
         ..d
     })
 }
@@ -165,8 +166,8 @@ pub fn run(args: &MeshArgs) -> Result<()> {
     let home = args.depth_dir.as_deref().unwrap_or(&args.run);
     let own = [home.join("mesh.ply"), home.join("mesh.json")];
     let path = args.output.clone().unwrap_or_else(|| own[0].clone());
-    crate::out_folder::check_output_file(&path, "the mesh", &own)?;
-    crate::out_folder::check_output_file(&report_path(&path), "the mesh's report", &own)?;
+    gs_run::run_folder::check_output_file(&path, "the mesh", &own)?;
+    gs_run::run_folder::check_output_file(&report_path(&path), "the mesh's report", &own)?;
     let (mesh, report, made_from) = match &args.depth_dir {
         Some(dir) => {
             let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
@@ -191,7 +192,7 @@ pub fn run(args: &MeshArgs) -> Result<()> {
     }
     gs_io::write_mesh_ply(&path, &mesh)?;
     match &made_from {
-        Some(m) => write_json(&report_path(&path), &crate::provenance::with_made_from(&report, m)?)?,
+        Some(m) => write_json(&report_path(&path), &gs_run::provenance::with_made_from(&report, m)?)?,
         None => write_json(&report_path(&path), &report)?,
     }
     let source = match args.depth_dir {

@@ -7,7 +7,6 @@ pub mod export;
 pub mod info;
 pub mod mesh;
 pub mod render;
-pub mod resume;
 pub mod synth;
 pub mod tradeoff;
 pub mod train;

@@ -1,6 +1,6 @@
 //! `vagsl render`: colour, plane depth (EXR) and world-space normal maps (PNG) of a run's views.
 
-use crate::run_dir::OpenRun;
+use gs_run::OpenRun;
 use anyhow::{Context, Result};
 use gs_core::Image;
 use gs_raster::RenderRequest;
@@ -134,9 +134,12 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     for stem in &stems {
         let kinds: &[&str] = if args.mesh.is_some() { &[".png", "_depth.exr", "_normal.png", "_mesh.png"] } else { &[".png", "_depth.exr", "_normal.png"] };
         for kind in kinds {
-            crate::out_folder::check_output_file(&dir.join(format!("{stem}{kind}")), "a render", &[])?;
+            gs_run::run_folder::check_output_file(&dir.join(format!("{stem}{kind}")), "a render", &[])?;
         }
     }
+    // The folder's record of the model its renders come from (docs/architecture.md §Provenance).
+    let record = dir.join(gs_run::provenance::RENDERS_RECORD);
+    gs_run::run_folder::check_output_file(&record, "the renders' record", &[])?;
     let req = RenderRequest { color: true, alpha: true, normal: true, distance: true, plane_depth: true, ..Default::default() };
     let mut rasterizer = super::rasterizer(args.backend)?;
     let bvh = match &args.mesh {
@@ -157,6 +160,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
             gs_io::write_png(&dir.join(format!("{stem}_mesh.png")), &mesh_shaded(bvh, &view.camera)?)?;
         }
     }
+    let names: Vec<String> = views.iter().map(|&i| run.scene.views[i].name.clone()).collect();
+    gs_run::provenance::write_renders_record(&dir, name, &names, &run.made_from)?;
     println!(
         "rendered {} views (colour PNG, plane depth EXR, world normal PNG{}) → {}",
         views.len(),

@@ -4,7 +4,9 @@
 //! a Markdown / JSON table and an SVG plot of mesh error against wall time.
 
 use crate::commands::eval_mesh::read_mesh;
-use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_path, load_scene, peak_memory_bytes, write_json};
+use gs_run::open_run::peak_memory_bytes;
+use gs_run::run_config::{SceneSource, absolute_scene_path, load_scene};
+use gs_run::{RunConfig, SceneFingerprint, write_json};
 use anyhow::{Context, Result, bail};
 use gs_core::TriangleMesh;
 use gs_train::{LossSwitches, MeshOptions, Preset, TrainConfig, Trainer};
@@ -61,7 +63,7 @@ pub struct TradeoffArgs {
     /// Refuse, before fusing, a rung's mesh whose estimated memory exceeds this (as `vagsl mesh
     /// --max-memory`: e.g. 8GiB, 500MB; default 60 % of the available memory, or of 4 GiB
     /// when /proc/meminfo is unreadable).
-    #[arg(long, value_parser = crate::memory::bytes_arg)]
+    #[arg(long, value_parser = gs_run::budget_check::bytes_arg)]
     pub max_memory: Option<u64>,
 }
 
@@ -210,7 +212,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         let t1 = Instant::now();
         // The same memory check as `vagsl mesh`: refused before any volume is allocated.
         let mesh_options =
-            MeshOptions { voxel_size: args.voxel_size, max_memory: Some(crate::memory::limit(args.max_memory)), ..MeshOptions::default() };
+            MeshOptions { voxel_size: args.voxel_size, max_memory: Some(gs_run::budget_check::limit(args.max_memory)), ..MeshOptions::default() };
         let (mesh, _) = trainer.extract_mesh(&mesh_options).with_context(|| format!("meshing the '{name}' run"))?;
         let mesh_seconds = t1.elapsed().as_secs_f64();
         let run_config = RunConfig {

@@ -1,6 +1,8 @@
 //! `vagsl train`: the VA-GS training run, with progress, checkpoints and a report.
 
-use crate::run_dir::{RunConfig, SceneFingerprint, SceneSource, absolute_scene_path, load_scene, peak_memory_bytes, view_indices, write_json};
+use gs_run::open_run::peak_memory_bytes;
+use gs_run::run_config::{SceneSource, absolute_scene_path, load_scene, view_indices};
+use gs_run::{MadeFrom, RunConfig, SceneFingerprint, write_json};
 use anyhow::{Context, Result, bail};
 use gs_train::{InitMode, Preset, ShPolicy, StepReport, TrainConfig, Trainer, checkpoint};
 use gs_train::checkpoint::Elapsed;
@@ -124,7 +126,7 @@ pub struct TrainArgs {
     /// Refuse, before training, a run whose estimated peak memory exceeds this (e.g. 8GiB,
     /// 500MB; default 60 % of the available memory, or of 4 GiB when /proc/meminfo is
     /// unreadable), as `vagsl mesh --max-memory`.
-    #[arg(long, value_parser = crate::memory::bytes_arg)]
+    #[arg(long, value_parser = gs_run::budget_check::bytes_arg)]
     pub max_memory: Option<u64>,
     /// Continue from a checkpoint: its settings, and the scene of its run's config.json (in
     /// the output folder, else beside the checkpoint), are used; training options are refused
@@ -133,7 +135,7 @@ pub struct TrainArgs {
     pub resume: Option<PathBuf>,
     /// The Chamfer-against-time curve (`--track-gt`, …).
     #[command(flatten)]
-    pub track: crate::metrics_log::TrackArgs,
+    pub track: TrackArgs,
     /// No progress bar (log a line every 500 iterations instead; also the default when stderr
     /// is not a terminal, e.g. redirected to a log file).
     #[arg(long)]
@@ -228,11 +230,12 @@ pub fn setting_flags(args: &TrainArgs) -> Vec<(&'static str, &'static str, serde
 /// `OUT/report.json`.
 #[derive(Debug, Serialize)]
 pub struct TrainReport {
-    /// The run this model belongs to: the `run_id` of config.json (see `OpenRun::open`).
-    pub run_id: String,
-    /// Fingerprint of the model this report describes (`run_dir::model_fingerprint`): the
-    /// report is written before point_cloud.ply, so a model that is not this one is noticed.
-    pub model_fingerprint: String,
+    /// The run this model belongs to (the `run_id` of config.json) and the fingerprint of
+    /// the model this report describes (`gs_run::model_fingerprint`), as the one provenance
+    /// record of every derived file: the report is written before point_cloud.ply, so a model
+    /// that is not this one is noticed (see `gs_run::OpenRun::open`).
+    #[serde(flatten)]
+    pub made_from: MadeFrom,
     /// Iterations completed.
     pub iterations: u64,
     /// Whether the run was stopped (Ctrl-C, SIGTERM, SIGHUP) before the last iteration.
@@ -311,7 +314,14 @@ fn start(args: &TrainArgs) -> Result<Start> {
     let (config, resumed, earlier, base) = match &args.resume {
         Some(p) => {
             let ck = checkpoint::load(p)?;
-            let base = super::resume::run_of_checkpoint(args, p, &ck.config)?;
+            let options = gs_run::resume::SceneOptions {
+                output: &args.output,
+                scene: args.scene.as_deref(),
+                resolution: args.resolution,
+                width: args.width,
+                eval: args.eval,
+            };
+            let base = Some(gs_run::resume::run_of_checkpoint(&options, &given_training_options(args), p, &ck.config)?);
             eprintln!("resuming {} at iteration {} (its configuration is used)", p.display(), ck.state.iteration);
             if ck.elapsed.is_none() {
                 eprintln!("note: this checkpoint predates format 3 and does not carry the earlier training time; report.json counts from the resume");
@@ -331,7 +341,7 @@ fn start(args: &TrainArgs) -> Result<Start> {
     };
     let run_id = match &base {
         Some(BaseRun { run: RunConfig { run_id: Some(id), .. }, resuming: true, .. }) => id.clone(),
-        _ => crate::run_dir::new_run_id(&config),
+        _ => gs_run::new_run_id(&config),
     };
     Ok(Start { config, resumed, earlier, base, source, run_id })
 }
@@ -362,7 +372,7 @@ fn check_base_scene(base: &BaseRun, source: &SceneSource, scene: &gs_core::Scene
 /// Runs `vagsl train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
     let out = &args.output;
-    crate::out_folder::check(out, args.force, args.resume.is_some())?;
+    gs_run::run_folder::check(out, args.force, args.resume.is_some())?;
     let Start { config, resumed, earlier, base, source, run_id } = start(args)?;
     let resumed_from = resumed.as_ref().map(|s| s.iteration);
     let t_load = Instant::now();
@@ -395,14 +405,17 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
     trainer.set_rasterizer(super::rasterizer(args.backend)?);
-    crate::memory::check_train(&trainer, args.max_memory)?;
-    let mesh_track = crate::metrics_log::MeshTrack::load(&args.track, crate::memory::limit(args.max_memory))?;
+    eprintln!("{}", gs_run::budget_check::check_train(&trainer, args.max_memory)?);
+    let mesh_track = load_mesh_track(&args.track, gs_run::budget_check::limit(args.max_memory))?;
     if config.ncc_scale > 1 {
-        trainer.set_grey_images(crate::run_dir::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
+        trainer.set_grey_images(gs_run::run_config::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
     // Everything that can refuse the run has run: only now is the folder touched.
-    let mut folder = crate::out_folder::prepare(out, args.force, args.resume.is_some())?;
+    let mut folder = gs_run::run_folder::prepare(out, args.force, args.resume.is_some())?;
+    if let Some(note) = &folder.resume_note {
+        eprintln!("{note}");
+    }
     let work = folder.work.clone();
     write_json(&work.join("config.json"), &run_config)?;
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
@@ -415,7 +428,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     }
 
     let mut elapsed = earlier.unwrap_or_default();
-    let mut curves = crate::metrics_log::MetricsLog::open(&work, resumed_from, config.iterations, !test_idx.is_empty(), mesh_track)?;
+    let mut curves = gs_run::metrics_log::MetricsLog::open(&work, resumed_from, config.iterations, !test_idx.is_empty(), mesh_track)?;
     let t0 = Instant::now();
     let super::train_loop::Looped { last, sh_bands, growth, floaters_removed, signal } =
         super::train_loop::train_loop((args, &work), &config, &mut trainer, &mut elapsed, (&mut curves, &test_idx))?;
@@ -428,8 +441,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
     let report = TrainReport {
-        run_id,
-        model_fingerprint: crate::run_dir::model_fingerprint(trainer.gaussians()),
+        made_from: MadeFrom::new(Some(run_id), trainer.gaussians()),
         iterations: trainer.iteration(),
         interrupted,
         gaussians: trainer.gaussians().len(),
@@ -455,7 +467,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     gs_io::write_gaussian_ply(&work.join("point_cloud.ply"), trainer.gaussians())?;
     write_exposure(&work, &run_config, &trainer)?;
     drop(curves);
-    folder.commit()?;
+    if let Some(note) = folder.commit()? {
+        eprintln!("{note}");
+    }
     warn_degenerate(&report, &config);
     let done_here = report.iterations - resumed_from.unwrap_or(0);
     println!(
@@ -523,4 +537,41 @@ fn growth_stopped(last: Option<(u64, gs_train::GrowthLimit)>, b: &gs_train::Budg
             if b.active { "" } else { " (no budget: ρ = 0)" }
         ),
     }
+}
+
+/// The training options of `args` that were given: on a resume the checkpoint's settings are
+/// used, so any of these would be ignored (gs_run::resume refuses them).
+fn given_training_options(a: &TrainArgs) -> Vec<&'static str> {
+    let schedule = [
+        (a.preset.is_some(), "--preset"),
+        (a.config.is_some(), "--config"),
+        (!a.set.is_empty(), "--set"),
+        (a.iterations.is_some(), "--iterations"),
+    ];
+    let schedule = schedule.into_iter().filter(|(g, _)| *g).map(|(_, name)| name);
+    schedule.chain(setting_flags(a).into_iter().map(|(flag, _, _)| flag)).collect()
+}
+
+/// `vagsl train`'s options of the mesh curve (gs_run::metrics_log).
+#[derive(Debug, Clone, clap::Args)]
+pub struct TrackArgs {
+    /// Ground-truth mesh (PLY or OBJ): at each held-out scoring point (10 per run and the
+    /// last iteration) mesh the model and log its Chamfer / F1 against this mesh in
+    /// OUT/metrics.jsonl (not counted as training time).
+    #[arg(long)]
+    pub track_gt: Option<PathBuf>,
+    /// With --track-gt: crop the mesh to the GT's bounding box grown by this fraction per side
+    /// (as `eval-mesh --crop-to-gt`; the object protocol uses 0.05).
+    #[arg(long, requires = "track_gt")]
+    pub track_crop_to_gt: Option<f64>,
+    /// With --track-crop-to-gt: also drop everything below this z (as `eval-mesh --min-z`).
+    #[arg(long, requires = "track_crop_to_gt")]
+    pub track_min_z: Option<f64>,
+}
+
+/// The mesh curve of `--track-gt` (None without it), fused under `max_memory` bytes.
+fn load_mesh_track(args: &TrackArgs, max_memory: u64) -> Result<Option<gs_run::metrics_log::MeshTrack>> {
+    let Some(path) = &args.track_gt else { return Ok(None) };
+    let gt = super::eval_mesh::read_mesh(path)?;
+    Ok(Some(gs_run::metrics_log::MeshTrack::new(path, gt, args.track_crop_to_gt, args.track_min_z, max_memory)?))
 }

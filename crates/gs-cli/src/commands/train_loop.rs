@@ -31,7 +31,7 @@ pub fn train_loop(
     config: &TrainConfig,
     trainer: &mut Trainer,
     elapsed: &mut Elapsed,
-    (curves, test): (&mut crate::metrics_log::MetricsLog, &[usize]),
+    (curves, test): (&mut gs_run::metrics_log::MetricsLog, &[usize]),
 ) -> Result<Looped> {
     let stop = crate::signals::StopRequest::install().context("installing the Ctrl-C / SIGTERM / SIGHUP handlers")?;
     // Without a terminal indicatif draws nothing, so a redirected run logs lines instead.
@@ -65,7 +65,7 @@ pub fn train_loop(
         match curves.record(tr, r, elapsed.total(), test, r.iteration == config.iterations) {
             Ok(scoring) => t_prev += scoring,
             Err(e) => {
-                curve_error = Some(e);
+                curve_error = Some(anyhow::Error::new(e));
                 return false;
             }
         }

@@ -1,7 +1,7 @@
 //! `vagsl view`: the report page of a run, `RUN/report.html` (gs-report), and with `--serve` a
 //! local web server for it.
 
-use crate::run_dir::OpenRun;
+use gs_run::OpenRun;
 use anyhow::{Context, Result};
 use gs_raster::RenderRequest;
 use gs_report::{PageData, ReportWriter, ViewScores};
@@ -31,7 +31,7 @@ pub struct ViewArgs {
 
 /// Runs `vagsl view`.
 pub fn run(args: &ViewArgs) -> Result<()> {
-    crate::out_folder::check_output_file(&args.run.join("report.html"), "the report page", &[args.run.join("report.html")])?;
+    gs_run::run_folder::check_output_file(&args.run.join("report.html"), "the report page", &[args.run.join("report.html")])?;
     let folder = args.run.join("report");
     if std::fs::symlink_metadata(&folder).is_ok_and(|m| !m.is_dir()) {
         anyhow::bail!("{}: is a link or a file, not the report's folder, and the report would replace it; move it away", folder.display());
@@ -39,8 +39,8 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     let run = OpenRun::open(&args.run, args.scene.as_deref())?;
     // The mesh and its scores shown must come from this model.
     let remake = format!("vagsl mesh {}", run.dir.display());
-    crate::provenance::check(&run.dir.join("mesh.ply"), &run.dir.join("mesh.json"), &run.made_from, &remake)?;
-    crate::provenance::check(&run.dir.join("eval_mesh.json"), &run.dir.join("eval_mesh.json"), &run.made_from, "vagsl eval-mesh --pred RUN/mesh.ply --gt GT")?;
+    gs_run::provenance::check(&run.dir.join("mesh.ply"), &run.dir.join("mesh.json"), &run.made_from, &remake)?;
+    gs_run::provenance::check(&run.dir.join("eval_mesh.json"), &run.dir.join("eval_mesh.json"), &run.made_from, "vagsl eval-mesh --pred RUN/mesh.ply --gt GT")?;
     let model = run.model();
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
     let mut rasterizer = super::rasterizer(args.backend)?;
@@ -83,6 +83,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         tradeoff_svg: tradeoff_svg(&run.dir),
     };
     let path = writer.finish(page)?;
+    gs_run::provenance::write_report_page_record(&run.dir, &run.made_from)?;
     println!(
         "wrote {} ({} views, {} Gaussians{}); open it in a browser{}",
         path.display(),

@@ -1,6 +1,8 @@
-//! `--max-memory`: byte sizes with units, and the default share of the machine's free memory.
+//! The memory check before work (docs/architecture.md §Extremes): byte sizes with units as
+//! `--max-memory` takes them, the default share of the machine's free memory, and the refusal
+//! of a training run whose estimated peak exceeds the limit.
 
-use anyhow::{Result, bail};
+use crate::error::{Result, refuse};
 
 /// Share of the available memory a job may plan to use by default.
 pub const DEFAULT_SHARE: f64 = 0.6;
@@ -16,7 +18,7 @@ pub fn parse_bytes(text: &str) -> Result<u64> {
     let split = t.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(t.len());
     let (num, unit) = (&t[..split], t[split..].trim());
     let Ok(value) = num.parse::<f64>() else {
-        bail!("'{text}' is not a size: expected a number with an optional unit, e.g. 8GiB or 500MB");
+        refuse!("'{text}' is not a size: expected a number with an optional unit, e.g. 8GiB or 500MB");
     };
     let scale: f64 = match unit.to_ascii_lowercase().as_str() {
         "" | "b" => 1.0,
@@ -28,11 +30,11 @@ pub fn parse_bytes(text: &str) -> Result<u64> {
         "m" | "mib" => 1024f64.powi(2),
         "g" | "gib" => 1024f64.powi(3),
         "t" | "tib" => 1024f64.powi(4),
-        _ => bail!("'{text}': unknown size unit '{unit}' (use B, kB, MB, GB, TB, KiB, MiB, GiB or TiB)"),
+        _ => refuse!("'{text}': unknown size unit '{unit}' (use B, kB, MB, GB, TB, KiB, MiB, GiB or TiB)"),
     };
     let bytes = value * scale;
     if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
-        bail!("'{text}' is not a usable memory size (at least 1 byte)");
+        refuse!("'{text}' is not a usable memory size (at least 1 byte)");
     }
     Ok(bytes as u64)
 }
@@ -68,19 +70,18 @@ pub fn limit(given: Option<u64>) -> u64 {
     given.unwrap_or_else(|| (available_bytes().unwrap_or(FALLBACK_AVAILABLE) as f64 * DEFAULT_SHARE) as u64)
 }
 
-/// Refuses a training run whose estimated peak ([`gs_train::memory`]) exceeds the
-/// `--max-memory` limit, with the estimate in words; prints the estimate otherwise.
-pub fn check_train(trainer: &gs_train::Trainer, given: Option<u64>) -> Result<()> {
+/// Refuses a training run whose estimated peak ([`gs_train::memory`]) exceeds the limit
+/// ([`limit`] of `given`), with the estimate in words; returns the estimate in words otherwise.
+pub fn check_train(trainer: &gs_train::Trainer, given: Option<u64>) -> Result<String> {
     let estimate = trainer.memory_estimate();
     let limit = limit(given);
     estimate.check(limit)?;
-    eprintln!(
+    Ok(format!(
         "memory estimate: about {} at the peak ({}); limit {}",
         gs_tsdf::format_bytes(estimate.peak_bytes()),
         estimate.describe(),
         gs_tsdf::format_bytes(limit)
-    );
-    Ok(())
+    ))
 }
 
 #[cfg(test)]

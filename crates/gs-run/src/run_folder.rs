@@ -1,13 +1,16 @@
-//! The output folder of `vagsl train`: a run already there is never overwritten silently,
-//! `--force` removes exactly the files vagsl writes into a run folder (and nothing a user put
-//! beside them), and a start that fails leaves no empty folder behind.
+//! The output folder of a training run (docs/architecture.md §Errors and files): a run
+//! already there is never overwritten silently, `--force` replaces exactly the files vagsl
+//! writes into a run folder (and nothing a user put beside them) only once the new model is
+//! written, a second `train` into the same folder is locked out, and every command's output
+//! file is checked before any work ([`check_output_file`]).
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Result, RunError, refuse};
 use std::path::Path;
 
 /// The files vagsl writes into a run folder: `train` (configuration, model, report,
 /// checkpoint, exposure, curves), `mesh` (mesh and its report), `eval-images` (its four score
-/// files), `eval-mesh` (its scores of the run's mesh) and `view` (the report page).
+/// files), `eval-mesh` (its scores of the run's mesh), `view` (the report page) and `export`
+/// (its index of the run's exports, [`crate::provenance::EXPORTS_INDEX`]).
 pub const RUN_FILES: &[&str] = &[
     "config.json",
     "point_cloud.ply",
@@ -23,6 +26,7 @@ pub const RUN_FILES: &[&str] = &[
     "eval_images_train_masked.json",
     "eval_mesh.json",
     "report.html",
+    "exports.json",
 ];
 
 /// The folders vagsl writes into a run folder: `render`'s default output and the report
@@ -39,10 +43,10 @@ pub fn holds_run(dir: &Path) -> bool {
 /// [`prepare`].
 pub fn check(out: &Path, force: bool, resume: bool) -> Result<()> {
     if out.exists() && !out.is_dir() {
-        bail!("{}: exists and is not a folder; give an output folder with -o", out.display());
+        refuse!("{}: exists and is not a folder; give an output folder with -o", out.display());
     }
     if holds_run(out) && !force && !resume {
-        bail!(
+        refuse!(
             "{}: this folder already holds a vagsl run (config.json or point_cloud.ply), which training would overwrite; give another output folder with -o, or pass --force to replace that run",
             out.display()
         );
@@ -72,6 +76,9 @@ pub struct Prepared {
     pub work: std::path::PathBuf,
     out: std::path::PathBuf,
     staged: bool,
+    /// With `resume`: the previous model's derived files removed, in words for the user
+    /// (`None` when there were none).
+    pub resume_note: Option<String>,
     _lock: std::fs::File,
 }
 
@@ -95,23 +102,26 @@ pub fn prepare(out: &Path, force: bool, resume: bool) -> Result<Prepared> {
         .with_context(|| format!("{}: cannot create the run's lock file", lock_path.display()))?;
     if let Err(e) = lock.try_lock() {
         match e {
-            std::fs::TryLockError::WouldBlock => bail!(
+            std::fs::TryLockError::WouldBlock => refuse!(
                 "{}: another `vagsl train` is writing this run folder now (it holds {LOCK_FILE}); wait for it to end, or give another output folder with -o",
                 out.display()
             ),
-            std::fs::TryLockError::Error(e) => return Err(e).with_context(|| format!("{}: cannot lock the run folder", lock_path.display())),
+            std::fs::TryLockError::Error(e) => {
+                return Err(RunError::Context { context: format!("{}: cannot lock the run folder", lock_path.display()), source: Box::new(e) });
+            }
         }
     }
     check(out, force, resume)?;
     gs_io::remove_stale_temps(out, "train");
+    let mut resume_note = None;
     if resume {
         let removed = remove_listed(out, &derived_files())?;
         if !removed.is_empty() {
-            eprintln!(
+            resume_note = Some(format!(
                 "--resume: removed the previous model's {} from {} (made from the model this run replaces)",
                 removed.join(", "),
                 out.display()
-            );
+            ));
         }
     }
     let staged = force && (RUN_FILES.iter().chain(RUN_FOLDERS).any(|f| out.join(f).exists()));
@@ -119,20 +129,20 @@ pub fn prepare(out: &Path, force: bool, resume: bool) -> Result<Prepared> {
     if staged {
         std::fs::create_dir(&work).with_context(|| format!("{}: cannot create the staging folder of the new run", work.display()))?;
     }
-    Ok(Prepared { work, out: out.to_path_buf(), staged, _lock: lock })
+    Ok(Prepared { work, out: out.to_path_buf(), staged, resume_note, _lock: lock })
 }
 
 impl Prepared {
     /// Puts a staged run in place of the previous one: each new file is renamed over the old
-    /// (atomic per file), then the previous run's other files and folders are removed. Nothing
-    /// to do when the run was not staged.
-    pub fn commit(&mut self) -> Result<()> {
+    /// (atomic per file), then the previous run's other files and folders are removed. Returns
+    /// what was replaced and removed, in words; nothing to do (`None`) when the run was not staged.
+    pub fn commit(&mut self) -> Result<Option<String>> {
         if !self.staged {
-            return Ok(());
+            return Ok(None);
         }
         let mut replaced = Vec::new();
         for entry in std::fs::read_dir(&self.work).with_context(|| format!("{}: cannot list the new run", self.work.display()))? {
-            let entry = entry?;
+            let entry = entry.with_context(|| format!("{}: cannot list the new run", self.work.display()))?;
             let to = self.out.join(entry.file_name());
             std::fs::rename(entry.path(), &to).with_context(|| format!("{}: cannot move the new run's file in place", to.display()))?;
             replaced.push(entry.file_name().to_string_lossy().into_owned());
@@ -142,13 +152,12 @@ impl Prepared {
         std::fs::remove_dir(&self.work).with_context(|| format!("{}: cannot remove the staging folder", self.work.display()))?;
         self.staged = false;
         replaced.sort();
-        eprintln!(
+        Ok(Some(format!(
             "--force: the new run's {} replaced the previous run's in {}{}",
             replaced.join(", "),
             self.out.display(),
             if removed.is_empty() { String::new() } else { format!("; removed the previous run's {}", removed.join(", ")) }
-        );
-        Ok(())
+        )))
     }
 }
 
@@ -200,7 +209,7 @@ pub fn check_output_file(path: &Path, what: &str, own: &[std::path::PathBuf]) ->
     if own.iter().any(|o| same(o, path)) {
         return Ok(());
     }
-    bail!(
+    refuse!(
         "{}: this is the run's own {name}, which {what} would replace (every later command on the run reads it); give another output file with -o",
         path.display()
     )

@@ -13,9 +13,9 @@
 //! plane depths, `vagsl mesh`'s defaults, fused only inside the crop when one is given) and
 //! score it against the ground truth as `vagsl eval-mesh` does: a line `{"iteration", "seconds", "chamfer", "f1", "accuracy",
 //! "completeness", "triangles"}` — the Chamfer-against-wall-time curve of a run, with the
-//! meshing excluded from training time like the held-out scoring.
+//! meshing excluded from training time like the held-out scoring. (docs/architecture.md §Runs)
 
-use anyhow::{Context, Result, bail};
+use crate::error::{Context, Result, refuse};
 use gs_core::TriangleMesh;
 use gs_train::{MeshOptions, StepReport, Trainer, extract_mesh};
 use gs_tsdf::{Aabb, EvalOptions, evaluate_meshes};
@@ -63,23 +63,6 @@ impl Sums {
     }
 }
 
-/// `vagsl train`'s options of the mesh curve.
-#[derive(Debug, Clone, clap::Args)]
-pub struct TrackArgs {
-    /// Ground-truth mesh (PLY or OBJ): at each held-out scoring point (10 per run and the
-    /// last iteration) mesh the model and log its Chamfer / F1 against this mesh in
-    /// OUT/metrics.jsonl (not counted as training time).
-    #[arg(long)]
-    pub track_gt: Option<PathBuf>,
-    /// With --track-gt: crop the mesh to the GT's bounding box grown by this fraction per side
-    /// (as `eval-mesh --crop-to-gt`; the object protocol uses 0.05).
-    #[arg(long, requires = "track_gt")]
-    pub track_crop_to_gt: Option<f64>,
-    /// With --track-crop-to-gt: also drop everything below this z (as `eval-mesh --min-z`).
-    #[arg(long, requires = "track_crop_to_gt")]
-    pub track_min_z: Option<f64>,
-}
-
 /// The ground truth and settings of the mesh curve.
 pub struct MeshTrack {
     gt: TriangleMesh,
@@ -88,23 +71,23 @@ pub struct MeshTrack {
 }
 
 impl MeshTrack {
-    /// Reads the ground truth of `args` (None without `--track-gt`); the meshes are fused
-    /// under `max_memory` bytes, as `vagsl mesh`.
-    pub fn load(args: &TrackArgs, max_memory: u64) -> Result<Option<Self>> {
-        let Some(path) = &args.track_gt else { return Ok(None) };
-        let gt = crate::commands::eval_mesh::read_mesh(path)?;
-        let b = Aabb::of_mesh(&gt).with_context(|| format!("{}: the ground-truth mesh has no vertices", path.display()))?;
-        if let Some(f) = args.track_crop_to_gt
+    /// The mesh curve against the ground-truth mesh `gt` (read from `gt_path`): with
+    /// `crop_to_gt`, only the GT's box grown by that fraction per side (and above `min_z`) is
+    /// fused and scored, as `vagsl eval-mesh --crop-to-gt`; the meshes are fused under
+    /// `max_memory` bytes, as `vagsl mesh`.
+    pub fn new(gt_path: &Path, gt: TriangleMesh, crop_to_gt: Option<f64>, min_z: Option<f64>, max_memory: u64) -> Result<Self> {
+        let b = Aabb::of_mesh(&gt).with_context(|| format!("{}: the ground-truth mesh has no vertices", gt_path.display()))?;
+        if let Some(f) = crop_to_gt
             && !(f.is_finite() && f >= 0.0)
         {
-            bail!("--track-crop-to-gt {f}: expected a fraction ≥ 0");
+            refuse!("--track-crop-to-gt {f}: expected a fraction ≥ 0");
         }
-        let crop = args.track_crop_to_gt.map(|f| b.grown(f, args.track_min_z));
+        let crop = crop_to_gt.map(|f| b.grown(f, min_z));
         let eval = EvalOptions::for_gt(&b, crop);
         // Only the cropped region is scored, so only it is fused (a room's walls at a fine voxel
         // can need more memory than the machine has, and the time goes to the object).
         let mesh = MeshOptions { bounds: crop, max_memory: Some(max_memory), ..Default::default() };
-        Ok(Some(Self { gt, eval, mesh }))
+        Ok(Self { gt, eval, mesh })
     }
 
     /// Meshes the trainer's model and scores it: the fields of one curve line.
@@ -183,7 +166,7 @@ impl MetricsLog {
             }
             if let Some(track) = &self.mesh_track {
                 // An early model may have no surface to mesh yet: the curve says so and goes on.
-                let mut line = track.score(tr, rasterizer).unwrap_or_else(|e| json!({ "mesh_error": format!("{e:#}") }));
+                let mut line = track.score(tr, rasterizer).unwrap_or_else(|e| json!({ "mesh_error": crate::error::chain_text(&e) }));
                 line["iteration"] = json!(r.iteration);
                 line["seconds"] = json!(seconds);
                 lines.push(line);
