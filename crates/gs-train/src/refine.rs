@@ -2,10 +2,13 @@
 //! and `refine`: clone / split / prune on the accumulated statistics, opacity reset and the
 //! multi-view trim, each when the [`StepPlan`] says so.
 
+use crate::capture_path::CapturePath;
 use crate::densify::{self, DensifyReport};
+use crate::floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
 use crate::error::Result;
 use crate::plan::StepPlan;
 use crate::trainer::Trainer;
+use gs_core::Camera;
 use gs_raster::RenderRequest;
 use serde::Serialize;
 
@@ -74,5 +77,35 @@ impl Trainer<'_> {
             }
         }
         Ok(counts)
+    }
+}
+
+/// The floater rule run on the trainer's own model and training views (docs/method.md §Floaters).
+impl Trainer<'_> {
+    /// Renders every training view's plane depth and alpha and collects the free-space votes
+    /// of the current model (no renders when only the capture path is asked for).
+    pub fn free_space_votes(&mut self, rule: &FloaterRule) -> Result<FreeSpaceVotes> {
+        let mut votes = FreeSpaceVotes::new(self.state.gaussians.len());
+        let req = RenderRequest { color: false, alpha: true, plane_depth: true, ..RenderRequest::default() };
+        let views = if rule.enabled { self.train_views.as_slice() } else { &[] };
+        for &v in views {
+            let camera = &self.scene.views[v].camera;
+            let out = self.rasterizer.render(&self.state.gaussians, camera, &req, &self.raster)?;
+            let (depth, alpha) = (out.plane_depth.expect("requested"), out.alpha.expect("requested"));
+            votes.add_view(&self.state.gaussians, camera, &depth, &alpha, self.raster.near, rule)?;
+        }
+        let cameras: Vec<&Camera> = self.train_views.iter().map(|&v| &self.scene.views[v].camera).collect();
+        votes.mark_capture_path(&self.state.gaussians, &CapturePath::new(&cameras, rule.path_clearance as f64));
+        Ok(votes)
+    }
+
+    /// Removes the floaters of `rule` (Gaussians, optimiser rows and statistics together).
+    pub fn remove_floaters(&mut self, rule: &FloaterRule) -> Result<FloaterReport> {
+        let votes = self.free_space_votes(rule)?;
+        let (mut keep, report) = votes.verdict(rule);
+        let s = &mut self.state;
+        crate::densify::retain_rows(&mut s.gaussians, &mut s.adam, &mut keep)?;
+        s.stats.retain(&keep);
+        Ok(report)
     }
 }
