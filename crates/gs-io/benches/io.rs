@@ -2,22 +2,11 @@
 //! PLY, written to and read from a temporary folder.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use gs_core::sh::SH_COEFFS;
-use gs_core::{Gaussians, Rng, TriangleMesh};
+use gs_core::{Gaussians, TriangleMesh};
 use gs_io::{read_gaussian_ply, read_mesh_ply, write_gaussian_ply, write_mesh_ply};
 
 fn gaussians(n: usize) -> Gaussians {
-    let mut rng = Rng::new(1);
-    let mut g = Gaussians::default();
-    for _ in 0..n {
-        let mut sh = [[0f32; 3]; SH_COEFFS];
-        for c in sh.iter_mut() {
-            *c = [rng.normal(), rng.normal(), rng.normal()];
-        }
-        g.push([rng.normal(); 3], [rng.normal() - 4.0; 3], [1.0, rng.normal(), 0.0, 0.0], rng.normal(), sh);
-    }
-    g.sh_degree = 3;
-    g
+    gs_testdata::random_gaussians(n)
 }
 
 fn mesh(grid: usize) -> TriangleMesh {

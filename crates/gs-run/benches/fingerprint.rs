@@ -3,21 +3,10 @@
 //! fingerprint over the small built-in scene's pixels (computed at every open of a run).
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use gs_core::sh::SH_COEFFS;
-use gs_core::{Gaussians, Rng};
+use gs_core::Gaussians;
 
 fn gaussians(n: usize) -> Gaussians {
-    let mut rng = Rng::new(1);
-    let mut g = Gaussians::default();
-    for _ in 0..n {
-        let mut sh = [[0f32; 3]; SH_COEFFS];
-        for c in sh.iter_mut() {
-            *c = [rng.normal(), rng.normal(), rng.normal()];
-        }
-        g.push([rng.normal(); 3], [rng.normal() - 4.0; 3], [1.0, rng.normal(), 0.0, 0.0], rng.normal(), sh);
-    }
-    g.sh_degree = 3;
-    g
+    gs_testdata::random_gaussians(n)
 }
 
 fn bench(c: &mut Criterion) {

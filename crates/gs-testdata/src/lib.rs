@@ -104,3 +104,19 @@ macro_rules! skip_or_fail {
         $crate::skip_or_fail(&$crate::test_name(env!("CARGO_CRATE_NAME")), $why, $how)
     };
 }
+
+/// `n` Gaussians with every parameter drawn from N(0, 1) (scales around e⁻⁴, SH degree 3),
+/// seeded: the input of the I/O and fingerprint benchmarks.
+pub fn random_gaussians(n: usize) -> gs_core::Gaussians {
+    let mut rng = gs_core::Rng::new(1);
+    let mut g = gs_core::Gaussians::default();
+    for _ in 0..n {
+        let mut sh = [[0f32; 3]; gs_core::sh::SH_COEFFS];
+        for c in sh.iter_mut() {
+            *c = [rng.normal(), rng.normal(), rng.normal()];
+        }
+        g.push([rng.normal(); 3], [rng.normal() - 4.0; 3], [1.0, rng.normal(), 0.0, 0.0], rng.normal(), sh);
+    }
+    g.sh_degree = 3;
+    g
+}
