@@ -25,6 +25,6 @@ pub mod run_folder;
 
 pub use error::{Result, RunError, chain_text};
 pub use fingerprint::{SceneFingerprint, model_fingerprint, new_run_id};
-pub use open_run::{OpenRun, read_run_model, write_json};
+pub use open_run::{OpenRun, read_run_model};
 pub use provenance::MadeFrom;
-pub use run_config::{RunConfig, SceneSource};
+pub use run_config::{RunConfig, SceneSource, write_json};

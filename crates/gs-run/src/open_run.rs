@@ -7,7 +7,6 @@ use crate::provenance::MadeFrom;
 use crate::run_config::{RunConfig, absolute_scene_path, check_split, load_scene, view_indices};
 use gs_core::{Gaussians, Scene};
 use gs_train::TrainedModel;
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// Refuses a run folder whose model is missing or is not the model of its config.json's run
@@ -133,13 +132,6 @@ impl OpenRun {
             gaussians: &self.gaussians,
         }
     }
-}
-
-/// Writes `value` as pretty JSON to `path` atomically.
-pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)?;
-    gs_io::write_atomic(path, |w| w.write_all(text.as_bytes()))?;
-    Ok(())
 }
 
 /// Peak resident memory of this process in bytes (Linux `VmHWM`), if known.

@@ -104,7 +104,7 @@ pub fn check(what: &Path, record: &Path, current: &MadeFrom, remake: &str) -> Re
 /// and the model they were rendered from.
 pub fn write_renders_record(dir: &Path, split: &str, views: &[String], made_from: &MadeFrom) -> Result<()> {
     let record = serde_json::json!({ "split": split, "views": views });
-    crate::open_run::write_json(&dir.join(RENDERS_RECORD), &with_made_from(&record, made_from)?)
+    crate::run_config::write_json(&dir.join(RENDERS_RECORD), &with_made_from(&record, made_from)?)
 }
 
 /// Refuses a render folder `dir` whose `renders.json` names another model than `current`.
@@ -115,7 +115,7 @@ pub fn check_renders(dir: &Path, current: &MadeFrom, remake: &str) -> Result<()>
 /// Writes `RUN/report/made_from.json`, the record of the report page.
 pub fn write_report_page_record(run: &Path, made_from: &MadeFrom) -> Result<()> {
     let record = serde_json::json!({ "page": "report.html" });
-    crate::open_run::write_json(&run.join(REPORT_PAGE_RECORD), &with_made_from(&record, made_from)?)
+    crate::run_config::write_json(&run.join(REPORT_PAGE_RECORD), &with_made_from(&record, made_from)?)
 }
 
 /// Refuses a report page of `run` made from another model than `current` (a page without a
@@ -142,7 +142,7 @@ pub fn record_export(run: &Path, file: &Path, format: &str, made_from: &MadeFrom
     let file = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
     list.retain(|e| e.file != file);
     list.push(ExportRecord { file, format: format.to_string(), made_from: made_from.clone() });
-    crate::open_run::write_json(&run.join(EXPORTS_INDEX), &serde_json::json!({ "exports": list }))
+    crate::run_config::write_json(&run.join(EXPORTS_INDEX), &serde_json::json!({ "exports": list }))
 }
 
 /// The exports recorded in `RUN/exports.json` (empty when there is none or it is unreadable).

@@ -196,3 +196,10 @@ pub fn view_indices(scene: &Scene, names: &[String]) -> Result<Vec<usize>> {
         })
         .collect()
 }
+
+/// Writes `value` as pretty JSON to `path` atomically.
+pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    gs_io::write_atomic(path, |w| w.write_all(text.as_bytes()))?;
+    Ok(())
+}
