@@ -200,7 +200,7 @@ fn a_mesh_of_another_model_is_refused_by_its_readers() {
     assert_eq!(index["exports"][0]["made_from"]["model_fingerprint"], fa.as_str(), "{index}");
     assert_eq!(index["exports"][0]["format"], "obj", "{index}");
     let renders = dir.path().join("a_renders");
-    let (ok, _, err) = vagsl(&["render", a.to_str().unwrap(), "--backend", "cpu", "-o", renders.to_str().unwrap()]);
+    let (ok, _, err) = vagsl(&["render", a.to_str().unwrap(), "--backend", "cpu", "--split", "train", "-o", renders.to_str().unwrap()]);
     assert!(ok, "{err}");
     let record: serde_json::Value = serde_json::from_slice(&std::fs::read(renders.join("renders.json")).unwrap()).unwrap();
     assert_eq!(record["made_from"]["model_fingerprint"], fa.as_str(), "{record}");
