@@ -237,7 +237,8 @@ fn a_folder_mixing_two_runs_is_refused() {
     // The model is written after the report that describes it (D2): a run stopped between the
     // two leaves no model, or an older one that the report's fingerprint does not match.
     let fields: serde_json::Value = serde_json::from_slice(&report).unwrap();
-    assert_eq!(fields["model_fingerprint"].as_str().map(str::len), Some(16), "{fields}");
+    // 32 hex digits: SHA-256 over every parameter, SH included (older runs' 16 still open).
+    assert_eq!(fields["model_fingerprint"].as_str().map(str::len), Some(32), "{fields}");
     let model = read(&a.join("point_cloud.ply"));
     std::fs::copy(b.join("point_cloud.ply"), a.join("point_cloud.ply")).unwrap();
     let (ok, err) = render_test(&a);
