@@ -61,18 +61,25 @@ impl CapturePath {
         }
         let centres: Vec<DVec3> = cameras.iter().map(|c| c.center()).collect();
         let forward: Vec<DVec3> = cameras.iter().map(|c| c.rotation.transpose() * DVec3::Z).collect();
-        let spacing: Vec<f64> = (0..centres.len())
-            .map(|i| (0..centres.len()).filter(|&j| j != i).map(|j| centres[i].distance(centres[j])).fold(f64::INFINITY, f64::min))
+        // Every camera's others by distance (ties by index), computed once: the nearest sets
+        // the spacing, the first few are the link candidates.
+        let near: Vec<Vec<(f64, usize)>> = (0..centres.len())
+            .map(|i| {
+                let mut d: Vec<(f64, usize)> = (0..centres.len()).filter(|&j| j != i).map(|j| (centres[i].distance(centres[j]), j)).collect();
+                d.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                d
+            })
             .collect();
+        let spacing: Vec<f64> = near.iter().map(|d| d[0].0).collect();
         // Each camera's ball, then each link once (a BTreeSet keeps the order fixed).
         let mut capsules: Vec<Capsule> =
             (0..centres.len()).map(|i| Capsule { a: centres[i], b: centres[i], radius: clearance * spacing[i], fa: forward[i], fb: forward[i] }).collect();
-        let mut links = std::collections::BTreeSet::new();
-        for i in 0..centres.len() {
-            let mut near: Vec<(f64, usize)> = (0..centres.len()).filter(|&j| j != i).map(|j| (centres[i].distance(centres[j]), j)).collect();
-            near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-            links.extend(near.iter().take(LINKS_PER_CAMERA).filter(|(d, _)| *d <= LINK_REACH * spacing[i]).map(|&(_, j)| (i.min(j), i.max(j))));
-        }
+        let links: std::collections::BTreeSet<(usize, usize)> = (0..centres.len())
+            .flat_map(|i| {
+                let reach = LINK_REACH * spacing[i];
+                near[i].iter().take(LINKS_PER_CAMERA).filter(move |(d, _)| *d <= reach).map(move |&(_, j)| (i.min(j), i.max(j)))
+            })
+            .collect();
         capsules.extend(links.into_iter().map(|(i, j)| Capsule {
             a: centres[i],
             b: centres[j],
