@@ -7,6 +7,9 @@ use gs_core::{Gaussians, TriangleMesh};
 use gs_io::capped::{COLMAP, Cap, IMAGE, NPY, OBJ, PLY};
 use std::path::{Path, PathBuf};
 
+mod common;
+use common::npy;
+
 fn assert_has(msg: &str, parts: &[&str]) {
     for p in parts {
         assert!(msg.contains(p), "error {msg:?} lacks {p:?}");
@@ -145,16 +148,8 @@ fn obj_and_npy() {
     over_cap(gs_io::read_npy(&p).unwrap_err(), &p, NPY);
     over_cap(gs_io::read_npz(&p).unwrap_err(), &p, NPY);
     // A 10^6 × 10^6 float map declared in a 128-byte file.
-    let mut h = "{'descr': '<f4', 'fortran_order': False, 'shape': (1000000, 1000000), }".to_string();
-    while (h.len() + 11) % 64 != 0 {
-        h.push(' ');
-    }
-    h.push('\n');
-    let mut b = b"\x93NUMPY\x01\x00".to_vec();
-    b.extend_from_slice(&(h.len() as u16).to_le_bytes());
-    b.extend_from_slice(h.as_bytes());
     let p = dir.path().join("absurd.npy");
-    std::fs::write(&p, &b).unwrap();
+    std::fs::write(&p, npy("<f4", "False", "(1000000, 1000000)", 0)).unwrap();
     let e = gs_io::read_npy(&p).unwrap_err().to_string();
     assert_has(&e, &["absurd.npy: shape [1000000, 1000000] of <f4 declares 1000000000000 values of at least 4 bytes each (3.6 TiB), more than the 0 bytes", "the cap for a NumPy file is 2 GiB"]);
 }

@@ -6,6 +6,9 @@ use gs_io::npy::parse_npy;
 use gs_io::{IoError, read_npy, write_npy};
 use std::path::{Path, PathBuf};
 
+mod common;
+use common::npy;
+
 /// A ground-truth file of the small built-in scene folder (120 × 90).
 fn gt(name: &str) -> PathBuf {
     gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small()).join("gt").join(name)
@@ -52,18 +55,6 @@ fn write_read_round_trip() {
     }
 }
 
-fn npy(descr: &str, fortran: &str, shape: &str, data_len: usize) -> Vec<u8> {
-    let mut h = format!("{{'descr': '{descr}', 'fortran_order': {fortran}, 'shape': {shape}, }}");
-    while (h.len() + 11) % 64 != 0 {
-        h.push(' ');
-    }
-    h.push('\n');
-    let mut b = b"\x93NUMPY\x01\x00".to_vec();
-    b.extend_from_slice(&(h.len() as u16).to_le_bytes());
-    b.extend_from_slice(h.as_bytes());
-    b.extend(std::iter::repeat_n(0u8, data_len));
-    b
-}
 
 #[test]
 fn rejected_layouts_are_clear() {
