@@ -81,6 +81,13 @@ enum Command {
     /// views in the COLMAP layout, exact GT depth, normals, masks and meshes (`scripts/suite.sh`
     /// trains and scores a preset on all of them).
     Synth(commands::synth::SynthArgs),
+    /// Split a scene too large for one machine into blocks with overlapping views: each block
+    /// a scene folder (photos linked) that `vagsl train` trains as its own job, with a block
+    /// script, a Slurm job array and a Kubernetes Indexed Job to run them.
+    Partition(commands::partition::PartitionArgs),
+    /// Merge the trained blocks of a partition plan into one run of the whole scene (each
+    /// block's Gaussians inside its core region), which mesh, render, eval-images and view open.
+    Merge(commands::partition::MergeArgs),
 }
 
 /// On a headless machine (no Wayland or X display) Mesa's Vulkan device-select layer, loaded
@@ -113,6 +120,8 @@ fn main() -> std::process::ExitCode {
         Command::Tradeoff(args) => commands::tradeoff::run(&args),
         Command::View(args) => commands::view::run(&args),
         Command::Synth(args) => commands::synth::run(&args),
+        Command::Partition(args) => commands::partition::run_partition(&args),
+        Command::Merge(args) => commands::partition::run_merge(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

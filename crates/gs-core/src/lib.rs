@@ -40,5 +40,5 @@ pub use optim::{Adam, AdamConfig, ExponentialLr};
 pub use rng::Rng;
 pub use extent::{ExtentBasis, ExtentReport, extent_report, scene_extent};
 pub use point::ScenePoint;
-pub use scene::{NeighbourRule, Scene, View, source_view_candidates};
+pub use scene::{NeighbourRule, Scene, View, source_view_candidates, split_names};
 pub use glam;

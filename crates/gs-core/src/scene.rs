@@ -123,18 +123,27 @@ impl Scene {
     /// `transforms_test.json`), else every 8th view (index % 8 == 0, views sorted by name; 3DGS
     /// protocol); without `eval`, all views train.
     pub fn split(&self, eval: bool) -> (Vec<usize>, Vec<usize>) {
-        let mut order: Vec<usize> = (0..self.views.len()).collect();
-        order.sort_by(|&a, &b| self.views[a].name.cmp(&self.views[b].name));
-        let (mut train, mut test) = (Vec::new(), Vec::new());
-        for (k, &i) in order.iter().enumerate() {
-            let held_out = match &self.held_out {
-                Some(names) => names.contains(&self.views[i].name),
-                None => k % 8 == 0,
-            };
-            if eval && held_out { test.push(i) } else { train.push(i) }
-        }
-        (train, test)
+        let names: Vec<&str> = self.views.iter().map(|v| v.name.as_str()).collect();
+        split_names(&names, self.held_out.as_deref(), eval)
     }
+}
+
+/// The train/test split of views named `names` (in any order; indices into `names`): the
+/// `held_out` names when given, else every 8th name in sorted order (3DGS protocol); without
+/// `eval`, all views train. [`Scene::split`] of a loaded scene, for callers that have only the
+/// names (e.g. partitioning a capture without loading its photos).
+pub fn split_names(names: &[&str], held_out: Option<&[String]>, eval: bool) -> (Vec<usize>, Vec<usize>) {
+    let mut order: Vec<usize> = (0..names.len()).collect();
+    order.sort_by(|&a, &b| names[a].cmp(names[b]));
+    let (mut train, mut test) = (Vec::new(), Vec::new());
+    for (k, &i) in order.iter().enumerate() {
+        let is_held_out = match held_out {
+            Some(list) => list.iter().any(|n| n == names[i]),
+            None => k % 8 == 0,
+        };
+        if eval && is_held_out { test.push(i) } else { train.push(i) }
+    }
+    (train, test)
 }
 
 #[cfg(test)]

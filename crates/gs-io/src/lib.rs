@@ -73,7 +73,7 @@ pub use atomic::{remove_stale_temps, write_atomic};
 pub use capped::{JSON_CAP, SETTINGS_CAP, read_capped};
 pub use colmap::{ColmapModel, read_model};
 pub use layout::{SceneLayout, SceneModel, detect_layout};
-pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, model_summary, read_scene_model};
+pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, mask_path, model_summary, read_scene_model};
 pub use error::{IoError, Result};
 pub use self::exr::{read_exr, write_depth_exr, write_exr, write_normal_exr};
 pub use npy::{NpyArray, read_npy, read_npy_array, read_npz, write_npy};

@@ -91,7 +91,7 @@ pub struct LoadOptions {
 }
 
 /// The mask file of an image name, if one exists: `masks/<stem>.png`, then `masks/<name>.png`.
-fn mask_path(masks_dir: &Path, name: &str) -> Option<PathBuf> {
+pub fn mask_path(masks_dir: &Path, name: &str) -> Option<PathBuf> {
     let rel = Path::new(name);
     let stem = rel.with_extension("png");
     let full = PathBuf::from(format!("{name}.png"));

@@ -6,6 +6,7 @@ pub mod eval_mesh;
 pub mod export;
 pub mod info;
 pub mod mesh;
+pub mod partition;
 pub mod render;
 pub mod synth;
 pub mod tradeoff;
