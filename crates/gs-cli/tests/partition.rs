@@ -96,6 +96,12 @@ fn partition_train_kill_resume_merge_and_mesh() {
     std::fs::write(&cfg, serde_json::to_string_pretty(&v).unwrap()).unwrap();
     let (ok, log) = vagsl(&["merge", p, "-o", m]);
     assert!(!ok && log.contains("block 01") && log.contains("not trained on this plan's block scene"), "{log}");
+    // ... or trained with other settings than the plan's.
+    let mut v: serde_json::Value = serde_json::from_str(&original).unwrap();
+    v["train"]["seed"] = 77.into();
+    std::fs::write(&cfg, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let (ok, log) = vagsl(&["merge", p, "-o", m]);
+    assert!(!ok && log.contains("block 01") && log.contains("other settings than the plan gives it"), "{log}");
     std::fs::write(&cfg, original).unwrap();
 
     let (ok, log) = vagsl(&["merge", p, "-o", m]);

@@ -12,12 +12,17 @@
 //! use gs_partition::{BlockCount, PartitionOptions, partition};
 //! use gs_run::SceneSource;
 //! let source = SceneSource { path: Some("street".into()), resolution_factor: None, width: None, eval: true };
+//! let config_of = |iterations: Option<u64>| {
+//!     let c = gs_train::TrainConfig::preset(gs_train::Preset::Fast);
+//!     Ok(iterations.map_or(c.clone(), |n| c.scaled(n)))
+//! };
 //! let opts = PartitionOptions {
 //!     count: BlockCount::Exactly(4),
 //!     margin: 0.2,
 //!     visibility: 0.25,
-//!     train_args: vec![],
-//!     config: gs_train::TrainConfig::default(),
+//!     train_args: vec!["--preset".into(), "fast".into()],
+//!     share_iterations: true,
+//!     config_of: &config_of,
 //! };
 //! let plan = partition(&source, "street-plan".as_ref(), &opts, &mut |line| eprintln!("{line}"))?;
 //! println!("{} blocks", plan.blocks.len());
@@ -39,6 +44,6 @@ pub use assign::{Members, assign, visible_points};
 pub use error::{PartitionError, Result};
 pub use ground::GroundFrame;
 pub use merge::{BlockSummary, MergeReport, Merged, merge, write_merged};
-pub use partition::{BlockCount, MAX_BLOCKS, MIN_BLOCK_VIEWS, PartitionOptions, partition};
+pub use partition::{BlockCount, ConfigOf, MAX_BLOCKS, MIN_BLOCK_VIEWS, PartitionOptions, block_train_args, partition};
 pub use plan::{Block, PLAN_FILE, PLAN_VERSION, Plan};
 pub use regions::{Rect, Region, core_regions, grid_shape, weighted_cuts};

@@ -22,6 +22,8 @@ pub struct BlockSummary {
     pub run: PathBuf,
     /// Its views.
     pub views: usize,
+    /// Iterations it trained.
+    pub iterations: u64,
     /// Gaussians its run ended with.
     pub gaussians_trained: usize,
     /// Gaussians inside its core region, kept.
@@ -42,7 +44,8 @@ pub struct MergeReport {
     pub made_from: MadeFrom,
     /// The plan folder merged.
     pub plan: PathBuf,
-    /// Iterations every block trained.
+    /// Iterations of the plan's settings for the whole scene (each block trained its share,
+    /// listed per block).
     pub iterations: u64,
     /// Always false: a merge takes only finished blocks.
     pub interrupted: bool,
@@ -119,20 +122,19 @@ pub fn merge(plan_dir: &Path, note: &mut dyn FnMut(String)) -> Result<Merged> {
     let t0 = std::time::Instant::now();
     let plan = Plan::read(plan_dir)?;
     let mut merged: Option<Gaussians> = None;
-    let mut first: Option<(RunConfig, String)> = None;
     let mut blocks = Vec::new();
     for block in &plan.blocks {
         let (config, mut g, report) = open_block(plan_dir, block)?;
-        let settings = serde_json::to_string(&config.train)?;
-        match &first {
-            None => first = Some((config.clone(), settings)),
-            Some((c0, s0)) if *s0 != settings => refuse!(
-                "block {}: its run was trained with other settings than block 00's ({} against {}); every block must train with the plan's arguments: train it again with its run-block.sh",
+        if serde_json::to_value(&config.train)? != serde_json::to_value(&block.train)? {
+            refuse!(
+                "block {}: its run in {} was trained with other settings than the plan gives it ({} against {}); train it again with `bash {}/run-block.sh {}` after removing it",
                 block.name(),
+                plan_dir.join(&block.run).display(),
                 config.train.summary(),
-                c0.train.summary()
-            ),
-            _ => {}
+                block.train.summary(),
+                plan_dir.display(),
+                block.index
+            );
         }
         let trained = g.len();
         let keep: Vec<bool> = g.means.iter().map(|m| block.core.contains(plan.frame.coords(DVec3::new(m[0] as f64, m[1] as f64, m[2] as f64)))).collect();
@@ -142,6 +144,7 @@ pub fn merge(plan_dir: &Path, note: &mut dyn FnMut(String)) -> Result<Merged> {
             index: block.index,
             run: plan_dir.join(&block.run),
             views: block.views.len(),
+            iterations: block.train.iterations,
             gaussians_trained: trained,
             gaussians_kept: g.len(),
             train_seconds: report.get("train_seconds").and_then(|v| v.as_f64()).unwrap_or(0.0),
@@ -156,13 +159,12 @@ pub fn merge(plan_dir: &Path, note: &mut dyn FnMut(String)) -> Result<Merged> {
             }
         }
     }
-    let (base, _) = first.context_free()?;
     let gaussians = merged.context_free()?;
     if gaussians.is_empty() {
         refuse!("{}: the blocks kept no Gaussian inside their core regions: nothing to merge", plan_dir.display());
     }
     let scene = gs_run::run_config::load_scene(&plan.scene)?;
-    let config = merged_config(&plan, &scene, base)?;
+    let config = merged_config(&plan, &scene)?;
     let made_from = MadeFrom::new(config.run_id.clone(), &gaussians);
     let report = MergeReport {
         made_from,
@@ -181,7 +183,7 @@ pub fn merge(plan_dir: &Path, note: &mut dyn FnMut(String)) -> Result<Merged> {
 }
 
 /// The merged run's configuration: the whole scene with the plan's split, the blocks' settings.
-fn merged_config(plan: &Plan, scene: &Scene, base: RunConfig) -> Result<RunConfig> {
+fn merged_config(plan: &Plan, scene: &Scene) -> Result<RunConfig> {
     let (train, test) = scene.split(plan.scene.eval);
     let names = |idx: &[usize]| idx.iter().map(|&i| scene.views[i].name.clone()).collect::<Vec<String>>();
     let (train_views, test_views) = (names(&train), names(&test));
@@ -202,10 +204,10 @@ fn merged_config(plan: &Plan, scene: &Scene, base: RunConfig) -> Result<RunConfi
     Ok(RunConfig {
         scene: plan.scene.clone(),
         fingerprint: Some(SceneFingerprint::of(scene)),
-        run_id: Some(gs_run::new_run_id(&base.train)),
+        run_id: Some(gs_run::new_run_id(&plan.train)),
         train_views,
         test_views,
-        train: base.train,
+        train: plan.train.clone(),
     })
 }
 

@@ -30,9 +30,12 @@ pub const MAX_BLOCKS: usize = 1024;
 /// A block needs at least this many views to train (and for L_p to find neighbours).
 pub const MIN_BLOCK_VIEWS: usize = 3;
 
+/// The training configuration of the block arguments with `--iterations` set to the given
+/// count (`None`: as the arguments say), as `vagsl train` builds it; an error in words.
+pub type ConfigOf<'a> = &'a dyn Fn(Option<u64>) -> std::result::Result<TrainConfig, String>;
+
 /// Options of a partition.
-#[derive(Debug, Clone)]
-pub struct PartitionOptions {
+pub struct PartitionOptions<'a> {
     /// How many blocks.
     pub count: BlockCount,
     /// Fraction of a core's size it grows by on each bounded side (VastGaussian: 0.2).
@@ -40,13 +43,37 @@ pub struct PartitionOptions {
     /// Fraction of a view's sparse points that must lie in a block's grown region for the view
     /// to join the block.
     pub visibility: f64,
-    /// The arguments of every block's `vagsl train` (recorded in the plan).
+    /// The arguments of every block's `vagsl train` (recorded in the plan; `--iterations` is
+    /// set per block, see [`block_train_args`]).
     pub train_args: Vec<String>,
-    /// The training configuration those arguments give (for the memory estimates).
-    pub config: TrainConfig,
+    /// Each block trains for its share of the whole run's iterations (its views over the
+    /// scene's training views, so every view is visited as often as in one run of the whole
+    /// scene); `false`: every block trains the whole run's iterations.
+    pub share_iterations: bool,
+    /// The training configuration of the arguments (for the memory estimates and the checks
+    /// of the merge).
+    pub config_of: ConfigOf<'a>,
 }
 
-impl PartitionOptions {
+/// `train_args` with `--iterations` set to `iterations` (any `--iterations N` or
+/// `--iterations=N` given is replaced): what block runs are started with.
+pub fn block_train_args(train_args: &[String], iterations: u64) -> Vec<String> {
+    let mut out = Vec::with_capacity(train_args.len() + 2);
+    let mut skip = false;
+    for a in train_args {
+        if skip {
+            skip = false;
+        } else if a == "--iterations" {
+            skip = true;
+        } else if !a.starts_with("--iterations=") {
+            out.push(a.clone());
+        }
+    }
+    out.extend(["--iterations".to_string(), iterations.to_string()]);
+    out
+}
+
+impl PartitionOptions<'_> {
     /// Refuses absurd values, in words.
     pub fn validate(&self) -> Result<()> {
         match self.count {
@@ -161,6 +188,7 @@ fn build(
     note: &mut dyn FnMut(String),
 ) -> Result<Plan> {
     let (cores, grown, members) = layout(capture, frame, n, opts)?;
+    let whole = (opts.config_of)(None).map_err(crate::PartitionError::Refused)?;
     let mut blocks = Vec::with_capacity(n);
     for (index, ((core, grown), m)) in cores.into_iter().zip(grown).zip(&members).enumerate() {
         let name = format!("{index:02}");
@@ -173,17 +201,23 @@ fn build(
         }
         let (scene, run) = (PathBuf::from("blocks").join(&name), PathBuf::from("runs").join(&name));
         write_block(capture, m, &dir.join(&scene))?;
+        let iterations = if opts.share_iterations {
+            ((whole.iterations as f64 * m.views.len() as f64 / capture.train.len() as f64).round() as u64).clamp(1, whole.iterations)
+        } else {
+            whole.iterations
+        };
+        let train = (opts.config_of)(Some(iterations)).map_err(|e| crate::PartitionError::Refused(format!("block {name}: {e}")))?;
         let (fingerprint, memory_bytes, memory) =
-            estimate(&dir.join(&scene), source, &opts.config).with_context(|| format!("block {name}: estimating its training memory"))?;
+            estimate(&dir.join(&scene), source, &train).with_context(|| format!("block {name}: estimating its training memory"))?;
         note(format!(
-            "block {name}: {} views, {} points, {} ({})",
+            "block {name}: {} views, {} points, {iterations} iterations, {} ({})",
             m.views.len(),
             m.points.len(),
             gs_tsdf::format_bytes(memory_bytes),
             core.describe()
         ));
         let views = m.views.iter().map(|&v| capture.name(v).to_string()).collect();
-        blocks.push(Block { index, scene, run, core, grown, views, points: m.points.len(), fingerprint, memory_bytes, memory });
+        blocks.push(Block { index, scene, run, core, grown, views, points: m.points.len(), fingerprint, memory_bytes, memory, train });
     }
     std::fs::create_dir_all(dir.join("runs")).with_context(|| format!("{}: cannot create the runs folder", dir.display()))?;
     let plan = Plan {
@@ -194,6 +228,7 @@ fn build(
         margin: opts.margin,
         visibility: opts.visibility,
         train_args: opts.train_args.clone(),
+        train: whole,
         blocks,
     };
     plan.write(dir)?;

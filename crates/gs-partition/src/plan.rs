@@ -8,6 +8,7 @@ use crate::error::{Context, Result};
 use crate::ground::GroundFrame;
 use crate::regions::{Rect, Region};
 use gs_run::{SceneFingerprint, SceneSource};
+use gs_train::TrainConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Component, Path, PathBuf};
 
@@ -18,7 +19,7 @@ pub const PLAN_FILE: &str = "plan.json";
 pub const PLAN_VERSION: u32 = 1;
 
 /// A partition of one scene into blocks.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Plan {
     /// Format version ([`PLAN_VERSION`]).
     pub version: u32,
@@ -34,14 +35,17 @@ pub struct Plan {
     /// A view joins a block when this fraction of the sparse points it sees lie in the block's
     /// grown region (or when its camera stands there).
     pub visibility: f64,
-    /// Arguments every block's `vagsl train` gets after its scene and output folder.
+    /// Arguments every block's `vagsl train` gets after its scene and output folder (with its
+    /// own `--iterations`, [`crate::block_train_args`]).
     pub train_args: Vec<String>,
+    /// The settings of these arguments for the whole scene: the merged run's.
+    pub train: TrainConfig,
     /// The blocks, in index order.
     pub blocks: Vec<Block>,
 }
 
 /// One block of a plan.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Block {
     /// Position in the plan (0-based; the Slurm array index and Kubernetes completion index).
     pub index: usize,
@@ -64,6 +68,9 @@ pub struct Block {
     pub memory_bytes: u64,
     /// The estimate's parts in words.
     pub memory: String,
+    /// The settings the block trains with (the plan's arguments at its iterations): the merge
+    /// refuses a block run trained with others.
+    pub train: TrainConfig,
 }
 
 impl Block {

@@ -59,14 +59,18 @@ fn quote(s: &str) -> String {
 /// `run-block.sh`: trains block INDEX (the first argument, else `SLURM_ARRAY_TASK_ID`, else
 /// `JOB_COMPLETION_INDEX`).
 pub fn block_script(plan: &Plan, o: &RunnerOptions) -> String {
-    let mut train = vec!["\"$scene\"".to_string(), "-o".into(), "\"$run\"".into()];
+    let mut scene_args = Vec::new();
     if let Some(r) = plan.scene.resolution_factor {
-        train.push(format!("-r {r}"));
+        scene_args.push(format!("-r {r}"));
     }
     if let Some(w) = plan.scene.width {
-        train.push(format!("--width {w}"));
+        scene_args.push(format!("--width {w}"));
     }
-    train.extend(plan.train_args.iter().map(|a| quote(a)));
+    let mut cases = String::new();
+    for b in &plan.blocks {
+        let args: Vec<String> = crate::block_train_args(&plan.train_args, b.train.iterations).iter().map(|a| quote(a)).collect();
+        let _ = writeln!(cases, "  {}) args=({}) ;;", b.name(), args.join(" "));
+    }
     let last = plan.blocks.len() - 1;
     format!(
         r#"#!/usr/bin/env bash
@@ -88,6 +92,9 @@ fi
 name="$(printf '%02d' "$((10#$index))")"
 scene="$plan/blocks/$name"
 run="$plan/runs/$name"
+# Each block's training options: the plan's, with its share of the iterations.
+case "$name" in
+{cases}esac
 if [[ -f "$run/point_cloud.ply" && -f "$run/report.json" ]] && grep -q '"interrupted": false' "$run/report.json"; then
   echo "block $name: already trained ($run)"
   exit 0
@@ -99,10 +106,10 @@ fi
 force=()
 if [[ -e "$run/config.json" || -e "$run/point_cloud.ply" ]]; then force=(--force); fi
 echo "block $name: training $scene"
-exec "$vagsl" train {train} --checkpoint-every "$every" --quiet "${{force[@]}}"
+exec "$vagsl" train "$scene" -o "$run" {scene_args}"${{args[@]}}" --checkpoint-every "$every" --quiet "${{force[@]}}"
 "#,
         vagsl = o.vagsl,
-        train = train.join(" "),
+        scene_args = scene_args.iter().map(|a| format!("{a} ")).collect::<String>(),
     )
 }
 

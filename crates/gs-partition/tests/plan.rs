@@ -10,9 +10,12 @@ fn scene() -> PathBuf {
     gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small())
 }
 
-fn options(count: BlockCount) -> PartitionOptions {
-    let config = gs_train::TrainConfig::preset(gs_train::Preset::default()).scaled(100);
-    PartitionOptions { count, margin: 0.2, visibility: 0.25, train_args: vec!["--iterations".into(), "100".into()], config }
+fn config_of(iterations: Option<u64>) -> Result<gs_train::TrainConfig, String> {
+    Ok(gs_train::TrainConfig::preset(gs_train::Preset::default()).scaled(iterations.unwrap_or(100)))
+}
+
+fn options(count: BlockCount) -> PartitionOptions<'static> {
+    PartitionOptions { count, margin: 0.2, visibility: 0.25, train_args: vec!["--iterations".into(), "100".into()], share_iterations: true, config_of: &config_of }
 }
 
 fn source(eval: bool) -> SceneSource {
@@ -52,6 +55,8 @@ fn blocks_cover_the_training_views_and_load_as_scenes() {
         let orig = full.views.iter().find(|w| w.name == v.name).unwrap();
         assert_eq!(v.image.data(), orig.image.data());
         assert!(b.memory_bytes > 0 && b.memory.contains("Gaussians"));
+        // Its share of the 100 iterations: its views over the scene's 10 training views.
+        assert_eq!(b.train.iterations, (100.0 * b.views.len() as f64 / 10.0).round() as u64);
     }
     // The cores tile the plane: each block centre lies in exactly one core.
     for b in &plan.blocks {
@@ -72,6 +77,10 @@ fn an_existing_folder_and_absurd_options_are_refused() {
     }
     let mut o = options(BlockCount::Exactly(2));
     o.margin = f64::NAN;
+    assert_eq!(
+        gs_partition::block_train_args(&["--preset".into(), "fast".into(), "--iterations".into(), "9".into(), "--iterations=8".into()], 3),
+        vec!["--preset", "fast", "--iterations", "3"]
+    );
     assert!(partition(&source(false), &out, &o, &mut |_| {}).unwrap_err().to_string().contains("--margin NaN"));
     // More blocks than the ring of 12 cameras can give views to: refused, nothing left behind.
     let e = partition(&source(false), &out, &options(BlockCount::Exactly(12)), &mut |_| {}).unwrap_err().to_string();

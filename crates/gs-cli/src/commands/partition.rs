@@ -48,6 +48,10 @@ pub struct PartitionArgs {
     /// image size, at least 30).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=100_000))]
     pub minutes_per_job: Option<u64>,
+    /// Every block trains the whole run's iterations, instead of its share (its views over the
+    /// scene's training views, which visits every view as often as one run of the whole scene).
+    #[arg(long)]
+    pub full_iterations: bool,
     /// Container image of the Kubernetes job (it must provide bash and vagsl).
     #[arg(long, default_value = "vagsl")]
     pub image: String,
@@ -99,13 +103,27 @@ fn block_config(train_args: &[String]) -> Result<gs_train::TrainConfig> {
 /// Runs `vagsl partition`.
 pub fn run_partition(args: &PartitionArgs) -> Result<()> {
     let config = block_config(&args.train_args)?;
+    let config_of = |iterations: Option<u64>| {
+        let given = match iterations {
+            Some(n) => gs_partition::block_train_args(&args.train_args, n),
+            None => args.train_args.clone(),
+        };
+        block_config(&given).map_err(|e| format!("{e:#}"))
+    };
     let source = SceneSource { path: Some(absolute_scene_path(&args.scene)), resolution_factor: args.resolution, width: args.width, eval: args.eval };
     let count = match (args.blocks, args.max_memory_per_job) {
         (Some(n), _) => BlockCount::Exactly(n),
         (None, Some(m)) => BlockCount::MemoryPerJob(m),
         (None, None) => bail!("give --blocks N or --max-memory-per-job SIZE"),
     };
-    let opts = PartitionOptions { count, margin: args.margin, visibility: args.visibility, train_args: args.train_args.clone(), config: config.clone() };
+    let opts = PartitionOptions {
+        count,
+        margin: args.margin,
+        visibility: args.visibility,
+        train_args: args.train_args.clone(),
+        share_iterations: !args.full_iterations,
+        config_of: &config_of,
+    };
     let t0 = std::time::Instant::now();
     let plan = gs_partition::partition(&source, &args.output, &opts, &mut |line| eprintln!("{line}"))?;
     let dir = absolute_scene_path(&args.output);
@@ -115,7 +133,10 @@ pub fn run_partition(args: &PartitionArgs) -> Result<()> {
         plan_dir: dir.display().to_string(),
         cpus: args.cpus_per_job,
         memory_bytes: runners::job_memory(&plan),
-        time_seconds: args.minutes_per_job.map_or_else(|| runners::time_limit(config.iterations, pixels, args.cpus_per_job), |m| m * 60),
+        time_seconds: args.minutes_per_job.map_or_else(
+            || runners::time_limit(plan.blocks.iter().map(|b| b.train.iterations).max().unwrap_or(config.iterations), pixels, args.cpus_per_job),
+            |m| m * 60,
+        ),
         image: args.image.clone(),
         data_root: common_root(&dir, source.path.as_deref().unwrap_or(&dir)).display().to_string(),
     };
