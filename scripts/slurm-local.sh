@@ -168,11 +168,11 @@ start() {
   if [ -e "$CONF" ] && ! head -n 1 "$CONF" | grep -qF "$MARK"; then
     die "$CONF exists and was not written by this script; set VAGSL_SLURM_DIR to another folder"
   fi
-  # Clients (tests run as any user) read slurm.conf and talk to munged's socket; the key and
-  # the daemons' state stay root's.
+  # Clients (tests run as any user) read slurm.conf and talk to munged's socket, and a job
+  # runs its script from slurmd's spool as its user; the key and slurmctld's state stay root's.
   mkdir -p "$DIR/etc" "$DIR/run" "$DIR/log" "$DIR/state/ctld" "$DIR/state/d"
-  chmod 0755 "$DIR" "$DIR/etc" "$DIR/run" "$DIR/log"
-  chmod 0700 "$DIR/state"
+  chmod 0755 "$DIR" "$DIR/etc" "$DIR/run" "$DIR/log" "$DIR/state" "$DIR/state/d"
+  chmod 0700 "$DIR/state/ctld"
   write_conf "$CONF.new"
   if is_up && cmp -s "$CONF.new" "$CONF"; then
     rm -f "$CONF.new"

@@ -8,6 +8,7 @@ use std::ffi::OsString;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 /// The environment variable naming the local cluster's folder (as in `scripts/slurm-local.sh`).
@@ -124,27 +125,54 @@ fn on_path(program: &str) -> bool {
 
 /// The Slurm cluster the tests submit to, when one answers and a node takes jobs. Where not,
 /// reports the skip for `test` (naming what is missing and `scripts/slurm-local.sh start`) and
-/// returns `None`; under `CI=true` that panics. Use through [`crate::slurm!`].
+/// returns `None`; under `CI=true` that panics. The cluster is probed once per test binary.
+/// Use through [`crate::slurm!`].
 pub fn slurm(test: &str) -> Option<Slurm> {
-    if !on_path("sinfo") || !on_path("sbatch") {
-        crate::skip_or_fail(test, "needs Slurm (no sinfo or sbatch on PATH)", SLURM_HOW);
-        return None;
+    static PROBE: OnceLock<Result<Slurm, String>> = OnceLock::new();
+    match PROBE.get_or_init(probe_slurm) {
+        Ok(s) => Some(s.clone()),
+        Err(why) => {
+            crate::skip_or_fail(test, why, SLURM_HOW);
+            None
+        }
     }
-    let cluster = Slurm { conf: choose_slurm_conf(std::env::var_os("SLURM_CONF"), &slurm_dir()) };
+}
+
+/// The cluster, or what is missing.
+fn probe_slurm() -> Result<Slurm, String> {
+    if !on_path("sinfo") || !on_path("sbatch") {
+        return Err("needs Slurm (no sinfo or sbatch on PATH)".into());
+    }
+    let dir = slurm_dir();
+    let cluster = Slurm { conf: choose_slurm_conf(std::env::var_os("SLURM_CONF"), &dir) };
     let conf_name = cluster.conf().map_or("Slurm's default config".to_string(), |c| c.display().to_string());
+    // The local cluster's controller not running: said at once (sinfo retries for ~20 s).
+    if cluster.conf() == Some(dir.join("etc/slurm.conf").as_path()) && !pid_alive(&dir.join("run/slurmctld.pid")) {
+        return Err(format!("needs a running Slurm cluster (the local one in {} is stopped)", dir.display()));
+    }
     let mut sinfo = cluster.command("sinfo");
     sinfo.args(["-h", "-N", "-o", "%T"]);
-    let why = match run_with_timeout(sinfo, CLIENT_TIMEOUT) {
-        Ok(o) if o.ok && node_takes_jobs(&o.stdout) => return Some(cluster),
+    match run_with_timeout(sinfo, CLIENT_TIMEOUT) {
+        Ok(o) if o.ok && node_takes_jobs(&o.stdout) => Ok(cluster),
         Ok(o) if o.ok => {
             let states = o.stdout.split_whitespace().collect::<Vec<_>>().join(", ");
-            format!("needs a Slurm node that takes jobs (sinfo with {conf_name} reports: {})", if states.is_empty() { "no nodes" } else { &states })
+            let states = if states.is_empty() { "no nodes".to_string() } else { states };
+            Err(format!("needs a Slurm node that takes jobs (sinfo with {conf_name} reports: {states})"))
         }
-        Ok(o) => format!("needs a running Slurm cluster (sinfo with {conf_name} failed: {})", o.stderr.lines().next().unwrap_or("no message")),
-        Err(e) => format!("needs a running Slurm cluster ({e}, with {conf_name})"),
-    };
-    crate::skip_or_fail(test, &why, SLURM_HOW);
-    None
+        Ok(o) => Err(format!(
+            "needs a running Slurm cluster (sinfo with {conf_name} failed: {})",
+            o.stderr.lines().next().unwrap_or("no message")
+        )),
+        Err(e) => Err(format!("needs a running Slurm cluster ({e}, with {conf_name})")),
+    }
+}
+
+/// Whether the pid file `path` names a running process.
+fn pid_alive(path: &Path) -> bool {
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|p| p.trim().parse::<u32>().ok())
+        .is_some_and(|pid| Path::new(&format!("/proc/{pid}")).exists())
 }
 
 /// The offline Kubernetes Job schema check, `scripts/check-k8s-manifest.sh`.
@@ -233,6 +261,17 @@ mod tests {
         let o = run_with_timeout(c, CLIENT_TIMEOUT).unwrap();
         assert!(!o.ok);
         assert_eq!((o.stdout.as_str(), o.stderr.as_str()), ("out\n", "err\n"));
+    }
+
+    #[test]
+    fn pid_files_name_running_processes_or_not() {
+        let tmp = std::env::temp_dir().join(format!("gs-testdata-sched-pid-{}", std::process::id()));
+        std::fs::write(&tmp, format!("{}\n", std::process::id())).unwrap();
+        assert!(pid_alive(&tmp));
+        std::fs::write(&tmp, "not a pid").unwrap();
+        assert!(!pid_alive(&tmp));
+        std::fs::remove_file(&tmp).unwrap();
+        assert!(!pid_alive(&tmp));
     }
 
     #[test]
