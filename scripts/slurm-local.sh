@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A one-node Slurm cluster on localhost, for the tests that submit jobs (docs/architecture.md
-# §Testing) and for trying vagsl's job scripts by hand.
+# §Tests) and for trying vagsl's job scripts by hand.
 #
 #   scripts/slurm-local.sh start    start munged, slurmctld and slurmd (idempotent) and wait
 #                                   until the node is idle
