@@ -19,6 +19,9 @@
 #
 # Without cgroups (containers): proctrack/linuxproc tracks a job's processes, task/none binds
 # nothing, and jobacct_gather/linux with OverMemoryKill kills a step that outgrows its --mem.
+# select/cons_tres with CR_Core_Memory schedules by cores and --mem; EnforcePartLimits=ALL
+# refuses at submit a job asking for more CPUs or memory than the node has (by default a job
+# with too many CPUs pends for ever, and `sbatch --wait` with it).
 set -euo pipefail
 
 DIR="${VAGSL_SLURM_DIR:-/tmp/vagsl-slurm}"
@@ -129,6 +132,7 @@ AccountingStorageType=accounting_storage/none
 JobCompType=jobcomp/filetxt
 JobCompLoc=$DIR/log/jobcomp.log
 ReturnToService=2
+EnforcePartLimits=ALL
 KillWait=5
 InactiveLimit=0
 NodeName=localhost NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=$mem State=UNKNOWN

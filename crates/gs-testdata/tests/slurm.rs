@@ -1,7 +1,8 @@
 //! The Slurm features a partition plan's job array relies on, checked on a real cluster
 //! (`scripts/slurm-local.sh start`): an array with --mem, --time, --requeue, --cpus-per-task,
 //! --chdir and --output %A_%a runs every task under `sbatch --wait`; a failing task makes
-//! `sbatch --wait` fail; a --mem no node has is refused at submit; a requeued task runs again.
+//! `sbatch --wait` fail; a --mem or --cpus-per-task no node has is refused at submit; a
+//! requeued task runs again.
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -60,13 +61,19 @@ fn a_failing_task_fails_the_wait() {
 }
 
 #[test]
-fn memory_no_node_has_is_refused_at_submit() {
+fn requests_no_node_can_meet_are_refused_at_submit() {
     let Some(slurm) = gs_testdata::slurm!() else { return };
-    let dir = job_dir("too-much-memory");
-    let o = submit(&slurm, &dir, &["--mem=64T", "--time=1"], "#!/bin/sh\ntrue\n");
-    assert!(!o.status.success(), "{}", text(&o));
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("Memory specification can not be satisfied"), "{err}");
+    let dir = job_dir("too-large");
+    // Refused at once rather than left pending for ever (sbatch --wait would never return).
+    for (args, message) in [
+        (["--mem=64T", "--time=1"], "Memory specification can not be satisfied"),
+        (["--cpus-per-task=4096", "--time=1"], "More processors requested than permitted"),
+    ] {
+        let o = submit(&slurm, &dir, &args, "#!/bin/sh\ntrue\n");
+        assert!(!o.status.success(), "{args:?}: {}", text(&o));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(message), "{args:?}: {err}");
+    }
 }
 
 #[test]
