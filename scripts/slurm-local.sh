@@ -166,9 +166,11 @@ tails() {
 }
 
 start() {
-  command -v slurmctld >/dev/null 2>&1 && command -v slurmd >/dev/null 2>&1 &&
-    command -v sinfo >/dev/null 2>&1 && command -v munged >/dev/null 2>&1 ||
-    die "needs slurmctld, slurmd, sinfo and munged (Debian: apt-get install slurm-wlm munge)"
+  local p
+  for p in slurmctld slurmd sinfo munged; do
+    command -v "$p" >/dev/null 2>&1 ||
+      die "needs slurmctld, slurmd, sinfo and munged; $p is missing (Debian: apt-get install slurm-wlm munge)"
+  done
   if [ -e "$CONF" ] && ! head -n 1 "$CONF" | grep -qF "$MARK"; then
     die "$CONF exists and was not written by this script; set VAGSL_SLURM_DIR to another folder"
   fi
@@ -188,24 +190,30 @@ start() {
   mv "$CONF.new" "$CONF"
   start_munged
   slurmctld -f "$CONF" -i || { tails; die "slurmctld did not start"; }
-  local since waited=0 state
+  local since state d
   since="$(date +%s)"
   slurmd -f "$CONF" -N localhost || { tails; die "slurmd did not start"; }
   # Up once the new slurmd has registered (slurmctld may report a node state it saved before)
-  # and the node takes jobs.
+  # and the node takes jobs; a daemon that died (e.g. its port is taken) fails at once.
   while :; do
     state="$(node_state)"
     case "$state" in
       idle | mixed | allocated) [ "$(slurmd_started)" -ge "$since" ] && break ;;
     esac
-    if [ "$waited" -ge "$START_TIMEOUT" ]; then
+    # (After 2 s: a daemon that forked may not have written its pid file yet.)
+    if [ $(($(date +%s) - since)) -ge 2 ]; then
+      for d in munged slurmctld slurmd; do
+        alive "$DIR/run/$d.pid" "$d" || { tails; die "$d exited during start; the daemon logs are above"; }
+      done
+    fi
+    if [ $(($(date +%s) - since)) -ge "$START_TIMEOUT" ]; then
       tails
       timeout 10 sinfo -R >&2 2>/dev/null || true
       die "the node is not idle after ${START_TIMEOUT} s (state: '${state:-no answer from slurmctld}'); the daemon logs are above"
     fi
     sleep 1
-    waited=$((waited + 1))
   done
+  local waited=$(($(date +%s) - since))
   say "up after ${waited} s: node localhost, $(nproc) CPUs, $(node_memory_mib) MiB; logs in $DIR/log"
   say "clients need: export SLURM_CONF=$CONF"
 }
@@ -213,10 +221,10 @@ start() {
 # Sends TERM to the daemon in pid file $1 (command $2) and waits up to 15 s for it to exit.
 stop_one() {
   alive "$1" "$2" || { rm -f "$1"; return 0; }
-  local pid i
+  local pid
   pid="$(cat "$1")"
   kill "$pid" 2>/dev/null || true
-  for i in $(seq 1 30); do
+  for _ in $(seq 1 30); do
     alive "$1" "$2" || break
     sleep 0.5
   done
