@@ -8,6 +8,8 @@
 //!   missing it prints one `SKIPPED: …` line to stderr and the test returns early, except under
 //!   `CI=true`, where a missing data set fails the test ([`skip_or_fail`], the rule the
 //!   Chromium and wgpu-adapter checks follow too).
+//! - **Schedulers** ([`sched`]): a Slurm cluster that takes jobs ([`slurm!`]) and the
+//!   Kubernetes Job schema check ([`k8s_validator!`]), with the same SKIPPED / CI rule.
 //! - **Generated scenes** ([`builtin`]): the built-in procedural scene of gs-synth written as a
 //!   COLMAP scene folder with exact ground truth, cached under `target/`, for tests that need a
 //!   scene on disk but no particular one.
@@ -23,6 +25,9 @@
 //! ```
 
 pub mod builtin;
+pub mod sched;
+
+pub use sched::{K8sValidator, Slurm};
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -102,6 +107,24 @@ macro_rules! needs {
 macro_rules! skip_or_fail {
     ($why:expr, $how:expr $(,)?) => {
         $crate::skip_or_fail(&$crate::test_name(env!("CARGO_CRATE_NAME")), $why, $how)
+    };
+}
+
+/// `slurm!()`: the Slurm cluster to submit to ([`sched::slurm`]) with the running test's name,
+/// `None` after the SKIPPED line (a failure under `CI=true`).
+#[macro_export]
+macro_rules! slurm {
+    () => {
+        $crate::sched::slurm(&$crate::test_name(env!("CARGO_CRATE_NAME")))
+    };
+}
+
+/// `k8s_validator!()`: the Kubernetes Job schema check ([`sched::k8s_validator`]) with the
+/// running test's name, `None` after the SKIPPED line (a failure under `CI=true`).
+#[macro_export]
+macro_rules! k8s_validator {
+    () => {
+        $crate::sched::k8s_validator(&$crate::test_name(env!("CARGO_CRATE_NAME")))
     };
 }
 
