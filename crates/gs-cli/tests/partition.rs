@@ -137,3 +137,37 @@ fn options_that_belong_to_the_plan_are_refused_after_the_separator() {
     let (ok, log) = vagsl(&["partition", scene.to_str().unwrap(), "-o", tmp.path().join("q").to_str().unwrap()]);
     assert!(!ok && log.contains("--blocks"), "{log}");
 }
+
+/// The plan's Kubernetes manifest passes the batch/v1 Job schema (strict, offline validator).
+#[test]
+fn the_kubernetes_manifest_is_a_valid_indexed_job() {
+    let Some(k8s) = gs_testdata::k8s_validator!() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let plan = tmp.path().join("plan with space");
+    let (ok, log) = vagsl(&["partition", scene().to_str().unwrap(), "-o", plan.to_str().unwrap(), "--blocks", "2", "--image", "registry.example/vagsl:1", "--", "--iterations", "50"]);
+    assert!(ok, "{log}");
+    let yaml = std::fs::read_to_string(plan.join("k8s-job.yaml")).unwrap();
+    assert!(yaml.contains("completionMode: Indexed") && yaml.contains("completions: 2"), "{yaml}");
+    k8s.check(&plan.join("k8s-job.yaml")).unwrap_or_else(|e| panic!("{e}\n{yaml}"));
+}
+
+/// On a real scheduler: the plan's job array trains both blocks (`sbatch --wait`), then the
+/// merge and the mesh run on the merged run.
+#[test]
+fn slurm_trains_the_blocks_of_a_plan() {
+    let Some(slurm) = gs_testdata::slurm!() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let plan = tmp.path().join("plan");
+    let p = plan.to_str().unwrap();
+    let (ok, log) = vagsl(&["partition", scene().to_str().unwrap(), "-o", p, "--blocks", "2", "--eval", "--", "--iterations", "200", "--backend", "cpu"]);
+    assert!(ok, "{log}");
+    let out = slurm.command("sbatch").current_dir(&plan).args(["--wait", "--parsable"]).arg(plan.join("slurm.sbatch")).output().unwrap();
+    let logs: String = (0..2).map(|i| std::fs::read_to_string(plan.join(format!("logs/block-{i}.log"))).unwrap_or_default()).collect();
+    assert!(out.status.success(), "sbatch: {}\n{}\n{logs}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(logs.contains("block 00: training") && logs.contains("block 01: training"), "{logs}");
+    let merged = tmp.path().join("merged");
+    let (ok, log) = vagsl(&["merge", p, "-o", merged.to_str().unwrap()]);
+    assert!(ok && log.contains("from 2 blocks"), "{log}");
+    let (ok, log) = vagsl(&["mesh", merged.to_str().unwrap(), "--backend", "cpu"]);
+    assert!(ok, "{log}");
+}

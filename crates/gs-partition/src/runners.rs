@@ -8,6 +8,9 @@ use crate::plan::Plan;
 use std::fmt::Write as _;
 use std::path::Path;
 
+/// How often a failed block task is requeued by the Slurm script before it gives up.
+pub const RETRIES: u32 = 3;
+
 /// The block script in a plan folder.
 pub const BLOCK_SCRIPT: &str = "run-block.sh";
 /// The Slurm batch script in a plan folder.
@@ -119,7 +122,7 @@ fn clock(seconds: u64) -> String {
 }
 
 /// `slurm.sbatch`: a job array of one task per block, with the memory and time per task,
-/// requeued when a node fails or the job is preempted.
+/// requeued when a node fails, the job is preempted, or the task fails ([`RETRIES`] times).
 pub fn slurm_script(plan: &Plan, o: &RunnerOptions) -> String {
     let mib = o.memory_bytes.div_ceil(1 << 20);
     let dir = &o.plan_dir;
@@ -140,7 +143,15 @@ pub fn slurm_script(plan: &Plan, o: &RunnerOptions) -> String {
 #SBATCH --open-mode=append
 #SBATCH --output={dir}/logs/block-%a.log
 export RAYON_NUM_THREADS="${{SLURM_CPUS_PER_TASK:-{cpus}}}"
-exec bash {script} "$SLURM_ARRAY_TASK_ID"
+bash {script} "$SLURM_ARRAY_TASK_ID" && exit 0
+status=$?
+# --requeue covers node failures and preemption; a task that fails is requeued here, up to
+# {RETRIES} times (a killed block resumes from its checkpoint).
+if (( ${{SLURM_RESTART_COUNT:-0}} < {RETRIES} )); then
+  echo "block $SLURM_ARRAY_TASK_ID failed (exit $status): requeued (restart ${{SLURM_RESTART_COUNT:-0}} of {RETRIES})" >&2
+  scontrol requeue "${{SLURM_ARRAY_JOB_ID}}_${{SLURM_ARRAY_TASK_ID}}"
+fi
+exit "$status"
 "#,
         last = plan.blocks.len() - 1,
         cpus = o.cpus,
@@ -199,7 +210,7 @@ spec:
 "#,
         dir = o.plan_dir,
         root = json_string(&o.data_root),
-        retries = 3 * n,
+        retries = RETRIES as usize * n,
         image = json_string(&o.image),
         script = json_string(&format!("{}/{BLOCK_SCRIPT}", o.plan_dir)),
         cpus = o.cpus,
