@@ -159,7 +159,7 @@ pub fn merge(plan_dir: &Path, note: &mut dyn FnMut(String)) -> Result<Merged> {
             }
         }
     }
-    let gaussians = merged.context_free()?;
+    let gaussians = merged.unwrap_or_default();
     if gaussians.is_empty() {
         refuse!("{}: the blocks kept no Gaussian inside their core regions: nothing to merge", plan_dir.display());
     }
@@ -221,15 +221,4 @@ pub fn write_merged(out: &Path, merged: &Merged, force: bool) -> Result<Option<S
     gs_run::write_json(&work.join("report.json"), &merged.report)?;
     gs_io::write_gaussian_ply(&work.join("point_cloud.ply"), &merged.gaussians)?;
     Ok(folder.commit()?)
-}
-
-/// `Option` → a refusal for values a non-empty plan always has.
-trait ContextFree<T> {
-    fn context_free(self) -> Result<T>;
-}
-
-impl<T> ContextFree<T> for Option<T> {
-    fn context_free(self) -> Result<T> {
-        self.ok_or_else(|| crate::PartitionError::Refused("the plan has no blocks".into()))
-    }
 }
