@@ -3,7 +3,8 @@
 //! merge's refusals: a block not trained, interrupted, or trained on another scene.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -40,22 +41,8 @@ fn kill_block(plan: &Path, index: usize) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
-    let mut log = String::new();
-    for line in lines.by_ref() {
-        let line = line.unwrap();
-        log += &line;
-        log.push('\n');
-        if line.starts_with("Gaussian budget") {
-            break;
-        }
-    }
-    assert!(log.contains("Gaussian budget"), "block {index} did not start:\n{log}");
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    // SAFETY: kill(2) on our own child's pid (the script execs vagsl, so this is vagsl).
-    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) }, 0);
-    log.extend(lines.map(|l| l.unwrap() + "\n"));
-    assert_eq!(child.wait().unwrap().code(), Some(143), "{log}");
+    let (log, code) = common::signal_while_training(&mut child, libc::SIGTERM);
+    assert_eq!(code, Some(143), "{log}");
     assert!(log.contains("interrupted at iteration"), "{log}");
 }
 

@@ -2,7 +2,8 @@
 //! checkpoint and the model are written, and the exit status is 128 + the signal number.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::process::{Command, Stdio};
 
 fn stop_with(signal: &str, number: i32, status: i32) {
@@ -14,23 +15,7 @@ fn stop_with(signal: &str, number: i32, status: i32) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    // The budget line is printed just before the training loop installs its handlers.
-    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
-    let mut log = String::new();
-    for line in lines.by_ref() {
-        let line = line.unwrap();
-        log += &line;
-        log.push('\n');
-        if line.starts_with("Gaussian budget") {
-            break;
-        }
-    }
-    assert!(log.contains("Gaussian budget"), "training did not start:\n{log}");
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    // SAFETY: kill(2) on our own child's pid, which has not been waited for yet.
-    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, number) }, 0);
-    log.extend(lines.map(|l| l.unwrap() + "\n"));
-    let code = child.wait().unwrap().code();
+    let (log, code) = common::signal_while_training(&mut child, number);
     assert_eq!(code, Some(status), "{signal}:\n{log}");
     assert!(log.contains(&format!("stopped by SIG{signal}: interrupted at iteration")), "{log}");
     assert!(out.join("checkpoint.bin").is_file() && out.join("point_cloud.ply").is_file(), "{log}");
