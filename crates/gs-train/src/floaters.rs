@@ -49,16 +49,11 @@ pub struct FloaterRule {
     /// Pixels rendering less alpha than this carry no surface (neutral).
     pub min_alpha: f32,
     /// Clearance κ of the capture path, as a share of the camera spacing (0 = no path rule).
-    /// 1.0: on the validation suite 0.5 left pillars' veil (view 0008 at 14.7 dB), 1.0 removed
-    /// it (BENCHMARKS.md §Validation suite).
     #[serde(default = "default_path_clearance")]
     pub path_clearance: f32,
     /// Run the capture-path rule even where `enabled` is off: alone it renders nothing and
-    /// removes only what lies in front of the path. On by default: on the validation suite it
-    /// removed the one veil (pillars' worst held-out view 12.6 → 21.5 dB) and raised held-out
-    /// PSNR on seven of eight scenes (mean 25.47 → 26.08 dB), for a mesh 2 % further from its
-    /// floor on average (BENCHMARKS.md §Validation suite).
-    #[serde(default = "default_capture_path")]
+    /// removes only what lies in front of the path.
+    #[serde(default)]
     pub capture_path: bool,
 }
 
@@ -66,13 +61,9 @@ fn default_path_clearance() -> f32 {
     FloaterRule::default().path_clearance
 }
 
-fn default_capture_path() -> bool {
-    FloaterRule::default().capture_path
-}
-
 impl Default for FloaterRule {
     fn default() -> Self {
-        Self { enabled: false, min_views: 2, fraction: 0.5, margin: 0.1, min_alpha: 0.5, path_clearance: 1.0, capture_path: true }
+        Self { enabled: false, min_views: 2, fraction: 0.5, margin: 0.1, min_alpha: 0.5, path_clearance: 0.5, capture_path: false }
     }
 }
 
