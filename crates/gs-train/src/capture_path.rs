@@ -13,6 +13,12 @@
 //! of a camera) has radius κ·min(dᵢ, dⱼ) (κ = `FloaterRule::path_clearance`), and only its
 //! front part counts: a point must lie in front of the image plane of each camera of the link.
 //! Walls close behind the cameras are behind them, so they stay.
+//!
+//! The scene's sparse points bound the capsules: a capsule's radius is at most
+//! [`SURFACE_MARGIN`] of its link's distance to the nearest sparse point, since those points are
+//! surfaces the training views observed. Without that bound, a sparse ring's long links are
+//! chords through the object (the built-in scene at 10 training views lost 10,475 of its
+//! ~12,000 Gaussians in one pass, held-out PSNR 14.7 → 6.6 dB).
 
 use gs_core::glam::DVec3;
 use gs_core::Camera;
@@ -23,6 +29,10 @@ use gs_core::Camera;
 pub const LINK_REACH: f64 = 3.0;
 /// Neighbours each camera links to at most.
 pub const LINKS_PER_CAMERA: usize = 8;
+/// A capsule reaches at most this share of the way from its link to the nearest sparse point.
+pub const SURFACE_MARGIN: f64 = 0.5;
+/// Sparse points a capsule's bound is measured against, at most (evenly strided).
+const SURFACE_SAMPLES: usize = 20_000;
 /// One capsule of the path: the segment a–b swept by a ball of `radius`; `fa` and `fb` are the
 /// viewing directions of the cameras at a and b.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,14 +45,19 @@ struct Capsule {
 }
 
 impl Capsule {
+    /// Distance from `p` to the capsule's segment.
+    fn distance_to_axis(&self, p: DVec3) -> f64 {
+        let ab = self.b - self.a;
+        let len2 = ab.length_squared();
+        let t = if len2 > 0.0 { ((p - self.a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        (p - (self.a + t * ab)).length()
+    }
+
     fn contains(&self, p: DVec3) -> bool {
         if (p - self.a).dot(self.fa) <= 0.0 || (p - self.b).dot(self.fb) <= 0.0 {
             return false; // behind a camera of the link
         }
-        let ab = self.b - self.a;
-        let len2 = ab.length_squared();
-        let t = if len2 > 0.0 { ((p - self.a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-        (p - (self.a + t * ab)).length() < self.radius
+        self.distance_to_axis(p) < self.radius
     }
 }
 
@@ -53,9 +68,11 @@ pub struct CapturePath {
 }
 
 impl CapturePath {
-    /// The path of `cameras` with clearance κ = `clearance` (a share of the camera spacing).
-    /// Empty (contains nothing) when κ ≤ 0 or there are fewer than two cameras.
-    pub fn new(cameras: &[&Camera], clearance: f64) -> Self {
+    /// The path of `cameras` with clearance κ = `clearance` (a share of the camera spacing),
+    /// its capsules kept [`SURFACE_MARGIN`] of the way short of the sparse points `surface`
+    /// (none given: no bound). Empty (contains nothing) when κ ≤ 0 or there are fewer than two
+    /// cameras.
+    pub fn new(cameras: &[&Camera], clearance: f64, surface: &[DVec3]) -> Self {
         if !(clearance > 0.0) || cameras.len() < 2 {
             return Self { capsules: Vec::new() };
         }
@@ -87,6 +104,13 @@ impl CapturePath {
             fa: forward[i],
             fb: forward[j],
         }));
+        if !surface.is_empty() {
+            let stride = surface.len().div_ceil(SURFACE_SAMPLES);
+            for c in &mut capsules {
+                let nearest = surface.iter().step_by(stride).map(|p| c.distance_to_axis(*p)).fold(f64::INFINITY, f64::min);
+                c.radius = c.radius.min(SURFACE_MARGIN * nearest);
+            }
+        }
         Self { capsules }
     }
 
@@ -127,7 +151,7 @@ mod tests {
         let all = ring(16);
         // Leave out camera 4 (as a held-out view would be).
         let train: Vec<&Camera> = all.iter().enumerate().filter(|(k, _)| *k != 4).map(|(_, c)| c).collect();
-        let path = CapturePath::new(&train, 0.5);
+        let path = CapturePath::new(&train, 0.5, &[]);
         let spacing = all[0].center().distance(all[1].center());
         let held = all[4].center();
         let inward = -held.normalize();
@@ -161,7 +185,7 @@ mod tests {
         let all = two_rings();
         let held = 8;
         let train: Vec<&Camera> = all.iter().enumerate().filter(|(k, _)| *k != held).map(|(_, c)| c).collect();
-        let path = CapturePath::new(&train, 0.5);
+        let path = CapturePath::new(&train, 0.5, &[]);
         let c = all[held].center();
         let f = all[held].rotation.transpose() * DVec3::Z;
         for depth in [0.1, 0.2, 0.3] {
@@ -172,12 +196,28 @@ mod tests {
     }
 
     #[test]
+    fn sparse_points_bound_the_chords_of_a_sparse_ring() {
+        // 10 cameras of radius 2: links of up to 3 spacings are chords that pass 1.2 from the
+        // centre with capsules of radius 1.2 (κ = 1): without a bound the object is "free".
+        let all = ring(10);
+        let refs: Vec<&Camera> = all.iter().collect();
+        let object = DVec3::new(0.3, 0.0, 0.0);
+        assert!(CapturePath::new(&refs, 1.0, &[]).contains(object), "unbounded, the chords reach the object");
+        let surface: Vec<DVec3> = (0..50).map(|k| DVec3::new(0.4 * (k as f64 * 0.7).cos(), 0.4 * (k as f64 * 0.7).sin(), 0.0)).collect();
+        let bounded = CapturePath::new(&refs, 1.0, &surface);
+        assert!(!bounded.contains(object) && !bounded.contains(DVec3::ZERO), "the sparse points keep the object");
+        // Just in front of a camera, far from every point: still free.
+        let c0 = all[0].center();
+        assert!(bounded.contains(c0 * 0.93));
+    }
+
+    #[test]
     fn no_clearance_or_one_camera_frees_nothing() {
         let all = ring(8);
         let refs: Vec<&Camera> = all.iter().collect();
         let p = all[0].center() * 0.95;
-        assert!(CapturePath::new(&refs, 0.5).contains(p));
-        assert!(CapturePath::new(&refs, 0.0).is_empty());
-        assert!(CapturePath::new(&refs[..1], 0.5).is_empty());
+        assert!(CapturePath::new(&refs, 0.5, &[]).contains(p));
+        assert!(CapturePath::new(&refs, 0.0, &[]).is_empty());
+        assert!(CapturePath::new(&refs[..1], 0.5, &[]).is_empty());
     }
 }

@@ -285,7 +285,7 @@ mod tests {
         let mut v = votes(&g, &rule);
         let cams = cameras();
         let refs: Vec<&Camera> = cams.iter().collect();
-        v.mark_capture_path(&g, &CapturePath::new(&refs, rule.path_clearance as f64));
+        v.mark_capture_path(&g, &CapturePath::new(&refs, rule.path_clearance as f64, &[]));
         let (keep, report) = v.verdict(&rule);
         assert!(v.in_frustum[veil] == 1, "in {} frusta", v.in_frustum[veil]);
         assert!(!keep[veil] && report.on_capture_path == 1, "{report:?}");
@@ -293,12 +293,12 @@ mod tests {
         // Without the path rule it stays: no view sees through it.
         let off = FloaterRule { path_clearance: 0.0, ..rule };
         let mut v = votes(&g, &off);
-        v.mark_capture_path(&g, &CapturePath::new(&refs, 0.0));
+        v.mark_capture_path(&g, &CapturePath::new(&refs, 0.0, &[]));
         assert!(v.verdict(&off).0[veil], "through {} support {}", v.through[veil], v.support[veil]);
         // The path rule alone (view votes off) removes the veil and nothing else.
         let alone = FloaterRule { enabled: false, capture_path: true, ..rule };
         let mut v = votes(&g, &alone);
-        v.mark_capture_path(&g, &CapturePath::new(&refs, alone.path_clearance as f64));
+        v.mark_capture_path(&g, &CapturePath::new(&refs, alone.path_clearance as f64, &[]));
         let (keep, report) = v.verdict(&alone);
         assert_eq!((report.removed(), keep[veil]), (1, false), "{report:?}");
     }

@@ -95,7 +95,8 @@ impl Trainer<'_> {
             votes.add_view(&self.state.gaussians, camera, &depth, &alpha, self.raster.near, rule)?;
         }
         let cameras: Vec<&Camera> = self.train_views.iter().map(|&v| &self.scene.views[v].camera).collect();
-        votes.mark_capture_path(&self.state.gaussians, &CapturePath::new(&cameras, rule.path_clearance as f64));
+        let surface: Vec<gs_core::glam::DVec3> = self.scene.points.iter().map(|p| p.position).collect();
+        votes.mark_capture_path(&self.state.gaussians, &CapturePath::new(&cameras, rule.path_clearance as f64, &surface));
         Ok(votes)
     }
 
