@@ -25,6 +25,9 @@ const SHEET: (usize, usize, usize, usize) = (200, 300, 120, 200);
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: filters and fuses 40 views of 480x360")]
 fn a_sheet_one_view_holds_is_dropped_and_the_surfaces_all_views_see_are_kept() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let mut views = common::bunny_views();
     assert_eq!(views.len(), 40);
     let (x0, x1, y0, y1) = SHEET;
@@ -71,6 +74,9 @@ fn a_sheet_one_view_holds_is_dropped_and_the_surfaces_all_views_see_are_kept() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "release only: fuses 40 views of 480x360")]
 fn the_simplified_bunny_keeps_its_accuracy_with_a_fraction_of_the_triangles() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
     let views = common::bunny_views();
     let gt = common::read_ply(&common::bunny_dir().join("gt_mesh.ply"));
     let protocol = EvalOptions::object_protocol(&gt).unwrap();
