@@ -134,7 +134,12 @@ pub fn albedo(material: Material, p: DVec3) -> DVec3 {
         Material::Facade(k) => {
             // Panels 0.45 m square along the street (x) and up (z), two shades per tint.
             let tint = DVec3::from_array(FACADE_TINTS[k as usize % FACADE_TINTS.len()]);
-            let base = tint * if checker(p.x, p.z, 0.0, 0.45) { 1.0 } else { 0.6 };
+            let base = tint
+                * if checker(p.x, p.z, 0.0, 0.45) {
+                    1.0
+                } else {
+                    0.6
+                };
             base * detail(p, 7.0, 13 + k as u64)
         }
     };
@@ -198,7 +203,9 @@ fn mean_albedo(material: Material) -> DVec3 {
             ];
             0.78 * DVec3::from_array(tints[k as usize % 4])
         }
-        Material::Facade(k) => 0.8 * DVec3::from_array(FACADE_TINTS[k as usize % FACADE_TINTS.len()]),
+        Material::Facade(k) => {
+            0.8 * DVec3::from_array(FACADE_TINTS[k as usize % FACADE_TINTS.len()])
+        }
         Material::Sphere => DVec3::new(0.6, 0.3, 0.12),
         Material::Cuboid => DVec3::new(0.47, 0.52, 0.71),
         Material::Torus => DVec3::new(0.5, 0.66, 0.2),

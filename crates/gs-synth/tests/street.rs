@@ -61,7 +61,10 @@ fn same_seed_same_bytes_whatever_the_threads_and_another_seed_differs() {
     assert!(a.len() > 4 * 60, "{} files", a.len());
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     for (k, v) in &a {
-        assert!(v == &b[k], "{k} differs between two runs with the same seed");
+        assert!(
+            v == &b[k],
+            "{k} differs between two runs with the same seed"
+        );
     }
     let c = write("c", 4, 2);
     assert_ne!(a["images/0000.png"], c["images/0000.png"]);
@@ -120,7 +123,8 @@ fn every_object_is_seen_by_enough_views_and_no_view_sees_the_whole_street() {
                 let z = b.gt_depth[i].get(x, y, 0) as f64;
                 if z > 0.0 {
                     let p = v.camera.back_project(x as f64 + 0.5, y as f64 + 0.5, z);
-                    if p.y.abs() < STREET_HALF_WIDTH + 1e-3 && (0.0..=STREET_LENGTH).contains(&p.x) {
+                    if p.y.abs() < STREET_HALF_WIDTH + 1e-3 && (0.0..=STREET_LENGTH).contains(&p.x)
+                    {
                         (lo, hi) = (lo.min(p.x), hi.max(p.x));
                     }
                 }
@@ -129,7 +133,10 @@ fn every_object_is_seen_by_enough_views_and_no_view_sees_the_whole_street() {
         widest = widest.max(hi - lo);
     }
     eprintln!("widest view: {widest:.2} m of {STREET_LENGTH} m");
-    assert!(widest < 0.5 * STREET_LENGTH, "a view sees {widest} m of the street");
+    assert!(
+        widest < 0.5 * STREET_LENGTH,
+        "a view sees {widest} m of the street"
+    );
 }
 
 #[test]
@@ -156,15 +163,25 @@ fn gt_depth_lies_on_the_mesh_and_masks_mark_objects_and_facades() {
                     continue;
                 }
                 let p = cam.back_project(x as f64 + 0.5, y as f64 + 0.5, z);
-                assert!(scene_bvh.closest_point(p).distance < 1e-5 * z, "view {i} ({x},{y})");
+                assert!(
+                    scene_bvh.closest_point(p).distance < 1e-5 * z,
+                    "view {i} ({x},{y})"
+                );
                 let d_scored = scored_bvh.closest_point(p).distance;
                 if m == 1.0 {
                     scored += 1;
-                    assert!(d_scored < 1e-5 * z, "view {i} ({x},{y}): masked pixel off the scored mesh");
+                    assert!(
+                        d_scored < 1e-5 * z,
+                        "view {i} ({x},{y}): masked pixel off the scored mesh"
+                    );
                 } else {
                     assert_eq!(m, 0.0);
                     // Unmasked hits are on the ground (facades start at z = 0, so allow it).
-                    assert!(p.z.abs() < 1e-4 * z, "view {i} ({x},{y}): unmasked hit at z {}", p.z);
+                    assert!(
+                        p.z.abs() < 1e-4 * z,
+                        "view {i} ({x},{y}): unmasked hit at z {}",
+                        p.z
+                    );
                 }
             }
         }
@@ -174,11 +191,20 @@ fn gt_depth_lies_on_the_mesh_and_masks_mark_objects_and_facades() {
     assert!(fs > 0.3 && fs < 0.9, "scored fraction {fs}");
     assert!(fm < 0.1, "sky fraction {fm}");
     // Scored and scene meshes share their first triangles; the rest is one ground rectangle.
-    assert_eq!(b.scene_mesh.triangles[..b.object_mesh.triangles.len()], b.object_mesh.triangles[..]);
-    assert_eq!(b.scene_mesh.triangles.len(), b.object_mesh.triangles.len() + 2);
+    assert_eq!(
+        b.scene_mesh.triangles[..b.object_mesh.triangles.len()],
+        b.object_mesh.triangles[..]
+    );
+    assert_eq!(
+        b.scene_mesh.triangles.len(),
+        b.object_mesh.triangles.len() + 2
+    );
     let (lo, hi) = b.object_mesh.bounds().unwrap();
     assert!(lo[0] < 0.0 && hi[0] > STREET_LENGTH as f32);
-    assert!((lo[1] + STREET_HALF_WIDTH as f32).abs() < 1e-6 && (hi[1] - STREET_HALF_WIDTH as f32).abs() < 1e-6);
+    assert!(
+        (lo[1] + STREET_HALF_WIDTH as f32).abs() < 1e-6
+            && (hi[1] - STREET_HALF_WIDTH as f32).abs() < 1e-6
+    );
 }
 
 #[test]
@@ -196,9 +222,17 @@ fn written_street_loads_with_the_scene_loader_and_records_its_path() {
     for (a, b) in loaded.views.iter().zip(&s.built.scene.views) {
         assert_eq!(a.name, b.name);
         assert!(a.camera.rotation.abs_diff_eq(b.camera.rotation, 1e-12));
-        assert!((a.camera.translation - b.camera.translation).abs().max_element() < 1e-12);
+        assert!(
+            (a.camera.translation - b.camera.translation)
+                .abs()
+                .max_element()
+                < 1e-12
+        );
         assert_eq!(a.image.data(), b.image.data(), "{}", a.name);
-        assert_eq!(a.mask.as_ref().unwrap().data(), b.mask.as_ref().unwrap().data());
+        assert_eq!(
+            a.mask.as_ref().unwrap().data(),
+            b.mask.as_ref().unwrap().data()
+        );
     }
     let gt = gs_io::read_mesh_ply(&dir.join("gt_mesh.ply")).unwrap();
     assert_eq!(gt.triangles, s.built.object_mesh.triangles);
@@ -212,10 +246,18 @@ fn written_street_loads_with_the_scene_loader_and_records_its_path() {
     // The recorded eyes are the loaded camera centres, in image order.
     for (p, v) in path.iter().zip(&loaded.views) {
         assert_eq!(p["image"], v.name.as_str());
-        let eye: Vec<f64> = p["eye"].as_array().unwrap().iter().map(|e| e.as_f64().unwrap()).collect();
+        let eye: Vec<f64> = p["eye"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e.as_f64().unwrap())
+            .collect();
         assert!((DVec3::new(eye[0], eye[1], eye[2]) - v.camera.center()).length() < 1e-9);
     }
-    assert_eq!(meta["objects"].as_array().unwrap().len(), s.spec.objects.len());
+    assert_eq!(
+        meta["objects"].as_array().unwrap().len(),
+        s.spec.objects.len()
+    );
     let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
     assert!(readme.contains("larger than one block") && readme.contains("gt_mesh.ply"));
 }
@@ -232,7 +274,9 @@ fn surface_samples(mesh: &gs_core::TriangleMesh, n: usize, seed: u64) -> Vec<DVe
     let mut rng = gs_core::Rng::new(seed);
     (0..n)
         .map(|_| {
-            let k = cum.partition_point(|&c| c < rng.uniform_f64() * total).min(cum.len() - 1);
+            let k = cum
+                .partition_point(|&c| c < rng.uniform_f64() * total)
+                .min(cum.len() - 1);
             let t = mesh.triangles[k];
             let (mut u, mut v) = (rng.uniform_f64(), rng.uniform_f64());
             if u + v > 1.0 {
@@ -249,18 +293,28 @@ fn most_of_the_scored_surface_is_seen() {
     let b = &s.built;
     let samples = surface_samples(&b.object_mesh, 20_000, 9);
     let seen_by = |q: DVec3| {
-        b.scene.views.iter().enumerate().filter(|(i, v)| {
-            let Some((px, z)) = v.camera.project(q) else { return false };
-            if z <= 0.0 || !v.camera.contains(px) {
-                return false;
-            }
-            let d = b.gt_depth[*i].get(px.x as usize, px.y as usize, 0) as f64;
-            (d - z).abs() < 0.03 * z
-        })
-        .count()
+        b.scene
+            .views
+            .iter()
+            .enumerate()
+            .filter(|(i, v)| {
+                let Some((px, z)) = v.camera.project(q) else {
+                    return false;
+                };
+                if z <= 0.0 || !v.camera.contains(px) {
+                    return false;
+                }
+                let d = b.gt_depth[*i].get(px.x as usize, px.y as usize, 0) as f64;
+                (d - z).abs() < 0.03 * z
+            })
+            .count()
     };
     let counts: Vec<usize> = samples.iter().map(|&q| seen_by(q)).collect();
     let frac = |k: usize| counts.iter().filter(|&&c| c >= k).count() as f64 / counts.len() as f64;
-    eprintln!("scored surface seen by >= 1 view: {:.3}, >= 3 views: {:.3}", frac(1), frac(3));
+    eprintln!(
+        "scored surface seen by >= 1 view: {:.3}, >= 3 views: {:.3}",
+        frac(1),
+        frac(3)
+    );
     assert!(frac(1) > 0.8 && frac(3) > 0.6, "{} {}", frac(1), frac(3));
 }

@@ -4,7 +4,7 @@
 //! eight suite objects (`crate::objects`, scaled to street size) standing along both sides, a
 //! textured ground plane and open sky. The cameras walk the centre line: at each station one
 //! looks to the left and one to the right, leaning alternately forward and back, so every
-//! object is seen from about 10–16 views and no view sees the whole street. A deterministic
+//! object is seen by about ten views and no view sees the whole street. A deterministic
 //! function of the seed, with exact GT like the suite's scenes. See docs/architecture.md
 //! §Street scene.
 
@@ -205,7 +205,11 @@ fn place(
         .map(|&p| (dv(p) - c).truncate().length())
         .fold(0.0, f64::max);
     let side = if left { 1.0 } else { -1.0 };
-    let at = DVec3::new(x, side * (STREET_HALF_WIDTH - FACADE_CLEARANCE - radius), 0.0);
+    let at = DVec3::new(
+        x,
+        side * (STREET_HALF_WIDTH - FACADE_CLEARANCE - radius),
+        0.0,
+    );
     let rot = DMat3::from_rotation_z(yaw_deg.to_radians());
     let (base, first) = (b.positions.len() as u32, b.triangles.len());
     for (&p, &n) in local.positions.iter().zip(&local.normals) {
@@ -287,7 +291,16 @@ pub fn build_street(seed: u64) -> (Geometry, Vec<StreetObject>, Vec<FacadeSegmen
         let yaw = j(35.0);
         let x = first_x + k as f64 * step + j(0.25);
         let (name, f) = OBJECTS[i];
-        objs.push(place(&mut b, name, f, scale, yaw, x, k % 2 == 0, 3 * k as u8));
+        objs.push(place(
+            &mut b,
+            name,
+            f,
+            scale,
+            yaw,
+            x,
+            k % 2 == 0,
+            3 * k as u8,
+        ));
     }
     let segments = facades(&mut b, &mut rng);
     let (tris, verts) = (b.triangles.len(), b.positions.len());
@@ -429,15 +442,37 @@ mod tests {
             assert_eq!(names.len(), OBJECTS.len());
             for (i, o) in objs.iter().enumerate() {
                 let (lo, hi) = o.bbox;
-                assert!(lo[2] > -3e-3 && lo[2] < 1e-3, "{}: lowest {}", o.name, lo[2]);
+                assert!(
+                    lo[2] > -3e-3 && lo[2] < 1e-3,
+                    "{}: lowest {}",
+                    o.name,
+                    lo[2]
+                );
                 assert!(hi[2] < 1.6, "{}: top {}", o.name, hi[2]);
-                assert!(lo[0] > 0.5 && hi[0] < STREET_LENGTH - 0.5, "{}: {lo:?} {hi:?}", o.name);
+                assert!(
+                    lo[0] > 0.5 && hi[0] < STREET_LENGTH - 0.5,
+                    "{}: {lo:?} {hi:?}",
+                    o.name
+                );
                 let inner = if o.left { lo[1] } else { -hi[1] };
                 let outer = if o.left { hi[1] } else { -lo[1] };
-                assert!(inner > 0.6 && outer < STREET_HALF_WIDTH - 0.1, "{}: {lo:?} {hi:?}", o.name);
+                assert!(
+                    inner > 0.6 && outer < STREET_HALF_WIDTH - 0.1,
+                    "{}: {lo:?} {hi:?}",
+                    o.name
+                );
                 for p in &objs[i + 1..] {
-                    let d = DVec3::new(o.position[0] - p.position[0], o.position[1] - p.position[1], 0.0);
-                    assert!(d.length() > o.footprint_radius + p.footprint_radius, "{} and {}", o.name, p.name);
+                    let d = DVec3::new(
+                        o.position[0] - p.position[0],
+                        o.position[1] - p.position[1],
+                        0.0,
+                    );
+                    assert!(
+                        d.length() > o.footprint_radius + p.footprint_radius,
+                        "{} and {}",
+                        o.name,
+                        p.name
+                    );
                 }
             }
             let scored = g.object_triangles;
@@ -445,7 +480,10 @@ mod tests {
             assert!((scored..g.material.len()).all(|t| g.material[t] == Material::Floor));
             for left in [true, false] {
                 let side: Vec<_> = facades.iter().filter(|f| f.left == left).collect();
-                let gaps = side.windows(2).filter(|w| w[1].x[0] - w[0].x[1] > 0.5).count();
+                let gaps = side
+                    .windows(2)
+                    .filter(|w| w[1].x[0] - w[0].x[1] > 0.5)
+                    .count();
                 assert_eq!(gaps, 1, "seed {seed}: one gap per side");
                 assert!(side[0].x[0] < 0.0 && side[side.len() - 1].x[1] > STREET_LENGTH);
             }
