@@ -35,14 +35,21 @@ pub enum Material {
     Wall(u8),
     /// Part `k` of a suite object (`crate::suite`); textured by the scene's texture style.
     Part(u8),
+    /// Facade segment `k` of the street scene (`crate::street`): scored like an object.
+    Facade(u8),
 }
 
 impl Material {
-    /// Whether this is one of the three objects (mask = 1).
+    /// Whether this is scored geometry (mask = 1, in the object mesh): the objects, and the
+    /// street's facades.
     pub fn is_object(self) -> bool {
         matches!(
             self,
-            Material::Sphere | Material::Cuboid | Material::Torus | Material::Part(_)
+            Material::Sphere
+                | Material::Cuboid
+                | Material::Torus
+                | Material::Part(_)
+                | Material::Facade(_)
         )
     }
 }

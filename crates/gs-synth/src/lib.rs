@@ -45,6 +45,7 @@ pub mod geometry;
 mod objects;
 pub mod render;
 pub mod shapes;
+pub mod street;
 pub mod suite;
 pub mod texture;
 pub mod write;
@@ -52,6 +53,9 @@ pub mod write;
 pub use bvh::{Bvh, ClosestPoint, Hit, ViewCast, pixel_ray};
 pub use error::{Result, SynthError};
 pub use render::{LIGHT_DIRECTION, RingSpec, Style, ring_cameras, ring_cameras_with};
+pub use street::{
+    STREET_GENERATOR_VERSION, StreetOptions, StreetScene, generate_street, write_street,
+};
 pub use suite::{
     GENERATOR_VERSION, SUITE_SIZE, SceneSpec, SuiteOptions, SuiteScene, generate_suite_scene,
     scene_spec, write_suite_scene,
@@ -212,19 +216,29 @@ pub(crate) fn bbox_diagonal(mesh: &TriangleMesh) -> f64 {
     })
 }
 
-/// Renders every camera of a scene (in parallel) and samples its sparse points; the
-/// description is left empty for the caller.
+/// Renders every camera of a scene (in parallel) and samples its sparse points with noise of
+/// 0.3 % of the objects' bounding-box diagonal; the description is left empty for the caller.
 pub(crate) fn render_scene(
     renderer: &render::Renderer,
     cameras: Vec<gs_core::Camera>,
     opts: &BuiltinOptions,
+) -> Result<BuiltinScene> {
+    let sigma = 0.003 * bbox_diagonal(&renderer.geom.object_mesh());
+    render_scene_with_sigma(renderer, cameras, opts, sigma)
+}
+
+/// [`render_scene`] with the sparse points' noise standard deviation given.
+pub(crate) fn render_scene_with_sigma(
+    renderer: &render::Renderer,
+    cameras: Vec<gs_core::Camera>,
+    opts: &BuiltinOptions,
+    point_sigma: f64,
 ) -> Result<BuiltinScene> {
     let renders: Vec<render::ViewRender> = cameras
         .par_iter()
         .map(|c| renderer.render_view(c, opts.supersample))
         .collect::<Result<_>>()?;
     let object_mesh = renderer.geom.object_mesh();
-    let point_sigma = 0.003 * bbox_diagonal(&object_mesh);
     let (points, point_sources) = sample_points(renderer, &cameras, opts, point_sigma);
 
     let mut views = Vec::with_capacity(cameras.len());

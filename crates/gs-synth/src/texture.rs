@@ -131,6 +131,17 @@ pub fn albedo(material: Material, p: DVec3) -> DVec3 {
             let base = tints[k as usize % 4] * if checker(u, p.z, 0.0, 0.5) { 1.0 } else { 0.55 };
             base * detail(p, 7.0, 11)
         }
+        Material::Facade(k) => {
+            // Panels 0.45 m square along the street (x) and up (z), two shades per tint.
+            let tint = DVec3::from_array(FACADE_TINTS[k as usize % FACADE_TINTS.len()]);
+            let base = tint
+                * if checker(p.x, p.z, 0.0, 0.45) {
+                    1.0
+                } else {
+                    0.6
+                };
+            base * detail(p, 7.0, 13 + k as u64)
+        }
     };
     a.clamp(DVec3::ZERO, DVec3::splat(0.95))
 }
@@ -144,8 +155,18 @@ pub fn specular(material: Material) -> (f64, f64) {
         Material::Floor => (0.10, 24.0),
         Material::Wall(_) => (0.05, 16.0),
         Material::Part(_) => (0.2, 32.0),
+        Material::Facade(_) => (0.05, 16.0),
     }
 }
+
+/// Tints of the street's facade segments (`Material::Facade(k)`, cycled by `k`).
+const FACADE_TINTS: [[f64; 3]; 5] = [
+    [0.78, 0.55, 0.42],
+    [0.55, 0.62, 0.70],
+    [0.80, 0.74, 0.52],
+    [0.52, 0.66, 0.50],
+    [0.70, 0.50, 0.58],
+];
 
 /// Two colours per suite object part (`Material::Part(k)`, cycled by `k`).
 const PART_PALETTE: [([f64; 3], [f64; 3]); 6] = [
@@ -181,6 +202,9 @@ fn mean_albedo(material: Material) -> DVec3 {
                 [0.75, 0.68, 0.40],
             ];
             0.78 * DVec3::from_array(tints[k as usize % 4])
+        }
+        Material::Facade(k) => {
+            0.8 * DVec3::from_array(FACADE_TINTS[k as usize % FACADE_TINTS.len()])
         }
         Material::Sphere => DVec3::new(0.6, 0.3, 0.12),
         Material::Cuboid => DVec3::new(0.47, 0.52, 0.71),
@@ -239,6 +263,8 @@ mod tests {
             Material::Floor,
             Material::Wall(0),
             Material::Wall(3),
+            Material::Facade(0),
+            Material::Facade(7),
         ];
         for m in mats {
             for i in 0..200 {

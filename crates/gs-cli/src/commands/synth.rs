@@ -1,8 +1,8 @@
-//! `vagsl synth`: writes scenes of the validation suite (gs-synth) as scene folders that
-//! `vagsl train` reads, with their exact GT depth, normals, masks and meshes.
+//! `vagsl synth`: writes scenes of the validation suite, or the street scene (gs-synth), as
+//! scene folders that `vagsl train` reads, with their exact GT depth, normals, masks and meshes.
 
 use anyhow::{Context, Result, bail};
-use gs_synth::{GENERATOR_VERSION, SUITE_SIZE, SuiteOptions, scene_spec, write_suite_scene};
+use gs_synth::{GENERATOR_VERSION, SUITE_SIZE, StreetOptions, SuiteOptions, scene_spec, write_street, write_suite_scene};
 use std::path::{Path, PathBuf};
 
 /// Options of `vagsl synth`.
@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 pub struct SynthArgs {
     /// Output folder; scene N goes to OUT/NN-name (e.g. OUT/00-cup). A scene folder that
     /// already holds the same scene (same index, seed, size and generator version) is kept; one
-    /// that holds anything else is an error.
+    /// that holds anything else is an error. With --street: the new scene folder itself (an
+    /// existing one is refused).
     #[arg(short, long)]
     pub output: PathBuf,
     /// Write only this scene (0-based index into the suite).
@@ -19,17 +20,25 @@ pub struct SynthArgs {
     /// Write every scene of the suite (the default when --scene is not given).
     #[arg(long)]
     pub suite: bool,
+    /// Write the street scene instead: a 14 m street with objects along both sides and cameras
+    /// walking its centre line, larger than one training block.
+    #[arg(long, conflicts_with_all = ["scene", "suite"])]
+    pub street: bool,
     /// Reduced resolution for trying an idea (200×150, 2×2 supersampling) instead of the
     /// record's 480×360, 3×3.
     #[arg(long)]
     pub quick: bool,
-    /// Seed of the object sizes, light, textures and cameras.
+    /// Seed of the object sizes (and, for the street, their order and places), light, textures
+    /// and cameras.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
 }
 
 /// Runs `vagsl synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
+    if args.street {
+        return run_street(args);
+    }
     let opts = if args.quick { SuiteOptions::quick() } else { SuiteOptions::full() };
     let indices: Vec<usize> = match args.scene {
         Some(i) if i >= SUITE_SIZE => bail!("--scene {i}: the suite has scenes 0 to {}", SUITE_SIZE - 1),
@@ -58,6 +67,30 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             t0.elapsed().as_secs_f64()
         );
     }
+    Ok(())
+}
+
+/// Writes the street scene to the new folder `args.output`.
+fn run_street(args: &SynthArgs) -> Result<()> {
+    let opts = if args.quick { StreetOptions::quick() } else { StreetOptions::full() };
+    let dir = &args.output;
+    if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create the parent folder", parent.display()))?;
+    }
+    let t0 = std::time::Instant::now();
+    let scene = write_street(dir, args.seed, &opts)?;
+    let b = &scene.built;
+    println!(
+        "{}: street scene, {} views of {}x{}, {} objects, {} scored triangles, {} sparse points ({:.1}s)",
+        dir.display(),
+        b.scene.views.len(),
+        opts.width,
+        opts.height,
+        scene.spec.objects.len(),
+        b.object_mesh.triangles.len(),
+        b.scene.points.len(),
+        t0.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
