@@ -158,3 +158,31 @@ fn slurm_trains_the_blocks_of_a_plan() {
     let (ok, log) = vagsl(&["mesh", merged.to_str().unwrap(), "--backend", "cpu"]);
     assert!(ok, "{log}");
 }
+
+/// The street scene (`vagsl synth --street`) is larger than one block: partitioned into 4
+/// strips along the street, no block trains on more than 60 % of its views (a quarter of the
+/// street plus its margins and the views that look into it: 29–40 of 70 measured), and together
+/// they cover every training view.
+#[test]
+fn the_street_scene_partitions_into_strips_of_its_own_views() {
+    let tmp = tempfile::tempdir().unwrap();
+    let street = tmp.path().join("street");
+    let (ok, log) = vagsl(&["synth", "--street", "--quick", "-o", street.to_str().unwrap()]);
+    assert!(ok && log.contains("80 views"), "{log}");
+    let (ok, log) = vagsl(&["info", street.to_str().unwrap()]);
+    assert!(ok, "{log}");
+    let plan = tmp.path().join("plan");
+    let (ok, log) = vagsl(&["partition", street.to_str().unwrap(), "-o", plan.to_str().unwrap(), "--blocks", "4", "--eval"]);
+    assert!(ok && log.contains("4 blocks") && log.contains("10 views held out"), "{log}");
+    let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(plan.join("plan.json")).unwrap()).unwrap();
+    let blocks = p["blocks"].as_array().unwrap();
+    // Strips across the street's axis (+x): the ground frame's first axis follows it.
+    assert!(p["frame"]["u"][0].as_f64().unwrap().abs() > 0.99, "{}", p["frame"]);
+    let mut covered = std::collections::BTreeSet::new();
+    for b in blocks {
+        let views = b["views"].as_array().unwrap();
+        assert!(views.len() <= 42, "block {} trains {} of 70 views", b["index"], views.len());
+        covered.extend(views.iter().map(|v| v.as_str().unwrap().to_string()));
+    }
+    assert_eq!(covered.len(), 70, "every training view is in a block");
+}
