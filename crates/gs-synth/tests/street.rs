@@ -3,11 +3,11 @@
 //! the mesh, masks on the scored surfaces (objects and facades), and a folder the scene loader
 //! reads. Small images keep them fast.
 
+mod common;
+
 use glam::DVec3;
 use gs_synth::street::{STREET_HALF_WIDTH, STREET_LENGTH};
 use gs_synth::{Bvh, StreetOptions, StreetScene, generate_street, write_street};
-use std::collections::BTreeMap;
-use std::path::Path;
 use std::sync::OnceLock;
 
 fn tiny() -> StreetOptions {
@@ -24,25 +24,6 @@ fn tiny_street() -> &'static StreetScene {
     SCENE.get_or_init(|| generate_street(3, &tiny()).unwrap())
 }
 
-/// Every file under `dir` (relative path → bytes).
-fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(dir).unwrap().display().to_string(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
-}
 
 #[test]
 fn same_seed_same_bytes_whatever_the_threads_and_another_seed_differs() {
@@ -54,7 +35,7 @@ fn same_seed_same_bytes_whatever_the_threads_and_another_seed_differs() {
             .build()
             .unwrap();
         pool.install(|| write_street(&dir, seed, &tiny()).unwrap());
-        files(&dir)
+        common::files(&dir)
     };
     let a = write("a", 3, 1);
     let b = write("b", 3, 2);
@@ -72,7 +53,7 @@ fn same_seed_same_bytes_whatever_the_threads_and_another_seed_differs() {
     assert_ne!(a["sparse/0/images.txt"], c["sparse/0/images.txt"]);
     // The folder is new: writing over it is refused and leaves it as it was.
     assert!(write_street(&tmp.path().join("a"), 3, &tiny()).is_err());
-    assert_eq!(files(&tmp.path().join("a")).len(), a.len());
+    assert_eq!(common::files(&tmp.path().join("a")).len(), a.len());
 }
 
 /// Views in which the centre of an object's box projects inside the image, in front of the

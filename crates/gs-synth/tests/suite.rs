@@ -2,12 +2,12 @@
 //! bytes, GT depth on the mesh, masks that agree with depth, scenes that load with gs-io's
 //! scene loader, and scenes that differ. Small images keep them fast.
 
+mod common;
+
 use glam::DVec3;
 use gs_synth::{
     Bvh, SUITE_SIZE, SuiteOptions, SuiteScene, generate_suite_scene, write_suite_scene,
 };
-use std::collections::BTreeMap;
-use std::path::Path;
 use std::sync::OnceLock;
 
 fn tiny() -> SuiteOptions {
@@ -28,25 +28,6 @@ fn all_tiny() -> &'static Vec<SuiteScene> {
     })
 }
 
-/// Every file under `dir` (relative path → bytes).
-fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(dir).unwrap().display().to_string(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
-}
 
 #[test]
 fn same_seed_same_bytes_whatever_the_threads_and_another_seed_differs() {
@@ -58,7 +39,7 @@ fn same_seed_same_bytes_whatever_the_threads_and_another_seed_differs() {
             .build()
             .unwrap();
         pool.install(|| write_suite_scene(&dir, 1, seed, &tiny()).unwrap());
-        files(&dir)
+        common::files(&dir)
     };
     let a = write("a", 3, 1);
     let b = write("b", 3, 2);
@@ -75,7 +56,7 @@ fn same_seed_same_bytes_whatever_the_threads_and_another_seed_differs() {
     assert_ne!(a["sparse/0/images.txt"], c["sparse/0/images.txt"]);
     // The folder is new: writing over it is refused and leaves it as it was.
     assert!(write_suite_scene(&tmp.path().join("a"), 1, 3, &tiny()).is_err());
-    assert_eq!(files(&tmp.path().join("a")).len(), a.len());
+    assert_eq!(common::files(&tmp.path().join("a")).len(), a.len());
 }
 
 #[test]
