@@ -105,6 +105,7 @@ pub fn partition(source: &SceneSource, out: &Path, opts: &PartitionOptions, note
     }
     let train_cams: Vec<gs_core::Camera> = capture.train.iter().map(|&i| capture.cameras[i].clone()).collect();
     let frame = GroundFrame::of(&train_cams, &capture.points)?;
+    let whole = (opts.config_of)(None).map_err(crate::PartitionError::Refused)?;
     let mut blocks = match opts.count {
         BlockCount::Exactly(n) => n,
         BlockCount::MemoryPerJob(_) => 1,
@@ -114,7 +115,7 @@ pub fn partition(source: &SceneSource, out: &Path, opts: &PartitionOptions, note
         if staging.exists() {
             std::fs::remove_dir_all(&staging).with_context(|| format!("{}: cannot remove the earlier attempt", staging.display()))?;
         }
-        let plan = build(&capture, &frame, source, blocks, opts, &staging, note)?;
+        let plan = build(&capture, (&frame, &train_cams), source, (blocks, &whole), opts, &staging, note)?;
         let worst = plan.blocks.iter().map(|b| b.memory_bytes).max().unwrap_or(0);
         match opts.count {
             BlockCount::MemoryPerJob(limit) if worst > limit => {
@@ -153,8 +154,14 @@ fn staging_path(out: &Path) -> Result<PathBuf> {
     Ok(out.with_file_name(format!(".{}.partial-{}", name.to_string_lossy(), std::process::id())))
 }
 
-/// The cores, grown regions and members of `n` blocks.
-fn layout(capture: &Capture, frame: &GroundFrame, n: usize, opts: &PartitionOptions) -> Result<(Vec<Region>, Vec<Rect>, Vec<Members>)> {
+/// The cores, grown regions and members of `n` blocks (`train_cams`: the cameras of
+/// `capture.train`).
+fn layout(
+    capture: &Capture,
+    (frame, train_cams): (&GroundFrame, &[gs_core::Camera]),
+    n: usize,
+    opts: &PartitionOptions,
+) -> Result<(Vec<Region>, Vec<Rect>, Vec<Members>)> {
     let cams: Vec<([f64; 2], f64)> =
         capture.train.iter().map(|&i| (frame.coords(capture.cameras[i].center()), capture.pixels(i))).collect();
     let cam_box = Rect::around(cams.iter().map(|c| c.0)).expect("a partition has training views");
@@ -169,26 +176,25 @@ fn layout(capture: &Capture, frame: &GroundFrame, n: usize, opts: &PartitionOpti
         );
     }
     let grown: Vec<Rect> = cores.iter().map(|c| c.grown(opts.margin, &extent)).collect();
-    let train_cameras: Vec<gs_core::Camera> = capture.train.iter().map(|&i| capture.cameras[i].clone()).collect();
-    let members = assign(frame, &grown, &train_cameras, &capture.points, opts.visibility)
+    let members = assign(frame, &grown, train_cams, &capture.points, opts.visibility)
         .into_iter()
         .map(|m| Members { views: m.views.iter().map(|&k| capture.train[k]).collect(), points: m.points })
         .collect();
     Ok((cores, grown, members))
 }
 
-/// Writes `n` blocks into `dir` and returns their plan.
+/// Writes `n` blocks into `dir` and returns their plan (`whole`: the settings of the plan's
+/// arguments for the whole scene).
 fn build(
     capture: &Capture,
-    frame: &GroundFrame,
+    (frame, train_cams): (&GroundFrame, &[gs_core::Camera]),
     source: &SceneSource,
-    n: usize,
+    (n, whole): (usize, &TrainConfig),
     opts: &PartitionOptions,
     dir: &Path,
     note: &mut dyn FnMut(String),
 ) -> Result<Plan> {
-    let (cores, grown, members) = layout(capture, frame, n, opts)?;
-    let whole = (opts.config_of)(None).map_err(crate::PartitionError::Refused)?;
+    let (cores, grown, members) = layout(capture, (frame, train_cams), n, opts)?;
     let mut blocks = Vec::with_capacity(n);
     for (index, ((core, grown), m)) in cores.into_iter().zip(grown).zip(&members).enumerate() {
         let name = format!("{index:02}");
@@ -207,7 +213,7 @@ fn build(
             whole.iterations
         };
         let train = (opts.config_of)(Some(iterations)).map_err(|e| crate::PartitionError::Refused(format!("block {name}: {e}")))?;
-        let (fingerprint, memory_bytes, memory) =
+        let (fingerprint, largest_view_pixels, (memory_bytes, memory)) =
             estimate(&dir.join(&scene), source, &train).with_context(|| format!("block {name}: estimating its training memory"))?;
         note(format!(
             "block {name}: {} views, {} points, {iterations} iterations, {} ({})",
@@ -217,7 +223,8 @@ fn build(
             core.describe()
         ));
         let views = m.views.iter().map(|&v| capture.name(v).to_string()).collect();
-        blocks.push(Block { index, scene, run, core, grown, views, points: m.points.len(), fingerprint, memory_bytes, memory, train });
+        let points = m.points.len();
+        blocks.push(Block { index, scene, run, core, grown, views, points, fingerprint, largest_view_pixels, memory_bytes, memory, train });
     }
     std::fs::create_dir_all(dir.join("runs")).with_context(|| format!("{}: cannot create the runs folder", dir.display()))?;
     let plan = Plan {
@@ -228,20 +235,22 @@ fn build(
         margin: opts.margin,
         visibility: opts.visibility,
         train_args: opts.train_args.clone(),
-        train: whole,
+        train: whole.clone(),
         blocks,
     };
     plan.write(dir)?;
     Ok(plan)
 }
 
-/// The fingerprint and training memory estimate of the block scene in `dir`, loaded as its
-/// `train` will load it (the plan's `-r`/`--width`, every view training).
-fn estimate(dir: &Path, source: &SceneSource, config: &TrainConfig) -> Result<(SceneFingerprint, u64, String)> {
+/// The fingerprint, the largest view's pixels and the training memory estimate (bytes and in
+/// words) of the block scene in `dir`, loaded as its `train` will load it (the plan's
+/// `-r`/`--width`, every view training).
+fn estimate(dir: &Path, source: &SceneSource, config: &TrainConfig) -> Result<(SceneFingerprint, u64, (u64, String))> {
     let src = SceneSource { path: Some(dir.to_path_buf()), resolution_factor: source.resolution_factor, width: source.width, eval: false };
     let scene = gs_run::run_config::load_scene(&src)?;
     let all: Vec<usize> = (0..scene.views.len()).collect();
     let trainer = gs_train::Trainer::new(&scene, all, config.clone())?;
     let e = trainer.memory_estimate();
-    Ok((SceneFingerprint::of(&scene), e.peak_bytes(), e.describe()))
+    let largest = scene.views.iter().map(|v| v.camera.width as u64 * v.camera.height as u64).max().unwrap_or(0);
+    Ok((SceneFingerprint::of(&scene), largest, (e.peak_bytes(), e.describe())))
 }

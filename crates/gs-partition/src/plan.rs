@@ -64,6 +64,8 @@ pub struct Block {
     /// The block scene's fingerprint as `train` records it, so the merge knows the block run
     /// was trained on this block's scene.
     pub fingerprint: SceneFingerprint,
+    /// Pixels of the block's largest view as `train` loads it (for the job time limit).
+    pub largest_view_pixels: u64,
     /// The training memory estimate of the block, bytes (what `train` checks before it starts).
     pub memory_bytes: u64,
     /// The estimate's parts in words.

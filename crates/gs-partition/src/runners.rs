@@ -239,10 +239,13 @@ pub fn write_runners(dir: &Path, plan: &Plan, o: &RunnerOptions) -> crate::Resul
     Ok(())
 }
 
-/// The time limit of a block job, seconds: an upper bound of `iterations` iterations on views of
-/// `pixels` pixels each, at a conservative [`SECONDS_PER_MEGAPIXEL_ITERATION`] per core (with
-/// L_p and L_f rendering source views), at least half an hour.
-pub fn time_limit(iterations: u64, pixels: u64, cpus: u32) -> u64 {
+/// The time limit of every block job of `plan`, seconds: an upper bound of the most iterations a
+/// block trains on views as large as its largest, at a conservative
+/// [`SECONDS_PER_MEGAPIXEL_ITERATION`] per core (with L_p and L_f rendering source views), at
+/// least half an hour.
+pub fn time_limit(plan: &Plan, cpus: u32) -> u64 {
+    let iterations = plan.blocks.iter().map(|b| b.train.iterations).max().unwrap_or(0);
+    let pixels = plan.blocks.iter().map(|b| b.largest_view_pixels).max().unwrap_or(0);
     let work = iterations as f64 * pixels as f64 / 1e6 * SECONDS_PER_MEGAPIXEL_ITERATION / (cpus.max(1) as f64).sqrt();
     (3.0 * work).max(1800.0).min(7.0 * 86400.0) as u64
 }

@@ -102,7 +102,8 @@ fn block_config(train_args: &[String]) -> Result<gs_train::TrainConfig> {
 
 /// Runs `vagsl partition`.
 pub fn run_partition(args: &PartitionArgs) -> Result<()> {
-    let config = block_config(&args.train_args)?;
+    // The training options are refused before the scene is read.
+    block_config(&args.train_args)?;
     let config_of = |iterations: Option<u64>| {
         let given = match iterations {
             Some(n) => gs_partition::block_train_args(&args.train_args, n),
@@ -127,16 +128,12 @@ pub fn run_partition(args: &PartitionArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
     let plan = gs_partition::partition(&source, &args.output, &opts, &mut |line| eprintln!("{line}"))?;
     let dir = absolute_scene_path(&args.output);
-    let pixels = widest_view_pixels(&dir, &plan)?;
     let runner = RunnerOptions {
         vagsl: std::env::current_exe().context("cannot find the vagsl binary's path for the job scripts")?.display().to_string(),
         plan_dir: dir.display().to_string(),
         cpus: args.cpus_per_job,
         memory_bytes: runners::job_memory(&plan),
-        time_seconds: args.minutes_per_job.map_or_else(
-            || runners::time_limit(plan.blocks.iter().map(|b| b.train.iterations).max().unwrap_or(config.iterations), pixels, args.cpus_per_job),
-            |m| m * 60,
-        ),
+        time_seconds: args.minutes_per_job.map_or_else(|| runners::time_limit(&plan, args.cpus_per_job), |m| m * 60),
         image: args.image.clone(),
         data_root: common_root(&dir, source.path.as_deref().unwrap_or(&dir)).display().to_string(),
     };
@@ -155,24 +152,6 @@ pub fn run_partition(args: &PartitionArgs) -> Result<()> {
     println!("  for i in $(seq 0 {}); do bash {}/{} $i; done", plan.blocks.len() - 1, dir.display(), runners::BLOCK_SCRIPT);
     println!("  vagsl merge {} -o MERGED && vagsl mesh MERGED", dir.display());
     Ok(())
-}
-
-/// Pixels of the largest view the blocks train on (its camera in the first block's model, at
-/// the plan's resolution).
-fn widest_view_pixels(dir: &Path, plan: &gs_partition::Plan) -> Result<u64> {
-    let mut most = 0u64;
-    for b in &plan.blocks {
-        let summary = gs_io::model_summary(&dir.join(&b.scene))?;
-        for c in &summary.cameras {
-            let f = plan.scene.resolution_factor.unwrap_or(1).max(1) as u64;
-            let (w, h) = match plan.scene.width {
-                Some(w) => (w as u64, (c.height as u64 * w as u64).div_ceil(c.width.max(1) as u64)),
-                None => ((c.width as u64).div_ceil(f), (c.height as u64).div_ceil(f)),
-            };
-            most = most.max(w * h);
-        }
-    }
-    Ok(most)
 }
 
 /// The deepest folder holding both `a` and `b`.
