@@ -29,6 +29,21 @@ const GAUSSIAN_PLY_RECORD: u64 = 62 * 4;
 /// vagsl writes) at gs-core's pixel cap, 1 GiB.
 pub const IMAGE_SAMPLE_CAP: u64 = MAX_IMAGE_PIXELS as u64 * 16;
 
+/// Decoded bytes any image file may declare whatever its size (a 2048 × 1024 RGBA f32 map,
+/// or an 11-megapixel RGB photo).
+const PLAUSIBLE_FLOOR: usize = 32 << 20;
+/// Decoded bytes per file byte no image compression vagsl reads exceeds: deflate (PNG, EXR
+/// ZIP) stops at 1032:1 and a baseline JPEG at about 512:1 of RGB; this leaves room for PIZ
+/// and DWA on flat EXR maps.
+const MAX_RATIO: usize = 4096;
+
+/// Whether a file of `file_len` bytes can hold `decoded` bytes of samples at any compression
+/// ratio an image format reaches. A header declaring more is a cut or corrupt file (or a
+/// decompression bomb) and is refused before its samples are allocated.
+pub(crate) fn holds_decoded(decoded: usize, file_len: usize) -> bool {
+    decoded <= PLAUSIBLE_FLOOR || decoded / MAX_RATIO <= file_len
+}
+
 /// A kind of file and the most bytes a reader takes of it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Cap {

@@ -22,13 +22,6 @@ use std::path::Path;
 /// The most sample bytes of one layer the reader decodes ([`crate::capped::IMAGE_SAMPLE_CAP`]).
 const MAX_SAMPLE_BYTES: usize = crate::capped::IMAGE_SAMPLE_CAP as usize;
 
-/// Sample bytes any EXR may name regardless of its size (a 2048 × 1024 RGBA f32 map).
-const PLAUSIBLE_FLOOR: usize = 32 << 20;
-
-/// Decoded bytes per file byte no EXR compression exceeds (deflate's limit is 1032:1; this
-/// leaves room for PIZ and DWA on flat images).
-const MAX_RATIO: usize = 4096;
-
 /// Writes a 1-channel depth map as an EXR with the single f32 channel `Z`.
 pub fn write_depth_exr(path: &Path, depth: &Image) -> Result<()> {
     if depth.channels() != 1 {
@@ -123,7 +116,7 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
         // absurd size is held to the same rule.
         if let ::exr::meta::BlockDescription::Tiles(t) = h.blocks {
             let tile = t.tile_size.width().saturating_mul(t.tile_size.height()).saturating_mul(per_pixel);
-            if tile > PLAUSIBLE_FLOOR && tile / MAX_RATIO > bytes.len() {
+            if !crate::capped::holds_decoded(tile, bytes.len()) {
                 return Err(fmt(format!(
                     "EXR tiles of {}x{} with {} channels need {} MiB each, more than a file of {} bytes can hold (a corrupt header?)",
                     t.tile_size.width(),
@@ -134,7 +127,7 @@ pub fn parse_exr(bytes: &[u8], path: &Path) -> Result<Image> {
                 )));
             }
         }
-        if needed > PLAUSIBLE_FLOOR && needed / MAX_RATIO > bytes.len() {
+        if !crate::capped::holds_decoded(needed, bytes.len()) {
             return Err(fmt(format!(
                 "EXR layer of {}x{} with {} channels needs {} MiB of samples, more than a file of {} bytes can hold at any compression (cut short, or a corrupt header?)",
                 size.width(),

@@ -3,6 +3,7 @@
 //! read under [`crate::capped::IMAGE`]) and checked complete ([`crate::integrity`]).
 
 use crate::error::{IoError, Result};
+use image::ImageDecoder;
 use gs_core::Image;
 use std::path::Path;
 
@@ -32,9 +33,9 @@ pub fn decode_mask_bytes(bytes: &[u8], path: &Path) -> Result<Image> {
 fn rgb_of(img: image::DynamicImage, path: &Path) -> Result<Image> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let data: Vec<f32> = if is_16bit(&img) {
-        img.to_rgb16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
+        img.into_rgb16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
     } else {
-        img.to_rgb8().into_raw().into_iter().map(|v| v as f32 / 255.0).collect()
+        img.into_rgb8().into_raw().into_iter().map(|v| v as f32 / 255.0).collect()
     };
     Image::from_vec(w, h, 3, data).map_err(|e| IoError::Core { path: path.to_path_buf(), source: e })
 }
@@ -42,9 +43,9 @@ fn rgb_of(img: image::DynamicImage, path: &Path) -> Result<Image> {
 fn mask_of(img: image::DynamicImage, path: &Path) -> Result<Image> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let data: Vec<f32> = if is_16bit(&img) {
-        img.to_luma16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
+        img.into_luma16().into_raw().into_iter().map(|v| v as f32 / 65535.0).collect()
     } else {
-        img.to_luma8().into_raw().into_iter().map(|v| v as f32 / 255.0).collect()
+        img.into_luma8().into_raw().into_iter().map(|v| v as f32 / 255.0).collect()
     };
     Image::from_vec(w, h, 1, data).map_err(|e| IoError::Core { path: path.to_path_buf(), source: e })
 }
@@ -83,7 +84,7 @@ fn check_pixel_cap((w, h): (u32, u32), path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Checks the size cap (from the header) and that the container is complete (a cut JPEG would
+/// Checks the size caps (from the header: pixels, and samples the file's size can hold) and that the container is complete (a cut JPEG would
 /// otherwise decode with grey rows), then decodes the bytes as `image::open` would (format
 /// from the extension of `path`).
 fn decode_checked(bytes: &[u8], path: &Path) -> Result<image::DynamicImage> {
@@ -92,8 +93,21 @@ fn decode_checked(bytes: &[u8], path: &Path) -> Result<image::DynamicImage> {
         r.limits(decoder_limits());
         Ok(r)
     };
-    let size = reader().and_then(|r| r.into_dimensions());
-    check_pixel_cap(size.map_err(|e| image_error(path, e, "cannot read image header"))?, path)?;
+    let header = reader().and_then(|r| r.into_decoder()).map(|d| (d.dimensions(), d.total_bytes()));
+    let ((w, h), decoded) = header.map_err(|e| image_error(path, e, "cannot read image header"))?;
+    check_pixel_cap((w, h), path)?;
+    // A header declaring more samples than the file could hold at any compression is a bomb or
+    // a corrupt file: a 720-byte JPEG naming 65519x1012 pixels would otherwise allocate ~1 GB.
+    if !crate::capped::holds_decoded(usize::try_from(decoded).unwrap_or(usize::MAX), bytes.len()) {
+        return Err(IoError::format(
+            path,
+            format!(
+                "image of {w}x{h} needs {} of samples, more than a file of {} bytes can hold at any compression (cut short, or a corrupt header?)",
+                crate::capped::bytes(decoded),
+                bytes.len()
+            ),
+        ));
+    }
     crate::integrity::check_complete(path, bytes)?;
     reader().and_then(|r| r.decode()).map_err(|e| image_error(path, e, "cannot decode image"))
 }

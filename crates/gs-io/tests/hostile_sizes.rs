@@ -118,6 +118,49 @@ fn images_by_header_size_and_device() {
     assert!(e.ends_with("none.png: missing image file"), "{e}");
 }
 
+/// A 16 × 16 baseline JPEG whose SOF0 was rewritten to declare `w2` × `h2`.
+fn jpeg_declaring(w2: u16, h2: u16) -> Vec<u8> {
+    let img = image::RgbImage::from_pixel(16, 16, image::Rgb([90, 120, 200]));
+    let mut v = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Jpeg).unwrap();
+    // SOF0: FF C0, length (2), precision (1), then height and width.
+    let sof = v.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap();
+    v[sof + 5..sof + 7].copy_from_slice(&h2.to_be_bytes());
+    v[sof + 7..sof + 9].copy_from_slice(&w2.to_be_bytes());
+    v
+}
+
+#[test]
+fn decompression_bombs_refused_flat_images_kept() {
+    // The fuzz find's shape: a JPEG of a few hundred bytes declaring 65519 × 1012 pixels (within
+    // the pixel cap) would decode ~1 GB. Refused from its header and its size.
+    let bomb = jpeg_declaring(65_519, 1_012);
+    assert!(bomb.len() < 1000, "{} bytes", bomb.len());
+    let p = Path::new("bomb.jpg");
+    let e = gs_io::scene::decode_rgb_bytes(&bomb, p).unwrap_err().to_string();
+    let holds = format!("more than a file of {} bytes can hold at any compression", bomb.len());
+    assert_has(&e, &["bomb.jpg: image of 65519x1012 needs 189.7 MiB of samples", &holds]);
+    let e = gs_io::scene::decode_mask_bytes(&bomb, p).unwrap_err().to_string();
+    assert_has(&e, &["bomb.jpg: image of 65519x1012", &holds]);
+    // The same from a file on disk, and for a PNG declaring a large size.
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("bomb.jpg");
+    std::fs::write(&f, &bomb).unwrap();
+    assert_has(&gs_io::scene::decode_rgb(&f).unwrap_err().to_string(), &["bomb.jpg: image of 65519x1012", &holds]);
+    let e = gs_io::scene::decode_rgb_bytes(&png_declaring(8_000, 6_000), Path::new("b.png")).unwrap_err().to_string();
+    assert_has(&e, &["b.png: image of 8000x6000 needs 137.3 MiB of samples"]);
+    // A real flat photo beyond the 32 MiB floor (4000 × 3000 of one colour, 34 MiB of RGB) is
+    // far below deflate's ratio and decodes; so does a small flat one of any ratio.
+    for (w, h) in [(4000, 3000), (64, 64)] {
+        let flat = image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
+        let mut png = Vec::new();
+        flat.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+        let img = gs_io::scene::decode_rgb_bytes(&png, Path::new("flat.png")).unwrap();
+        assert_eq!((img.width(), img.height()), (w as usize, h as usize));
+        assert!(img.data().iter().all(|&v| v == 1.0));
+    }
+}
+
 #[test]
 fn colmap_binary_and_text() {
     let dir = tempfile::tempdir().unwrap();
