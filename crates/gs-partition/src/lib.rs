@@ -12,9 +12,17 @@
 //! use gs_partition::{BlockCount, PartitionOptions, partition};
 //! use gs_run::SceneSource;
 //! let source = SceneSource { path: Some("street".into()), resolution_factor: None, width: None, eval: true };
-//! let config_of = |iterations: Option<u64>| {
+//! // The settings of `vagsl train` arguments (the CLI parses them with train's own parser).
+//! let config_of = |args: &[String]| -> Result<gs_train::TrainConfig, String> {
 //!     let c = gs_train::TrainConfig::preset(gs_train::Preset::Fast);
-//!     Ok(iterations.map_or(c.clone(), |n| c.scaled(n)))
+//!     let mut c = match args.iter().position(|a| a == "--iterations") {
+//!         Some(i) => c.scaled(args[i + 1].parse().map_err(|_| "bad --iterations".to_string())?),
+//!         None => c,
+//!     };
+//!     if let Some(i) = args.iter().position(|a| a == "--set") {
+//!         c = c.with_assignment(&args[i + 1]).map_err(|e| e.to_string())?;
+//!     }
+//!     Ok(c)
 //! };
 //! let opts = PartitionOptions {
 //!     count: BlockCount::Exactly(4),
@@ -22,6 +30,7 @@
 //!     visibility: 0.25,
 //!     train_args: vec!["--preset".into(), "fast".into()],
 //!     share_iterations: true,
+//!     grow_in_region: true,
 //!     config_of: &config_of,
 //! };
 //! let plan = partition(&source, "street-plan".as_ref(), &opts, &mut |line| eprintln!("{line}"))?;
@@ -44,6 +53,6 @@ pub use assign::{Members, assign, visible_points};
 pub use error::{PartitionError, Result};
 pub use ground::GroundFrame;
 pub use merge::{BlockSummary, MergeReport, Merged, merge, write_merged};
-pub use partition::{BlockCount, ConfigOf, MAX_BLOCKS, MIN_BLOCK_VIEWS, PartitionOptions, block_train_args, partition};
+pub use partition::{BlockCount, ConfigOf, MAX_BLOCKS, MIN_BLOCK_VIEWS, PartitionOptions, block_train_args, partition, REGION_KEY};
 pub use plan::{Block, PLAN_FILE, PLAN_VERSION, Plan};
 pub use regions::{Rect, Region, core_regions, grid_shape, weighted_cuts};

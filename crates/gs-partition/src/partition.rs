@@ -12,7 +12,7 @@ use crate::ground::GroundFrame;
 use crate::plan::{Block, PLAN_VERSION, Plan};
 use crate::regions::{Rect, Region, core_regions, grid_shape};
 use gs_run::{SceneFingerprint, SceneSource};
-use gs_train::TrainConfig;
+use gs_train::{GrowthRegion, TrainConfig};
 use std::path::{Path, PathBuf};
 
 /// How many blocks to make.
@@ -30,9 +30,9 @@ pub const MAX_BLOCKS: usize = 1024;
 /// A block needs at least this many views to train (and for L_p to find neighbours).
 pub const MIN_BLOCK_VIEWS: usize = 3;
 
-/// The training configuration of the block arguments with `--iterations` set to the given
-/// count (`None`: as the arguments say), as `vagsl train` builds it; an error in words.
-pub type ConfigOf<'a> = &'a dyn Fn(Option<u64>) -> std::result::Result<TrainConfig, String>;
+/// The training configuration of `vagsl train` arguments (the plan's, or a block's from
+/// [`block_train_args`]), as `vagsl train` builds it; an error in words.
+pub type ConfigOf<'a> = &'a dyn Fn(&[String]) -> std::result::Result<TrainConfig, String>;
 
 /// Options of a partition.
 pub struct PartitionOptions<'a> {
@@ -43,9 +43,13 @@ pub struct PartitionOptions<'a> {
     /// Fraction of a view's sparse points that must lie in a block's grown region for the view
     /// to join the block.
     pub visibility: f64,
-    /// The arguments of every block's `vagsl train` (recorded in the plan; `--iterations` is
-    /// set per block, see [`block_train_args`]).
+    /// The arguments of every block's `vagsl train` (recorded in the plan; `--iterations` and
+    /// the growth region are set per block, see [`block_train_args`]).
     pub train_args: Vec<String>,
+    /// Each block grows Gaussians only in its grown region and budgets only that region's
+    /// surface (`densify.region`, docs/architecture.md §Partitioned training); `false`: a block
+    /// grows wherever its views look, to a budget of all they see.
+    pub grow_in_region: bool,
     /// Each block trains for its share of the whole run's iterations (its views over the
     /// scene's training views, so every view is visited as often as in one run of the whole
     /// scene); `false`: every block trains the whole run's iterations.
@@ -56,8 +60,9 @@ pub struct PartitionOptions<'a> {
 }
 
 /// `train_args` with `--iterations` set to `iterations` (any `--iterations N` or
-/// `--iterations=N` given is replaced): what block runs are started with.
-pub fn block_train_args(train_args: &[String], iterations: u64) -> Vec<String> {
+/// `--iterations=N` given is replaced) and, with a `region`, `--set densify.region=JSON`:
+/// what block runs are started with.
+pub fn block_train_args(train_args: &[String], iterations: u64, region: Option<&GrowthRegion>) -> Vec<String> {
     let mut out = Vec::with_capacity(train_args.len() + 2);
     let mut skip = false;
     for a in train_args {
@@ -70,8 +75,15 @@ pub fn block_train_args(train_args: &[String], iterations: u64) -> Vec<String> {
         }
     }
     out.extend(["--iterations".to_string(), iterations.to_string()]);
+    if let Some(r) = region {
+        let json = serde_json::to_string(r).expect("a region of finite numbers serialises");
+        out.extend(["--set".to_string(), format!("{REGION_KEY}={json}")]);
+    }
     out
 }
+
+/// The setting that carries a block's growth region; the plan's, never the user's.
+pub const REGION_KEY: &str = "densify.region";
 
 impl PartitionOptions<'_> {
     /// Refuses absurd values, in words.
@@ -83,6 +95,9 @@ impl PartitionOptions<'_> {
         }
         if !(self.margin.is_finite() && (0.0..=1.0).contains(&self.margin)) {
             refuse!("--margin {}: give a fraction of a block's size from 0 to 1 (0.2 grows each side by a fifth)", self.margin);
+        }
+        if self.train_args.iter().any(|a| a.contains(REGION_KEY)) {
+            refuse!("`{REGION_KEY}` in the training options: the plan sets each block's growth region");
         }
         if !(self.visibility.is_finite() && self.visibility > 0.0 && self.visibility <= 1.0) {
             refuse!("--visibility {}: give a fraction above 0 and at most 1 of the points a view sees", self.visibility);
@@ -105,7 +120,7 @@ pub fn partition(source: &SceneSource, out: &Path, opts: &PartitionOptions, note
     }
     let train_cams: Vec<gs_core::Camera> = capture.train.iter().map(|&i| capture.cameras[i].clone()).collect();
     let frame = GroundFrame::of(&train_cams, &capture.points)?;
-    let whole = (opts.config_of)(None).map_err(crate::PartitionError::Refused)?;
+    let whole = (opts.config_of)(&opts.train_args).map_err(crate::PartitionError::Refused)?;
     let mut blocks = match opts.count {
         BlockCount::Exactly(n) => n,
         BlockCount::MemoryPerJob(_) => 1,
@@ -154,14 +169,14 @@ fn staging_path(out: &Path) -> Result<PathBuf> {
     Ok(out.with_file_name(format!(".{}.partial-{}", name.to_string_lossy(), std::process::id())))
 }
 
-/// The cores, grown regions and members of `n` blocks (`train_cams`: the cameras of
-/// `capture.train`).
+/// The cores, grown regions, growth regions and members of `n` blocks (`train_cams`: the
+/// cameras of `capture.train`).
 fn layout(
     capture: &Capture,
     (frame, train_cams): (&GroundFrame, &[gs_core::Camera]),
     n: usize,
     opts: &PartitionOptions,
-) -> Result<(Vec<Region>, Vec<Rect>, Vec<Members>)> {
+) -> Result<(Vec<Region>, Vec<Rect>, Vec<GrowthRegion>, Vec<Members>)> {
     let cams: Vec<([f64; 2], f64)> =
         capture.train.iter().map(|&i| (frame.coords(capture.cameras[i].center()), capture.pixels(i))).collect();
     let cam_box = Rect::around(cams.iter().map(|c| c.0)).expect("a partition has training views");
@@ -176,11 +191,28 @@ fn layout(
         );
     }
     let grown: Vec<Rect> = cores.iter().map(|c| c.grown(opts.margin, &extent)).collect();
+    let growth = cores.iter().zip(&grown).map(|(c, g)| growth_region(frame, c, g, &extent)).collect();
     let members = assign(frame, &grown, train_cams, &capture.points, opts.visibility)
         .into_iter()
         .map(|m| Members { views: m.views.iter().map(|&k| capture.train[k]).collect(), points: m.points })
         .collect();
-    Ok((cores, grown, members))
+    Ok((cores, grown, growth, members))
+}
+
+/// Where a block grows: its grown region, with the sides its core leaves open pushed one
+/// capture extent further out (a Gaussian that drifts past the outermost point still grows).
+fn growth_region(frame: &GroundFrame, core: &Region, grown: &Rect, extent: &Rect) -> GrowthRegion {
+    let size = extent.size();
+    let (mut min, mut max) = (grown.min, grown.max);
+    for (a, [lo, hi]) in [core.u, core.v].into_iter().enumerate() {
+        if lo.is_none() {
+            min[a] -= size[a].max(1.0);
+        }
+        if hi.is_none() {
+            max[a] += size[a].max(1.0);
+        }
+    }
+    GrowthRegion { origin: frame.origin, u: frame.u, v: frame.v, min, max }
 }
 
 /// Writes `n` blocks into `dir` and returns their plan (`whole`: the settings of the plan's
@@ -194,9 +226,9 @@ fn build(
     dir: &Path,
     note: &mut dyn FnMut(String),
 ) -> Result<Plan> {
-    let (cores, grown, members) = layout(capture, (frame, train_cams), n, opts)?;
+    let (cores, grown, growth, members) = layout(capture, (frame, train_cams), n, opts)?;
     let mut blocks = Vec::with_capacity(n);
-    for (index, ((core, grown), m)) in cores.into_iter().zip(grown).zip(&members).enumerate() {
+    for (index, (((core, grown), growth), m)) in cores.into_iter().zip(grown).zip(growth).zip(&members).enumerate() {
         let name = format!("{index:02}");
         if m.views.len() < MIN_BLOCK_VIEWS {
             refuse!(
@@ -212,7 +244,9 @@ fn build(
         } else {
             whole.iterations
         };
-        let train = (opts.config_of)(Some(iterations)).map_err(|e| crate::PartitionError::Refused(format!("block {name}: {e}")))?;
+        let region = opts.grow_in_region.then_some(growth);
+        let args = block_train_args(&opts.train_args, iterations, region.as_ref());
+        let train = (opts.config_of)(&args).map_err(|e| crate::PartitionError::Refused(format!("block {name}: {e}")))?;
         let (fingerprint, largest_view_pixels, (memory_bytes, memory)) =
             estimate(&dir.join(&scene), source, &train).with_context(|| format!("block {name}: estimating its training memory"))?;
         note(format!(

@@ -71,7 +71,7 @@ pub fn block_script(plan: &Plan, o: &RunnerOptions) -> String {
     }
     let mut cases = String::new();
     for b in &plan.blocks {
-        let args: Vec<String> = crate::block_train_args(&plan.train_args, b.train.iterations).iter().map(|a| quote(a)).collect();
+        let args: Vec<String> = crate::block_train_args(&plan.train_args, b.train.iterations, b.train.densify.region.as_ref()).iter().map(|a| quote(a)).collect();
         let _ = writeln!(cases, "  {}) args=({}) ;;", b.name(), args.join(" "));
     }
     let last = plan.blocks.len() - 1;

@@ -10,12 +10,22 @@ fn scene() -> PathBuf {
     gs_testdata::builtin::scene_dir(Path::new(env!("CARGO_TARGET_TMPDIR")), &gs_testdata::builtin::small())
 }
 
-fn config_of(iterations: Option<u64>) -> Result<gs_train::TrainConfig, String> {
-    Ok(gs_train::TrainConfig::preset(gs_train::Preset::default()).scaled(iterations.unwrap_or(100)))
+/// The settings of block arguments: `--iterations N` and `--set KEY=VALUE` over the default
+/// preset (what the CLI's parser makes of them).
+fn config_of(args: &[String]) -> Result<gs_train::TrainConfig, String> {
+    let mut c = gs_train::TrainConfig::preset(gs_train::Preset::default());
+    for w in args.windows(2) {
+        match w[0].as_str() {
+            "--iterations" => c = c.scaled(w[1].parse().map_err(|_| format!("--iterations {}", w[1]))?),
+            "--set" => c = c.with_assignment(&w[1]).map_err(|e| e.to_string())?,
+            _ => {}
+        }
+    }
+    Ok(c)
 }
 
 fn options(count: BlockCount) -> PartitionOptions<'static> {
-    PartitionOptions { count, margin: 0.2, visibility: 0.25, train_args: vec!["--iterations".into(), "100".into()], share_iterations: true, config_of: &config_of }
+    PartitionOptions { count, margin: 0.2, visibility: 0.25, train_args: vec!["--iterations".into(), "100".into()], share_iterations: true, grow_in_region: true, config_of: &config_of }
 }
 
 fn source(eval: bool) -> SceneSource {
@@ -57,7 +67,38 @@ fn blocks_cover_the_training_views_and_load_as_scenes() {
         assert!(b.memory_bytes > 0 && b.memory.contains("Gaussians"));
         // Its share of the 100 iterations: its views over the scene's 10 training views.
         assert_eq!(b.train.iterations, (100.0 * b.views.len() as f64 / 10.0).round() as u64);
+        // It grows in its grown region (open sides pushed further out), in the plan's frame.
+        let r = b.train.densify.region.expect("a block grows in its region");
+        // (Through `--set`'s JSON: serde_json parses to within an ulp.)
+        let near = |a: [f64; 3], b: [f64; 3]| a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= 1e-12);
+        assert!(near(r.origin, plan.frame.origin) && near(r.u, plan.frame.u) && near(r.v, plan.frame.v), "{r:?}");
+        for a in 0..2 {
+            assert!(r.min[a] <= b.grown.min[a] && r.max[a] >= b.grown.max[a]);
+            let bounded = |side: [Option<f64>; 2]| (side[0].is_some(), side[1].is_some());
+            let (lo, hi) = bounded(if a == 0 { b.core.u } else { b.core.v });
+            assert_eq!((r.min[a] == b.grown.min[a], r.max[a] == b.grown.max[a]), (lo, hi));
+        }
+        // Its budget counts that region's surface only: below the whole scene's.
+        let trainer = gs_train::Trainer::new(&loaded, (0..loaded.views.len()).collect(), b.train.clone()).unwrap();
+        let whole = gs_train::Trainer::new(&full, train.clone(), plan.train.clone()).unwrap();
+        assert!(trainer.budget().gaussians < whole.budget().gaussians, "{} against {}", trainer.budget().gaussians, whole.budget().gaussians);
     }
+    // The run script passes the region as the block's own setting; a user's region is refused.
+    let o = gs_partition::runners::RunnerOptions {
+        vagsl: "vagsl".into(),
+        plan_dir: out.display().to_string(),
+        cpus: 2,
+        memory_bytes: 1 << 30,
+        time_seconds: 3600,
+        image: "vagsl".into(),
+        data_root: tmp.path().display().to_string(),
+    };
+    let script = gs_partition::runners::block_script(&plan, &o);
+    assert_eq!(script.matches("--set 'densify.region={").count(), 2, "{script}");
+    let mut o = options(BlockCount::Exactly(2));
+    o.train_args.extend(["--set".into(), "densify.region=null".into()]);
+    let e = partition(&source(true), &tmp.path().join("p2"), &o, &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("the plan sets each block's growth region"), "{e}");
     // The cores tile the plane: each block centre lies in exactly one core.
     for b in &plan.blocks {
         let c = [(b.grown.min[0] + b.grown.max[0]) / 2.0, (b.grown.min[1] + b.grown.max[1]) / 2.0];
@@ -78,7 +119,7 @@ fn an_existing_folder_and_absurd_options_are_refused() {
     let mut o = options(BlockCount::Exactly(2));
     o.margin = f64::NAN;
     assert_eq!(
-        gs_partition::block_train_args(&["--preset".into(), "fast".into(), "--iterations".into(), "9".into(), "--iterations=8".into()], 3),
+        gs_partition::block_train_args(&["--preset".into(), "fast".into(), "--iterations".into(), "9".into(), "--iterations=8".into()], 3, None),
         vec!["--preset", "fast", "--iterations", "3"]
     );
     assert!(partition(&source(false), &out, &o, &mut |_| {}).unwrap_err().to_string().contains("--margin NaN"));

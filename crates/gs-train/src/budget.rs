@@ -10,6 +10,11 @@
 //!   seen surfaces; occlusion is ignored, so `K̄` is an upper bound and the budget errs small).
 //! - **The budget** `B = ρ · P / K̄`, ρ = `densify.gaussians_per_surface_pixel`, never below the
 //!   initial count and never above `max_gaussians` (the user's hard cap).
+//! - **A block of a partitioned run** (`densify.region`, [`crate::region`]) grows only inside
+//!   its region, so its budget counts only the surface there: each view contributes its pixels
+//!   times the share of the points it sees that lie inside, over `K̄` of the inside points; the
+//!   initial Gaussians outside are added as they are (kept, never grown). Blocks then share the
+//!   whole scene's budget instead of each counting most of it.
 //! - **Growth** is scheduled as in Taming 3DGS: the target rises linearly from the initial
 //!   count to `B` over the first `growth_window` of the densification window. Each step may add
 //!   at most `target − current` Gaussians, chosen where the images are still wrong (highest
@@ -17,6 +22,7 @@
 //!   thresholds than the schedule allows, the residual error — not the budget — limits growth.
 
 use crate::config::DensifyConfig;
+use crate::region::GrowthRegion;
 use gs_core::{Camera, Gaussians};
 use serde::Serialize;
 
@@ -51,10 +57,13 @@ pub struct Budget {
     pub training_pixels: u64,
     /// Mean number of training frusta containing an initial Gaussian, K̄.
     pub views_per_point: f64,
-    /// P / K̄.
+    /// P / K̄ (of the growth region's share of P, over K̄ of the points inside it, when a
+    /// region is set).
     pub surface_pixels: f64,
     /// Gaussians at the start, N₀.
     pub initial: usize,
+    /// Initial Gaussians outside the growth region (0 without one): in the budget as they are.
+    pub outside_region: usize,
     /// The budget B (the initial count when budgets are off, ρ = 0: then only the thresholds
     /// and the cap bound growth).
     pub gaussians: usize,
@@ -66,16 +75,18 @@ impl Budget {
     /// The budget of `init` (the run's initial Gaussians) seen by the training cameras `cams`.
     pub fn of_scene(cams: &[&Camera], init: &Gaussians, d: &DensifyConfig, max_gaussians: usize, near: f32) -> Self {
         let training_pixels: u64 = cams.iter().map(|c| c.width as u64 * c.height as u64).sum();
-        let views_per_point = mean_frusta(cams, &init.means, near as f64).max(1.0);
-        let surface_pixels = training_pixels as f64 / views_per_point;
+        let seen = sighting_counts(cams, &init.means, d.region.as_ref(), near as f64);
+        let views_per_point = seen.views_per_point.max(1.0);
+        let surface_pixels = seen.region_pixels / views_per_point;
         let initial = init.len();
+        let outside_region = d.region.map_or(0, |r| init.means.iter().filter(|m| !r.contains(**m)).count());
         let active = d.gaussians_per_surface_pixel > 0.0;
         let gaussians = if active {
-            ((d.gaussians_per_surface_pixel as f64 * surface_pixels).round() as usize).max(initial).min(max_gaussians)
+            ((d.gaussians_per_surface_pixel as f64 * surface_pixels).round() as usize + outside_region).max(initial).min(max_gaussians)
         } else {
             initial
         };
-        Self { training_pixels, views_per_point, surface_pixels, initial, gaussians, active }
+        Self { training_pixels, views_per_point, surface_pixels, initial, outside_region, gaussians, active }
     }
 
     /// The most Gaussians densification may reach at 1-based iteration `it`: N₀ rising
@@ -91,24 +102,47 @@ impl Budget {
     }
 }
 
-/// Mean over (at most 20,000 evenly strided) points of the number of cameras whose image
-/// contains the point in front of the near plane.
-fn mean_frusta(cams: &[&Camera], means: &[[f32; 3]], near: f64) -> f64 {
+/// What the cameras see of the initial points ([`sighting_counts`]).
+struct Sightings {
+    /// Mean number of cameras containing a point of the region (every point without one).
+    views_per_point: f64,
+    /// Σ over cameras of its pixels × the share of the points it sees that lie in the region
+    /// (all its pixels without a region, or when it sees no point).
+    region_pixels: f64,
+}
+
+/// Over (at most 20,000 evenly strided) points, which cameras contain each point in front of
+/// the near plane: the mean count over the region's points, and each camera's pixels weighted
+/// by the share of its points inside the region.
+fn sighting_counts(cams: &[&Camera], means: &[[f32; 3]], region: Option<&GrowthRegion>, near: f64) -> Sightings {
+    let pixels = |c: &Camera| c.width as f64 * c.height as f64;
+    let all_pixels = || cams.iter().map(|c| pixels(c)).sum::<f64>();
     if means.is_empty() {
-        return 1.0;
+        return Sightings { views_per_point: 1.0, region_pixels: all_pixels() };
     }
     let stride = means.len().div_ceil(20_000);
-    let mut total = 0u64;
-    let mut count = 0u64;
+    let (mut total, mut count) = (0u64, 0u64);
+    let mut per_cam = vec![(0u64, 0u64); cams.len()];
     for m in means.iter().step_by(stride) {
+        let inside = region.is_none_or(|r| r.contains(*m));
         let p = gs_core::glam::DVec3::new(m[0] as f64, m[1] as f64, m[2] as f64);
-        total += cams
-            .iter()
-            .filter(|c| c.world_to_camera(p).z > near && c.project(p).is_some_and(|(uv, _)| c.contains(uv)))
-            .count() as u64;
-        count += 1;
+        for (k, c) in cams.iter().enumerate() {
+            if c.world_to_camera(p).z > near && c.project(p).is_some_and(|(uv, _)| c.contains(uv)) {
+                per_cam[k].0 += 1;
+                if inside {
+                    per_cam[k].1 += 1;
+                    total += 1;
+                }
+            }
+        }
+        count += inside as u64;
     }
-    total as f64 / count as f64
+    let views_per_point = if count > 0 { total as f64 / count as f64 } else { 1.0 };
+    let region_pixels = match region {
+        None => all_pixels(),
+        Some(_) => cams.iter().zip(&per_cam).map(|(c, &(seen, inside))| if seen > 0 { pixels(c) * inside as f64 / seen as f64 } else { 0.0 }).sum(),
+    };
+    Sightings { views_per_point, region_pixels }
 }
 
 #[cfg(test)]
@@ -123,7 +157,7 @@ mod tests {
             g.push([0.01 * i as f32, 0.0, 0.0], [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 0.0, [[0.0; 3]; 16]);
         }
         let refs: Vec<&Camera> = cams.iter().collect();
-        let k = mean_frusta(&refs, &g.means, 0.01);
+        let k = sighting_counts(&refs, &g.means, None, 0.01).views_per_point;
         assert!(k > 1.0 && k <= 8.0, "{k}");
         let d = DensifyConfig { gaussians_per_surface_pixel: 0.5, from: 100, until: 1100, growth_window: 0.5, ..Default::default() };
         let b = Budget::of_scene(&refs, &g, &d, 1_000_000, 0.01);
@@ -140,5 +174,33 @@ mod tests {
         assert_eq!(Budget::of_scene(&refs, &g, &d, 150, 0.01).gaussians, 150);
         let off = Budget::of_scene(&refs, &g, &DensifyConfig { gaussians_per_surface_pixel: 0.0, ..d }, 1000, 0.01);
         assert!(!off.active && off.target(500, &d) == usize::MAX);
+    }
+
+    #[test]
+    fn a_growth_region_counts_only_its_surface() {
+        let cams = gs_core::scene::camera_ring(8);
+        let refs: Vec<&Camera> = cams.iter().collect();
+        let mut g = Gaussians::with_len(0).unwrap();
+        for i in 0..100 {
+            g.push([0.01 * i as f32 - 0.5, 0.0, 0.0], [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 0.0, [[0.0; 3]; 16]);
+        }
+        let d = DensifyConfig { gaussians_per_surface_pixel: 0.5, ..Default::default() };
+        let whole = Budget::of_scene(&refs, &g, &d, 10_000_000, 0.01);
+        // The half x < 0 (50 points) on the ground plane z = 0 spanned by x and y.
+        let half = GrowthRegion { origin: [0.0; 3], u: [1.0, 0.0, 0.0], v: [0.0, 1.0, 0.0], min: [-10.0, -10.0], max: [-0.005, 10.0] };
+        let d_half = DensifyConfig { region: Some(half), ..d.clone() };
+        let b = Budget::of_scene(&refs, &g, &d_half, 10_000_000, 0.01);
+        assert_eq!(b.outside_region, 50);
+        assert_eq!(whole.outside_region, 0);
+        // Every camera sees both halves, so half of each view's pixels count, over the same K̄.
+        let seen = sighting_counts(&refs, &g.means, Some(&half), 0.01);
+        let all = sighting_counts(&refs, &g.means, None, 0.01);
+        assert!(seen.region_pixels > 0.3 * all.region_pixels && seen.region_pixels < 0.7 * all.region_pixels, "{}", seen.region_pixels);
+        assert_eq!(b.gaussians, (0.5 * seen.region_pixels / seen.views_per_point).round() as usize + 50);
+        assert!(b.gaussians < whole.gaussians, "{} against {}", b.gaussians, whole.gaussians);
+        // A region holding no point: the initial Gaussians are the budget.
+        let none = GrowthRegion { min: [50.0, 50.0], max: [60.0, 60.0], ..half };
+        let b = Budget::of_scene(&refs, &g, &DensifyConfig { region: Some(none), ..d }, 10_000_000, 0.01);
+        assert_eq!((b.gaussians, b.outside_region), (100, 100));
     }
 }

@@ -136,7 +136,8 @@ fn sample_position(g: &Gaussians, i: usize, rng: &mut Rng) -> [f32; 3] {
 
 /// Clone, split and prune (PGSR's `densify_and_prune` with AbsGS): `prune_big` also prunes
 /// Gaussians too large on screen or in the world, `extent` is the scene extent r. Growth
-/// (a clone adds one Gaussian, a split one net) stops at `growth`'s target and cap; when
+/// (a clone adds one Gaussian, a split one net) happens only inside `cfg.region` (when set,
+/// [`crate::region`]) and stops at `growth`'s target and cap; when
 /// more candidates pass the thresholds than that allows, the highest-scoring ones are taken
 /// ([`score`]). New Gaussians get zero Adam moments; statistics are reset for every Gaussian.
 #[allow(clippy::too_many_arguments)]
@@ -158,6 +159,9 @@ pub fn densify_and_prune(
     let mut split = Vec::new();
     let mut abs_split = Vec::new();
     for i in 0..n {
+        if cfg.region.is_some_and(|r| !r.contains(g.means[i])) {
+            continue;
+        }
         let grad = mean_grad(&stats.grad_sum, i);
         let big = max_scale(g, i) > small_limit;
         if grad >= cfg.grad_threshold && !big {
@@ -316,6 +320,22 @@ mod tests {
         let growth = Growth { target: 5, cap: 100 };
         let r = densify_and_prune(&mut g, &mut adam, &mut st, &DensifyConfig::default(), 100.0, false, growth, &mut Rng::new(0)).unwrap();
         assert!(!r.capped && r.cloned == 1 && g.len() == 5 && r.limit == GrowthLimit::Budget);
+    }
+
+    #[test]
+    fn only_the_growth_region_grows() {
+        // Gaussians at x = 0..4 all over the thresholds; the region holds x in [0.5, 2.5].
+        let (mut g, mut adam) = model(4);
+        let mut st = DensifyStats::new(4);
+        st.grad_sum = vec![1.0; 4];
+        st.visible_count = vec![1; 4];
+        let region = crate::region::GrowthRegion { origin: [0.0; 3], u: [1.0, 0.0, 0.0], v: [0.0, 1.0, 0.0], min: [0.5, -1.0], max: [2.5, 1.0] };
+        let cfg = DensifyConfig { region: Some(region), ..Default::default() };
+        let growth = Growth { target: usize::MAX, cap: 100 };
+        let r = densify_and_prune(&mut g, &mut adam, &mut st, &cfg, 100.0, false, growth, &mut Rng::new(0)).unwrap();
+        assert_eq!((r.cloned, r.split), (2, 0));
+        // The originals stay, the clones are of 1 and 2 only.
+        assert_eq!(g.sh.iter().map(|s| s[0][0]).collect::<Vec<_>>(), vec![0.0, 1.0, 2.0, 3.0, 1.0, 2.0]);
     }
 
     #[test]

@@ -47,6 +47,7 @@ pub mod model;
 pub mod params;
 pub mod plan;
 pub mod refine;
+pub mod region;
 pub mod sh_policy;
 pub mod source_depths;
 pub mod terms;
@@ -54,6 +55,7 @@ pub mod trainer;
 
 pub use config::{DensifyConfig, InitMode, LearningRates, LossSwitches, LossWeights, Phase, Preset, ShPolicy, TrainConfig};
 pub use budget::{Budget, GrowthLimit};
+pub use region::GrowthRegion;
 pub use densify::{DensifyReport, DensifyStats, Growth};
 pub use error::{Result, TrainError};
 pub use evaluate::{ImageMetrics, VEIL_MIN_COVER, Veil, ViewMetrics, evaluate_images, find_veil, score_view};

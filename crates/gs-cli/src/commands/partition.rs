@@ -52,6 +52,11 @@ pub struct PartitionArgs {
     /// scene's training views, which visits every view as often as one run of the whole scene).
     #[arg(long)]
     pub full_iterations: bool,
+    /// Every block grows Gaussians wherever its views look, to a budget of all they see,
+    /// instead of only in its grown region to that region's share (Gaussians outside a block's
+    /// core are dropped at the merge).
+    #[arg(long)]
+    pub grow_everywhere: bool,
     /// Container image of the Kubernetes job (it must provide bash and vagsl).
     #[arg(long, default_value = "vagsl")]
     pub image: String,
@@ -104,13 +109,7 @@ fn block_config(train_args: &[String]) -> Result<gs_train::TrainConfig> {
 pub fn run_partition(args: &PartitionArgs) -> Result<()> {
     // The training options are refused before the scene is read.
     block_config(&args.train_args)?;
-    let config_of = |iterations: Option<u64>| {
-        let given = match iterations {
-            Some(n) => gs_partition::block_train_args(&args.train_args, n),
-            None => args.train_args.clone(),
-        };
-        block_config(&given).map_err(|e| format!("{e:#}"))
-    };
+    let config_of = |given: &[String]| block_config(given).map_err(|e| format!("{e:#}"));
     let source = SceneSource { path: Some(absolute_scene_path(&args.scene)), resolution_factor: args.resolution, width: args.width, eval: args.eval };
     let count = match (args.blocks, args.max_memory_per_job) {
         (Some(n), _) => BlockCount::Exactly(n),
@@ -123,6 +122,7 @@ pub fn run_partition(args: &PartitionArgs) -> Result<()> {
         visibility: args.visibility,
         train_args: args.train_args.clone(),
         share_iterations: !args.full_iterations,
+        grow_in_region: !args.grow_everywhere,
         config_of: &config_of,
     };
     let t0 = std::time::Instant::now();

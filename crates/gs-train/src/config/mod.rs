@@ -204,6 +204,10 @@ pub struct DensifyConfig {
     /// geometry phases and after the last iteration.
     #[serde(default)]
     pub floaters: crate::floaters::FloaterRule,
+    /// Where Gaussians may grow (a block of a partitioned run, [`crate::region`]); `null`:
+    /// everywhere.
+    #[serde(default)]
+    pub region: Option<crate::region::GrowthRegion>,
 }
 
 fn default_gaussians_per_surface_pixel() -> f32 {
@@ -234,6 +238,7 @@ impl Default for DensifyConfig {
             gaussians_per_surface_pixel: default_gaussians_per_surface_pixel(),
             growth_window: default_growth_window(),
             floaters: crate::floaters::FloaterRule::default(),
+            region: None,
         }
     }
 }

@@ -89,6 +89,9 @@ impl TrainConfig {
                 return bad(format!("{name} = {v} must be finite and ≥ 0"));
             }
         }
+        if let Some(r) = &d.region {
+            r.validate().map_err(TrainError::InvalidConfig)?;
+        }
         let f = &d.floaters;
         if !(f.fraction.is_finite() && (0.0..=1.0).contains(&f.fraction)) {
             return bad(format!("densify.floaters.fraction = {} must be in [0, 1]", f.fraction));
