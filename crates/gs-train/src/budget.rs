@@ -64,6 +64,9 @@ pub struct Budget {
     pub initial: usize,
     /// Initial Gaussians outside the growth region (0 without one): in the budget as they are.
     pub outside_region: usize,
+    /// With a growth region: Σ over views of its pixels × the share of the points it sees in
+    /// the region (the P its surface pixels count).
+    pub region_pixels: Option<f64>,
     /// The budget B (the initial count when budgets are off, ρ = 0: then only the thresholds
     /// and the cap bound growth).
     pub gaussians: usize,
@@ -86,7 +89,23 @@ impl Budget {
         } else {
             initial
         };
-        Self { training_pixels, views_per_point, surface_pixels, initial, outside_region, gaussians, active }
+        let region_pixels = d.region.map(|_| seen.region_pixels);
+        Self { training_pixels, views_per_point, surface_pixels, initial, outside_region, region_pixels, gaussians, active }
+    }
+
+    /// The budget and how it came about, in words (ρ = `rho`), e.g. "244977 (1 per surface
+    /// pixel × 2100000 training pixels ÷ 8.6 views per point)".
+    pub fn describe(&self, rho: f32) -> String {
+        match self.region_pixels {
+            None => format!(
+                "{} ({rho} per surface pixel × {} training pixels ÷ {:.1} views per point)",
+                self.gaussians, self.training_pixels, self.views_per_point
+            ),
+            Some(p) => format!(
+                "{} ({rho} per surface pixel × {p:.0} of the {} training pixels on the growth region ÷ {:.1} views per point, + {} initial Gaussians outside it)",
+                self.gaussians, self.training_pixels, self.views_per_point, self.outside_region
+            ),
+        }
     }
 
     /// The most Gaussians densification may reach at 1-based iteration `it`: N₀ rising
@@ -198,6 +217,9 @@ mod tests {
         assert!(seen.region_pixels > 0.3 * all.region_pixels && seen.region_pixels < 0.7 * all.region_pixels, "{}", seen.region_pixels);
         assert_eq!(b.gaussians, (0.5 * seen.region_pixels / seen.views_per_point).round() as usize + 50);
         assert!(b.gaussians < whole.gaussians, "{} against {}", b.gaussians, whole.gaussians);
+        assert_eq!(b.region_pixels, Some(seen.region_pixels));
+        assert!(b.describe(0.5).contains("on the growth region") && b.describe(0.5).contains("+ 50 initial Gaussians outside it"));
+        assert!(whole.region_pixels.is_none() && whole.describe(0.5).ends_with("views per point)"));
         // A region holding no point: the initial Gaussians are the budget.
         let none = GrowthRegion { min: [50.0, 50.0], max: [60.0, 60.0], ..half };
         let b = Budget::of_scene(&refs, &g, &DensifyConfig { region: Some(none), ..d }, 10_000_000, 0.01);

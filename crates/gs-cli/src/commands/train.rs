@@ -421,10 +421,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
     let b = *trainer.budget();
     if b.active {
-        eprintln!(
-            "Gaussian budget: {} ({} per surface pixel × {:.0} training pixels ÷ {:.1} views per point)",
-            b.gaussians, config.densify.gaussians_per_surface_pixel, b.training_pixels as f64, b.views_per_point
-        );
+        eprintln!("Gaussian budget: {}", b.describe(config.densify.gaussians_per_surface_pixel));
     }
 
     let mut elapsed = earlier.unwrap_or_default();
