@@ -84,9 +84,9 @@ fn check_pixel_cap((w, h): (u32, u32), path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Checks the size caps (from the header: pixels, and samples the file's size can hold) and that the container is complete (a cut JPEG would
-/// otherwise decode with grey rows), then decodes the bytes as `image::open` would (format
-/// from the extension of `path`).
+/// Checks the size caps from the header (pixels, and samples the file's size can hold) and
+/// that the container is complete (a cut JPEG would otherwise decode with grey rows), then
+/// decodes the bytes as `image::open` would (format from the extension of `path`).
 fn decode_checked(bytes: &[u8], path: &Path) -> Result<image::DynamicImage> {
     let reader = || -> image::ImageResult<image::ImageReader<std::io::Cursor<&[u8]>>> {
         let mut r = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::from_path(path)?);

@@ -47,10 +47,10 @@ impl GroundFrame {
         Ok(Self { origin: origin.to_array(), u: u.to_array(), v: v.to_array(), up: up.to_array() })
     }
 
-    /// Coordinates of `p` along the ground axes `(u, v)`, from the origin.
+    /// Coordinates of `p` along the ground axes `(u, v)`, from the origin (the formula the
+    /// blocks' growth regions use too, `gs_train::region::ground_coords`).
     pub fn coords(&self, p: DVec3) -> [f64; 2] {
-        let d = p - DVec3::from_array(self.origin);
-        [d.dot(DVec3::from_array(self.u)), d.dot(DVec3::from_array(self.v))]
+        gs_train::region::ground_coords(self.origin, self.u, self.v, p.to_array())
     }
 
     /// Checks a frame read from a file: finite, unit, orthogonal axes.

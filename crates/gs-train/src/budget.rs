@@ -80,7 +80,8 @@ impl Budget {
         let training_pixels: u64 = cams.iter().map(|c| c.width as u64 * c.height as u64).sum();
         let seen = sighting_counts(cams, &init.means, d.region.as_ref(), near as f64);
         let views_per_point = seen.views_per_point.max(1.0);
-        let surface_pixels = seen.region_pixels / views_per_point;
+        let region_pixels = seen.region_pixels;
+        let surface_pixels = region_pixels.unwrap_or(training_pixels as f64) / views_per_point;
         let initial = init.len();
         let outside_region = d.region.map_or(0, |r| init.means.iter().filter(|m| !r.contains(**m)).count());
         let active = d.gaussians_per_surface_pixel > 0.0;
@@ -89,7 +90,6 @@ impl Budget {
         } else {
             initial
         };
-        let region_pixels = d.region.map(|_| seen.region_pixels);
         Self { training_pixels, views_per_point, surface_pixels, initial, outside_region, region_pixels, gaussians, active }
     }
 
@@ -125,24 +125,18 @@ impl Budget {
 struct Sightings {
     /// Mean number of cameras containing a point of the region (every point without one).
     views_per_point: f64,
-    /// Σ over cameras of its pixels × the share of the points it sees that lie in the region
-    /// (all its pixels without a region, or when it sees no point).
-    region_pixels: f64,
+    /// With a region: Σ over cameras of its pixels × the share of the points it sees that lie
+    /// in the region (0 for a camera that sees no point).
+    region_pixels: Option<f64>,
 }
 
 /// Over (at most 20,000 evenly strided) points, which cameras contain each point in front of
 /// the near plane: the mean count over the region's points, and each camera's pixels weighted
 /// by the share of its points inside the region.
 fn sighting_counts(cams: &[&Camera], means: &[[f32; 3]], region: Option<&GrowthRegion>, near: f64) -> Sightings {
-    let pixels = |c: &Camera| c.width as f64 * c.height as f64;
-    let all_pixels = || cams.iter().map(|c| pixels(c)).sum::<f64>();
-    if means.is_empty() {
-        return Sightings { views_per_point: 1.0, region_pixels: all_pixels() };
-    }
-    let stride = means.len().div_ceil(20_000);
-    let (mut total, mut count) = (0u64, 0u64);
     let mut per_cam = vec![(0u64, 0u64); cams.len()];
-    for m in means.iter().step_by(stride) {
+    let (mut total, mut count) = (0u64, 0u64);
+    for m in means.iter().step_by(means.len().div_ceil(20_000).max(1)) {
         let inside = region.is_none_or(|r| r.contains(*m));
         let p = gs_core::glam::DVec3::new(m[0] as f64, m[1] as f64, m[2] as f64);
         for (k, c) in cams.iter().enumerate() {
@@ -157,10 +151,8 @@ fn sighting_counts(cams: &[&Camera], means: &[[f32; 3]], region: Option<&GrowthR
         count += inside as u64;
     }
     let views_per_point = if count > 0 { total as f64 / count as f64 } else { 1.0 };
-    let region_pixels = match region {
-        None => all_pixels(),
-        Some(_) => cams.iter().zip(&per_cam).map(|(c, &(seen, inside))| if seen > 0 { pixels(c) * inside as f64 / seen as f64 } else { 0.0 }).sum(),
-    };
+    let share = |&(seen, inside): &(u64, u64)| if seen > 0 { inside as f64 / seen as f64 } else { 0.0 };
+    let region_pixels = region.map(|_| cams.iter().zip(&per_cam).map(|(c, n)| c.width as f64 * c.height as f64 * share(n)).sum());
     Sightings { views_per_point, region_pixels }
 }
 
@@ -213,11 +205,13 @@ mod tests {
         assert_eq!(whole.outside_region, 0);
         // Every camera sees both halves, so half of each view's pixels count, over the same K̄.
         let seen = sighting_counts(&refs, &g.means, Some(&half), 0.01);
-        let all = sighting_counts(&refs, &g.means, None, 0.01);
-        assert!(seen.region_pixels > 0.3 * all.region_pixels && seen.region_pixels < 0.7 * all.region_pixels, "{}", seen.region_pixels);
-        assert_eq!(b.gaussians, (0.5 * seen.region_pixels / seen.views_per_point).round() as usize + 50);
+        let region_pixels = seen.region_pixels.expect("a region's pixels");
+        assert!(sighting_counts(&refs, &g.means, None, 0.01).region_pixels.is_none());
+        let all = whole.training_pixels as f64;
+        assert!(region_pixels > 0.3 * all && region_pixels < 0.7 * all, "{region_pixels}");
+        assert_eq!(b.gaussians, (0.5 * region_pixels / seen.views_per_point).round() as usize + 50);
         assert!(b.gaussians < whole.gaussians, "{} against {}", b.gaussians, whole.gaussians);
-        assert_eq!(b.region_pixels, Some(seen.region_pixels));
+        assert_eq!(b.region_pixels, Some(region_pixels));
         assert!(b.describe(0.5).contains("on the growth region") && b.describe(0.5).contains("+ 50 initial Gaussians outside it"));
         assert!(whole.region_pixels.is_none() && whole.describe(0.5).ends_with("views per point)"));
         // A region holding no point: the initial Gaussians are the budget.

@@ -24,12 +24,19 @@ pub struct GrowthRegion {
     pub max: [f64; 2],
 }
 
+/// Coordinates of `p` along the ground axes `u`, `v` from `origin`: ((p − origin)·u,
+/// (p − origin)·v). The one formula of a ground frame, for gs-partition's frame and the
+/// regions it hands to training alike.
+pub fn ground_coords(origin: [f64; 3], u: [f64; 3], v: [f64; 3], p: [f64; 3]) -> [f64; 2] {
+    let d = [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
+    let dot = |a: [f64; 3]| d[0] * a[0] + d[1] * a[1] + d[2] * a[2];
+    [dot(u), dot(v)]
+}
+
 impl GrowthRegion {
-    /// The ground coordinates of `p` (as gs-partition's ground frame computes them).
+    /// The ground coordinates of `p` ([`ground_coords`]).
     pub fn coords(&self, p: [f64; 3]) -> [f64; 2] {
-        let d = [p[0] - self.origin[0], p[1] - self.origin[1], p[2] - self.origin[2]];
-        let dot = |a: [f64; 3]| d[0] * a[0] + d[1] * a[1] + d[2] * a[2];
-        [dot(self.u), dot(self.v)]
+        ground_coords(self.origin, self.u, self.v, p)
     }
 
     /// Whether a Gaussian's mean lies in the region.
