@@ -8,6 +8,7 @@ use crate::caches::{downscaled_camera, photo};
 use crate::error::{Result, TrainError};
 use crate::params::{Param, adam_step, set_lr};
 use crate::plan::StepPlan;
+use crate::profile::{Clock, Part};
 use crate::terms::{GradientBuffers, LossValues, SourceInputs, TermInputs};
 use crate::trainer::Trainer;
 use gs_core::Image;
@@ -72,6 +73,8 @@ impl Trainer<'_> {
     /// the loss values. Accumulates the densification statistics when the plan says so.
     pub fn execute(&mut self, plan: &StepPlan) -> Result<LossValues> {
         let it = plan.iteration;
+        let phase = crate::checkpoint::Elapsed::phase_of(&self.config, it);
+        let mut clock = Clock::start();
         set_lr(&mut self.state.adam, Param::Means, plan.lr_means)?;
         self.prepare_caches(plan)?;
         let small = downscaled_camera(&self.scene.views[plan.view].camera, plan.scale)?;
@@ -79,6 +82,7 @@ impl Trainer<'_> {
         if plan.scale > 1 {
             self.caches.ensure_scaled(plan.slot, &self.scene.views[plan.view].image, plan.scale, camera)?;
         }
+        self.profile.add(phase, Part::Caches, clock.lap());
         let out = self.rasterizer.render(&self.state.gaussians, camera, &plan.render, &self.raster)?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
@@ -86,8 +90,10 @@ impl Trainer<'_> {
             Some(e) => Some(crate::exposure::apply(rendered, &e.params[plan.slot])?),
             None => None,
         };
+        self.profile.add(phase, Part::Render, clock.lap());
         let max_age = self.config.source_depth_max_age;
         let rendered_depths = self.render_source_depths(plan)?;
+        self.profile.add(phase, Part::SourceDepths, clock.lap());
         let memo = &self.state.source_depths;
         let depths: Vec<&Image> = match max_age {
             0 => rendered_depths.iter().collect(),
@@ -118,6 +124,7 @@ impl Trainer<'_> {
         let mut grads = GradientBuffers::default();
         for term in plan.terms(&self.config) {
             term.evaluate(&inputs, &plan.weights, &mut grads, &mut values)?;
+            self.profile.add(phase, term.part(), clock.lap());
         }
         values.total = plan.weights.total(&values);
         if !values.total.is_finite() {
@@ -134,10 +141,12 @@ impl Trainer<'_> {
             None => grad_color,
         };
         let g = self.rasterizer.backward(&self.state.gaussians, camera, &self.raster, &out, &grads.as_output(Some(&grad_color)))?;
+        self.profile.add(phase, Part::Backward, clock.lap());
         if plan.refine.accumulate {
             self.state.stats.accumulate(&out.radii, &g, plan.scale as f32);
         }
         adam_step(&mut self.state.adam, &mut self.state.gaussians, &g, it)?;
+        self.profile.add(phase, Part::Optimizer, clock.lap());
         // The reference's plane depth serves later iterations as this view's source depth.
         if max_age > 0
             && plan.scale == 1

@@ -46,6 +46,7 @@ pub mod mesh;
 pub mod model;
 pub mod params;
 pub mod plan;
+pub mod profile;
 pub mod refine;
 pub mod region;
 pub mod sh_policy;
@@ -68,6 +69,7 @@ pub use mesh::{
 pub use model::TrainedModel;
 pub use params::Param;
 pub use plan::{RefinePlan, StepPlan, plan_step};
+pub use profile::{Part, StepProfile};
 pub use refine::RefineReport;
 pub use sh_policy::ShBandDecision;
 pub use source_depths::SourceDepths;

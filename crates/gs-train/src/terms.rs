@@ -10,6 +10,7 @@
 
 use crate::config::LossWeights;
 use crate::error::Result;
+use crate::profile::Part;
 use gs_core::{Camera, Image};
 use gs_features::FeatureMap;
 use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, image_loss, normal_losses};
@@ -139,6 +140,9 @@ pub trait LossTerm {
     /// Evaluates the term on `x`: records its unweighted value(s) in `values` and adds its
     /// gradient, weighted by `w`, into `grads`.
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()>;
+
+    /// The part of the iteration its time counts to ([`crate::profile`]).
+    fn part(&self) -> Part;
 }
 
 fn channel<'a>(c: &'a Option<Image>, name: &str) -> Result<&'a Image> {
@@ -156,6 +160,10 @@ pub struct ImageTerm {
 }
 
 impl LossTerm for ImageTerm {
+    fn part(&self) -> Part {
+        Part::ImageLoss
+    }
+
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
         let li = image_loss(x.color, x.photo, x.guide, &cfg)?;
@@ -177,6 +185,10 @@ pub struct NormalTerms {
 }
 
 impl LossTerm for NormalTerms {
+    fn part(&self) -> Part {
+        Part::NormalLosses
+    }
+
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let cfg = NormalLossConfig {
             lambda_nc: if self.consistency { w.lambda_nc } else { 0.0 },
@@ -207,6 +219,10 @@ pub struct PhotometricTerm {
 }
 
 impl LossTerm for PhotometricTerm {
+    fn part(&self) -> Part {
+        Part::Photometric
+    }
+
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let r = x.render;
         let reference = PhotometricReference {
@@ -237,6 +253,10 @@ impl LossTerm for PhotometricTerm {
 pub struct FeatureTerm;
 
 impl LossTerm for FeatureTerm {
+    fn part(&self) -> Part {
+        Part::Features
+    }
+
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let reference = FeatureReference {
             camera: x.camera,

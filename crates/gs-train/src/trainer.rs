@@ -16,6 +16,7 @@ use crate::exposure::Exposure;
 use crate::init::initial_gaussians;
 use crate::model::TrainedModel;
 use crate::plan::{StepPlan, plan_step};
+use crate::profile::{Clock, Part, StepProfile};
 use crate::sh_policy::{self, ShBandDecision};
 use crate::source_depths::SourceDepths;
 use crate::terms::LossValues;
@@ -84,6 +85,8 @@ pub struct Trainer<'s> {
     pub(crate) state: TrainState,
     pub(crate) caches: ViewCaches,
     pub(crate) budget: Budget,
+    /// Where this process's training time went ([`crate::profile`]).
+    pub(crate) profile: StepProfile,
 }
 
 fn check_scene(scene: &Scene, train_views: &[usize]) -> Result<()> {
@@ -194,6 +197,7 @@ impl<'s> Trainer<'s> {
             selector,
             state,
             budget,
+            profile: StepProfile::default(),
         })
     }
 
@@ -342,6 +346,7 @@ impl<'s> Trainer<'s> {
 
     /// One training iteration: plan it, set the SH degree, execute the plan, then refine.
     pub fn step(&mut self) -> Result<StepReport> {
+        let mut whole = Clock::start();
         let plan = self.plan();
         let (scene, views, rasterizer, raster) = (self.scene, &self.train_views, &mut self.rasterizer, &self.raster);
         let s = &mut self.state;
@@ -349,7 +354,11 @@ impl<'s> Trainer<'s> {
             sh_policy::judge_l1(g, degree, scene, views, rasterizer, raster)
         })?;
         let losses = self.execute(&plan)?;
+        let mut clock = Clock::start();
         let refined = self.refine(&plan)?;
+        let phase = crate::checkpoint::Elapsed::phase_of(&self.config, plan.iteration);
+        self.profile.add(phase, Part::Refine, clock.lap());
+        self.profile.finish_iteration(phase, whole.lap());
         self.state.iteration = plan.iteration;
         Ok(StepReport {
             iteration: plan.iteration,
@@ -375,6 +384,11 @@ impl<'s> Trainer<'s> {
             }
         }
         Ok(())
+    }
+
+    /// Where this process's training time went, per phase and part of the iteration.
+    pub fn profile(&self) -> &StepProfile {
+        &self.profile
     }
 
     /// Consumes the trainer, returning its state.

@@ -272,6 +272,9 @@ pub struct TrainReport {
     pub growth_stopped: String,
     /// Free-space floaters removed over this process's run (see gs_train::floaters).
     pub floaters_removed: usize,
+    /// Where this process's training time went: milliseconds per iteration by part, per phase
+    /// (gs_train::profile).
+    pub time_by_part: gs_train::StepProfile,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
 }
@@ -456,6 +459,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         gaussians_per_training_pixel: trainer.gaussians().len() as f64 / b.training_pixels.max(1) as f64,
         growth_stopped: growth_stopped(growth, &b, trainer.gaussians().len()),
         floaters_removed,
+        time_by_part: trainer.profile().clone(),
         last,
     };
     // The report first, then the model it describes: a run stopped between the two leaves a
@@ -482,6 +486,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         report.peak_memory_bytes.map_or("n/a".into(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64)),
         out.display()
     );
+    for line in report.time_by_part.describe() {
+        eprintln!("time: {line}");
+    }
     if interrupted {
         let message = format!("interrupted at iteration {}; checkpoint in {}", report.iterations, ckpt_path.display());
         return Err(crate::signals::Stopped { signal: signal.unwrap_or(signal_hook::consts::SIGINT), message }.into());
