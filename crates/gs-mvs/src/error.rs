@@ -21,6 +21,9 @@ pub enum MvsError {
     /// Inputs that disagree with each other (e.g. a weight list of the wrong length).
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    /// A GPU device failure (no adapter, a validation error, a lost device).
+    #[error("GPU: {0}")]
+    Device(String),
 }
 
 /// Result alias of gs-mvs.

@@ -44,6 +44,8 @@ pub mod error;
 pub mod feature_alignment;
 pub mod geometry;
 pub mod photometric;
+#[cfg(feature = "wgpu")]
+pub mod photometric_gpu;
 pub mod selection;
 pub mod visibility;
 
@@ -61,5 +63,7 @@ pub use photometric::{
     DEFAULT_MAX_PIXELS_PER_SOURCE, NccMode, PhotometricConfig, PhotometricOutput, PhotometricReference, PhotometricSource,
     SourceStats, photometric_loss, photometric_loss_with_weights,
 };
+#[cfg(feature = "wgpu")]
+pub use photometric_gpu::PhotometricGpu;
 pub use selection::{SourceSelection, SourceViewSelector};
 pub use visibility::{Visibility, VisibilityStats, compute_visibility};

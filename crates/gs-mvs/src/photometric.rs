@@ -182,7 +182,7 @@ impl<T: Real> PhotometricOutput<T> {
     }
 }
 
-fn check_inputs<T>(
+pub(crate) fn check_inputs<T>(
     reference: &PhotometricReference<'_, T>,
     sources: &[PhotometricSource<'_, T>],
     config: &PhotometricConfig,
@@ -223,7 +223,7 @@ fn grey_scale<T>(grey: &MapView<'_, T>, camera: &Camera, name: &str) -> Result<u
 }
 
 /// The cameras whose pixels are the grey images' pixels, and the reference grey scale.
-fn patch_geometry<T: Real>(
+pub(crate) fn patch_geometry<T: Real>(
     reference: &PhotometricReference<'_, T>,
     source: &PhotometricSource<'_, T>,
 ) -> Result<(PairGeometry<T>, usize)> {
@@ -321,7 +321,7 @@ pub fn photometric_loss_with_weights<T: Real>(
 
 /// Marks the candidate pixels (patch inside the reference, υω > 0), applying the sampling cap.
 /// Returns one byte per pixel: 0 = not a candidate, 1 = candidate not sampled, 2 = evaluated.
-fn select_pixels<T: Real>(
+pub(crate) fn select_pixels<T: Real>(
     vis: &Visibility<T>,
     config: &PhotometricConfig,
     k: usize,

@@ -1,0 +1,180 @@
+// L_p on the device: the NCC cost of one reference pixel's patch against one source view and
+// its gradient with respect to the rendered plane (Ñ, D), the twin of `photometric::patch_cost`
+// (docs/method.md §L_p). One thread per (pixel, source) entry; the patch samples are computed
+// three times (sums, centred moments, gradient) instead of being kept in per-thread arrays, with
+// the same arithmetic each time, so every pass sees the same values.
+//
+// Generated before this file: `struct NccFrame` (binding 0), `struct NccPair`,
+// `struct NccResult`, and the storage bindings `pairs`, `entries`, `normal`, `distance`,
+// `greys` (the reference grey image at 0, then each source's at its pair's offset), `rays`
+// (the x ray table of the reference grey image's columns, then the y table of its rows) and
+// `results`.
+
+@group(0) @binding(0) var<uniform> frame: NccFrame;
+
+const NCC_EPS: f32 = 1e-8;
+const MASK_THRESHOLD: f32 = 0.9;
+const OUTSIDE: u32 = 0u;
+const MASKED: u32 = 1u;
+const VALID: u32 = 2u;
+
+// Finite without relying on NaN comparisons (which a driver may fold away).
+fn finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
+// The homogeneous warp of reference ray q by the plane (n, 1/D): w = A q − (K_s t)·m with
+// m = n·q / D (`PairGeometry::warp`). Returns (w, m).
+fn warp(pr: NccPair, q: vec3<f32>, n: vec3<f32>, inv_d: f32) -> vec4<f32> {
+    let m = (n.x * q.x + n.y * q.y + n.z * q.z) * inv_d;
+    let a0 = pr.a0.x * q.x + pr.a0.y * q.y + pr.a0.z * q.z;
+    let a1 = pr.a1.x * q.x + pr.a1.y * q.y + pr.a1.z * q.z;
+    let a2 = pr.a2.x * q.x + pr.a2.y * q.y + pr.a2.z * q.z;
+    return vec4<f32>(a0 - pr.kt.x * m, a1 - pr.kt.y * m, a2 - pr.kt.z * m, m);
+}
+
+// Bilinear sample of the source grey image with (value, ∂/∂u, ∂/∂v), the convention of
+// `geometry::sample_bilinear_grad`: taps floor(c − ½) and +1, clamped to the edge.
+fn sample(pr: NccPair, u: f32, v: f32) -> vec3<f32> {
+    let w = i32(pr.grey_width);
+    let h = i32(pr.grey_height);
+    let x = min(max(u - 0.5, -1.0), f32(w));
+    let y = min(max(v - 0.5, -1.0), f32(h));
+    let x0 = i32(floor(x));
+    let y0 = i32(floor(y));
+    let fx = x - f32(x0);
+    let fy = y - f32(y0);
+    let xa = u32(clamp(x0, 0, w - 1));
+    let xb = u32(clamp(x0 + 1, 0, w - 1));
+    let ya = u32(clamp(y0, 0, h - 1));
+    let yb = u32(clamp(y0 + 1, 0, h - 1));
+    let o = pr.grey_offset;
+    let gw = pr.grey_width;
+    let i00 = greys[o + ya * gw + xa];
+    let i10 = greys[o + ya * gw + xb];
+    let i01 = greys[o + yb * gw + xa];
+    let i11 = greys[o + yb * gw + xb];
+    let top = i00 + (i10 - i00) * fx;
+    let bottom = i01 + (i11 - i01) * fx;
+    let value = top + (bottom - top) * fy;
+    let du = (i10 - i00) * (1.0 - fy) + (i11 - i01) * fy;
+    let dv = bottom - top;
+    return vec3<f32>(value, du, dv);
+}
+
+fn put_result(t: u32, status: u32, cost: f32, gn: vec3<f32>, gd: f32) {
+    var r: NccResult;
+    r.grad_n = vec4<f32>(gn, 0.0);
+    r.status = status;
+    r.cost = cost;
+    r.grad_d = gd;
+    results[t] = r;
+}
+
+@compute @workgroup_size(256)
+fn ncc_patch(ids: Ids) {
+    let t = thread_1d(ids);
+    if (t >= pass_.n) {
+        return;
+    }
+    let e = entries[pass_.base + t];
+    let pr = pairs[e.y];
+    let p = e.x;
+    let n = vec3<f32>(normal[3u * p], normal[3u * p + 1u], normal[3u * p + 2u]);
+    let inv_d = 1.0 / distance[p];
+    if (!(finite(inv_d) && finite(n.x) && finite(n.y) && finite(n.z))) {
+        put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
+        return;
+    }
+    let s = frame.grey_scale;
+    let half = frame.side / 2u;
+    let ci = s * (p % frame.width) + s / 2u;
+    let cj = s * (p / frame.width) + s / 2u;
+    let count = frame.side * frame.side;
+    // Pass 1: the border rules and the patch sums.
+    var sr = 0.0;
+    var ss = 0.0;
+    for (var k = 0u; k < count; k++) {
+        let px = ci - half + k % frame.side;
+        let py = cj - half + k / frame.side;
+        let w = warp(pr, vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0), n, inv_d);
+        if (!(w.z > 0.0)) {
+            put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
+            return;
+        }
+        let us = w.x / w.z;
+        let vs = w.y / w.z;
+        if (!(us > 0.0 && us < pr.src_w && vs > 0.0 && vs < pr.src_h)) {
+            put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
+            return;
+        }
+        sr += greys[py * frame.grey_width + px];
+        ss += sample(pr, us, vs).x;
+    }
+    let nf = f32(count);
+    let mr = sr / nf;
+    let ms = ss / nf;
+    // Pass 2: centred moments.
+    var cov = 0.0;
+    var var_r = 0.0;
+    var var_s = 0.0;
+    for (var k = 0u; k < count; k++) {
+        let px = ci - half + k % frame.side;
+        let py = cj - half + k / frame.side;
+        let w = warp(pr, vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0), n, inv_d);
+        let a = greys[py * frame.grey_width + px] - mr;
+        let b = sample(pr, w.x / w.z, w.y / w.z).x - ms;
+        cov += a * b;
+        var_r += a * a;
+        var_s += b * b;
+    }
+    // cost and ∂cost/∂s_k = ca·a_k + cb·b_k.
+    var cost: f32;
+    var ca = 0.0;
+    var cb = 0.0;
+    if (frame.mode == 0u) {
+        let den = var_r * var_s + NCC_EPS;
+        let cc = cov * cov / den;
+        let raw = 1.0 - cc;
+        cost = min(max(raw, 0.0), 2.0);
+        if (!(cost < MASK_THRESHOLD) || !finite(cost)) {
+            put_result(t, MASKED, 0.0, vec3<f32>(0.0), 0.0);
+            return;
+        }
+        if (raw >= 0.0 && raw <= 2.0) {
+            ca = -(2.0 * cov / den);
+            cb = 2.0 * cov * cov * var_r / (den * den);
+        }
+    } else {
+        let sq = sqrt(var_r * var_s + NCC_EPS);
+        cost = 1.0 - cov / sq;
+        if (!finite(cost)) {
+            put_result(t, MASKED, 0.0, vec3<f32>(0.0), 0.0);
+            return;
+        }
+        ca = -(1.0 / sq);
+        cb = cov * var_r / (sq * sq * sq);
+    }
+    // Pass 3: back through the samples, the warp and the homography into (Ñ, D).
+    var gn = vec3<f32>(0.0);
+    var gd = 0.0;
+    for (var k = 0u; k < count; k++) {
+        let px = ci - half + k % frame.side;
+        let py = cj - half + k / frame.side;
+        let q = vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0);
+        let w = warp(pr, q, n, inv_d);
+        let smp = sample(pr, w.x / w.z, w.y / w.z);
+        let a = greys[py * frame.grey_width + px] - mr;
+        let b = smp.x - ms;
+        let dc_ds = ca * a + cb * b;
+        let du = dc_ds * smp.y;
+        let dv = dc_ds * smp.z;
+        let iz = 1.0 / w.z;
+        let dw = vec3<f32>(du * iz, dv * iz, -(du * w.x + dv * w.y) * iz * iz);
+        let dm = -(dw.x * pr.kt.x + dw.y * pr.kt.y + dw.z * pr.kt.z);
+        let f = dm * inv_d;
+        gn += f * q;
+        gd -= f * w.w;
+    }
+    put_result(t, VALID, cost, gn, gd);
+}
