@@ -2,7 +2,8 @@
 # The whole GPU measurement in one call, from the prebuilt binaries that scripts/gpu-pack.sh
 # put in .gpu/ (the GPU machine reaches no registry and builds nothing). In order of value:
 #   1. the machine: GPU name, memory, driver; the wgpu adapter;
-#   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests);
+#   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests and
+#      gs-mvs's photometric_gpu tests of L_p);
 #   3. the rasterizer bench at 1920×1080 with 100k and 1M Gaussians, wgpu and 16 CPU threads;
 #   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
 #      on the CPU, with per-phase times, held-out PSNR and veils;
@@ -65,6 +66,13 @@ step parity 60 env CI=true "$B/wgpu-parity" --test-threads 1; r=$?
 if [ -f "$OUT/parity.log" ]; then
   if [ $r = 0 ]; then r=passed; else r=FAILED; fi
   note ""; note "## wgpu parity: $r ($(grep -E '^test result' "$OUT/parity.log" | tail -1))"
+fi
+
+step lp_parity 30 env CI=true "$B/lp-parity" --test-threads 1 --nocapture; r=$?
+if [ -f "$OUT/lp_parity.log" ]; then
+  if [ $r = 0 ]; then r=passed; else r=FAILED; fi
+  note ""; note "## L_p device parity: $r ($(grep -E '^test result' "$OUT/lp_parity.log" | tail -1))"
+  grep -E "relative" "$OUT/lp_parity.log" | sed 's/^/    /' >> "$summary"
 fi
 
 # 3. Rasterizer bench at 1920×1080.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Packs what scripts/gpu-check.sh needs on a GPU machine that reaches no registry: stripped
-# release binaries (vagsl, the rasterizer bench, the wgpu parity tests), the synth-bunny scene
+# release binaries (vagsl, the rasterizer bench, the wgpu parity tests of the rasterizer and L_p), the synth-bunny scene
 # without its GT depth maps, and the Vulkan loader's Debian packages. Run it here, in the
 # repository root; it fills the ignored folders .gpu/ and .gl/, which travel with `carry`.
 #
@@ -36,9 +36,11 @@ p=[m["executable"] for m in map(json.loads,sys.stdin) if m.get("reason")=="compi
 print(p[-1])'; }
 raster=$(exe bench --bench raster --no-run)
 parity=$(exe test --release --test wgpu_parity --no-run)
+lp_parity=$(exe test --release --test photometric_gpu --no-run)
 strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
+strip -o .gpu/bin/lp-parity "$lp_parity"
 [ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
 if [ -n "$bench_base" ]; then
   case "$bench_base" in *.gz) gunzip -c "$bench_base" > .gpu/bin/raster-bench-baseline ;; *) strip -o .gpu/bin/raster-bench-baseline "$bench_base" ;; esac

@@ -34,6 +34,7 @@ pub mod caches;
 pub mod checkpoint;
 pub mod config;
 pub mod densify;
+pub mod devices;
 pub mod error;
 pub mod evaluate;
 mod executor;

@@ -11,6 +11,7 @@
 use crate::config::LossWeights;
 use crate::error::Result;
 use crate::profile::Part;
+use crate::devices::PhotometricDevice;
 use gs_core::{Camera, Image};
 use gs_features::FeatureMap;
 use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, image_loss, normal_losses};
@@ -133,6 +134,8 @@ pub struct TermInputs<'a> {
     pub features: Option<&'a FeatureMap>,
     /// The source views.
     pub sources: &'a [SourceInputs<'a>],
+    /// L_p's device executor; `None` evaluates L_p on the CPU (the reference).
+    pub photometric_device: Option<&'a PhotometricDevice>,
 }
 
 /// One term (or a group of terms that share their computation) of the loss.
@@ -240,7 +243,13 @@ impl LossTerm for PhotometricTerm {
                 Ok(PhotometricSource { camera: s.camera, plane_depth: s.plane_depth.into(), grey: grey.into() })
             })
             .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
-        let lp = photometric_loss(&reference, &sources, &self.config)?;
+        let lp = match x.photometric_device {
+            #[cfg(feature = "wgpu")]
+            Some(d) => d.borrow_mut().loss(&reference, &sources, &self.config)?,
+            #[cfg(not(feature = "wgpu"))]
+            Some(d) => match *d {},
+            None => photometric_loss(&reference, &sources, &self.config)?,
+        };
         values.photometric = Some(lp.loss);
         let (gn, gd) = lp.grad_images();
         GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);

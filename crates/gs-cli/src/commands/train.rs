@@ -275,6 +275,8 @@ pub struct TrainReport {
     /// Where this process's training time went: milliseconds per iteration by part, per phase
     /// (gs_train::profile).
     pub time_by_part: gs_train::StepProfile,
+    /// Where L_p ran: `cpu (N threads)` or `wgpu on ADAPTER` (the rasterizer's: see stderr).
+    pub photometric_on: String,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
 }
@@ -408,6 +410,9 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
     trainer.set_rasterizer(super::rasterizer(args.backend)?);
+    if config.losses.photometric {
+        eprintln!("L_p: {}", trainer.photometric_executor());
+    }
     eprintln!("{}", gs_run::budget_check::check_train(&trainer, args.max_memory)?);
     let mesh_track = load_mesh_track(&args.track, gs_run::budget_check::limit(args.max_memory))?;
     if config.ncc_scale > 1 {
@@ -460,6 +465,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         growth_stopped: growth_stopped(growth, &b, trainer.gaussians().len()),
         floaters_removed,
         time_by_part: trainer.profile().clone(),
+        photometric_on: trainer.photometric_executor(),
         last,
     };
     // The report first, then the model it describes: a run stopped between the two leaves a
