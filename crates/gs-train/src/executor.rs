@@ -83,6 +83,13 @@ impl Trainer<'_> {
             self.caches.ensure_scaled(plan.slot, &self.scene.views[plan.view].image, plan.scale, camera)?;
         }
         self.profile.add(phase, Part::Caches, clock.lap());
+        // The sources' depths before the reference's render: a device rasterizer keeps only its
+        // last render's state, which the backward below reuses (rendering them after it would
+        // cost the backward one more render to rebuild that state). Renders are pure, so the
+        // order changes no value.
+        let max_age = self.config.source_depth_max_age;
+        let rendered_depths = self.render_source_depths(plan)?;
+        self.profile.add(phase, Part::SourceDepths, clock.lap());
         let out = self.rasterizer.render(&self.state.gaussians, camera, &plan.render, &self.raster)?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
@@ -91,9 +98,6 @@ impl Trainer<'_> {
             None => None,
         };
         self.profile.add(phase, Part::Render, clock.lap());
-        let max_age = self.config.source_depth_max_age;
-        let rendered_depths = self.render_source_depths(plan)?;
-        self.profile.add(phase, Part::SourceDepths, clock.lap());
         let memo = &self.state.source_depths;
         let depths: Vec<&Image> = match max_age {
             0 => rendered_depths.iter().collect(),
