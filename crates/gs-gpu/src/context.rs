@@ -16,7 +16,10 @@ pub struct GpuOptions {
     pub max_storage_binding: Option<u64>,
 }
 
-/// Adapter, device and queue, created once and shared by every kernel of its owner.
+/// Adapter, device and queue, created once and shared by every kernel of its owner. Cloning
+/// shares the same device and queue (wgpu's handles are reference-counted): a rasterizer and the
+/// loss kernels of one run use one device.
+#[derive(Clone)]
 pub struct GpuContext {
     device: wgpu::Device,
     queue: wgpu::Queue,

@@ -22,6 +22,9 @@ pub enum LossError {
         /// What is wrong with it.
         problem: String,
     },
+    /// A GPU device failure (a validation error, a lost device).
+    #[error("GPU: {0}")]
+    Device(String),
     /// An error from gs-core (e.g. building an output image).
     #[error(transparent)]
     Core(#[from] gs_core::CoreError),

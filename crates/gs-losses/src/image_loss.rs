@@ -80,6 +80,23 @@ pub fn image_loss(
     guide: Option<&EdgeGuide>,
     cfg: &ImageLossConfig,
 ) -> Result<ImageLossOutput> {
+    image_loss_with(rendered, gt, guide, cfg, &mut |a, b, dims, weight, grad| {
+        ssim_backward(a, b, dims, SsimRegion::Full, weight, grad)
+    })
+}
+
+/// The SSIM executor of [`image_loss_with`]: `(a, b, dims, weight, grad_a)` → mean SSIM over
+/// the whole image, adding `weight · ∂SSIM/∂a` to `grad_a` (as [`ssim_backward`]).
+pub(crate) type SsimExecutor<'a> = dyn FnMut(&[f32], &[f32], Dims, f64, &mut [f32]) -> Result<f64> + 'a;
+
+/// [`image_loss`] with the SSIM term evaluated by `ssim` (the CPU reference or a device twin).
+pub(crate) fn image_loss_with(
+    rendered: &Image,
+    gt: &Image,
+    guide: Option<&EdgeGuide>,
+    cfg: &ImageLossConfig,
+    ssim: &mut SsimExecutor<'_>,
+) -> Result<ImageLossOutput> {
     let dims = Dims::of(rendered);
     if Dims::of(gt) != dims {
         return Err(LossError::ShapeMismatch(format!(
@@ -110,7 +127,7 @@ pub fn image_loss(
     let mut grad = vec![0.0f32; dims.len()];
     let l1v = l1(a, b);
     l1_backward(a, b, 1.0 - b1, &mut grad);
-    let s = ssim_backward(a, b, dims, SsimRegion::Full, -b1, &mut grad)?;
+    let s = ssim(a, b, dims, -b1, &mut grad)?;
     let mut total = (1.0 - b1) * l1v + b1 * (1.0 - s);
     let edge = if cfg.edge {
         let guide = guide.ok_or_else(|| {

@@ -45,6 +45,8 @@ pub mod metrics;
 pub mod normal;
 pub mod normal_loss;
 pub mod ssim;
+#[cfg(feature = "wgpu")]
+pub mod ssim_gpu;
 
 pub use dims::Dims;
 pub use error::{LossError, Result};
@@ -54,3 +56,5 @@ pub use lpips::Lpips;
 pub use metrics::{masked_on_black, psnr, psnr_masked, ssim_metric, ssim_metric_with};
 pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, normal_losses};
 pub use ssim::SsimRegion;
+#[cfg(feature = "wgpu")]
+pub use ssim_gpu::SsimGpu;

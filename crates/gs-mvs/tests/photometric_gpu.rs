@@ -12,16 +12,17 @@
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Image, Intrinsics};
-use gs_gpu::GpuOptions;
+use gs_gpu::{GpuContext, GpuOptions};
 use gs_mvs::analytic_scene::{AnalyticMaps, AnalyticScene, AxisBox};
 use gs_mvs::{MapView, NccMode, PhotometricConfig, PhotometricGpu, PhotometricReference, PhotometricSource, photometric_loss};
 
 fn gpu() -> Option<PhotometricGpu> {
-    match PhotometricGpu::new(&GpuOptions::default()) {
-        Ok(g) => {
+    match GpuContext::new(&GpuOptions::default()).and_then(|c| Ok(PhotometricGpu::new(&c))) {
+        Ok(Ok(g)) => {
             eprintln!("wgpu adapter: {}", g.adapter_description());
             Some(g)
         }
+        Ok(Err(e)) => panic!("the L_p kernel on an adapter that exists: {e}"),
         Err(e) => {
             gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
             None

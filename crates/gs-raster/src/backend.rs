@@ -104,6 +104,16 @@ impl Rasterizer {
         }
     }
 
+    /// The wgpu device context when this rasterizer runs on wgpu (kernels of the loss terms
+    /// share it), else `None`.
+    #[cfg(feature = "wgpu")]
+    pub fn gpu_context(&self) -> Option<&gs_gpu::GpuContext> {
+        match &self.inner {
+            Inner::Cpu => None,
+            Inner::Wgpu(r) => Some(r.context()),
+        }
+    }
+
     /// Renders like [`crate::render`].
     pub fn render(
         &mut self,

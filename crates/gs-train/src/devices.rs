@@ -1,40 +1,55 @@
 //! The loss terms' device executors, passed to the terms explicitly through
-//! [`crate::terms::TermInputs`] (docs/architecture.md §GPU). Today: L_p's patches
-//! ([`gs_mvs::PhotometricGpu`]) on the adapter the wgpu rasterizer uses. Without the `wgpu`
-//! feature the type is uninhabited, so the CPU reference is the only executor.
+//! [`crate::terms::TermInputs`] (docs/architecture.md §GPU): L_p's patches
+//! ([`gs_mvs::PhotometricGpu`]) and D-SSIM ([`gs_losses::SsimGpu`]), on the wgpu rasterizer's
+//! own device (one context, cloned). Without the `wgpu` feature there are none and the CPU
+//! reference evaluates every term.
 
-/// L_p's device executor (mutable behind a shared borrow: the terms see their inputs by `&`).
-#[cfg(feature = "wgpu")]
-pub type PhotometricDevice = std::cell::RefCell<gs_mvs::PhotometricGpu>;
-
-/// L_p's device executor: none without the `wgpu` feature.
-#[cfg(not(feature = "wgpu"))]
-#[derive(Debug)]
-pub enum PhotometricDevice {}
-
-/// L_p's device executor on the best adapter, when the rasterizer runs on wgpu and the run uses
-/// L_p; `Err` says why none could be made (the run then evaluates L_p on the CPU).
-pub(crate) fn photometric_device(rasterizer: &gs_raster::Rasterizer, uses_photometric: bool) -> Option<Result<PhotometricDevice, String>> {
-    if rasterizer.backend() != gs_raster::Backend::Wgpu || !uses_photometric {
-        return None;
-    }
+/// The device executors of one run (each `None` where its term runs on the CPU).
+#[derive(Debug, Default)]
+pub struct LossDevices {
+    /// L_p's patches.
     #[cfg(feature = "wgpu")]
-    {
-        Some(gs_mvs::PhotometricGpu::new(&Default::default()).map(std::cell::RefCell::new).map_err(|e| e.to_string()))
-    }
-    #[cfg(not(feature = "wgpu"))]
-    {
-        None
-    }
+    pub photometric: Option<std::cell::RefCell<gs_mvs::PhotometricGpu>>,
+    /// D-SSIM of L_I.
+    #[cfg(feature = "wgpu")]
+    pub ssim: Option<std::cell::RefCell<gs_losses::SsimGpu>>,
+    /// The adapter they run on, in words.
+    adapter: Option<String>,
 }
 
-/// Where L_p runs, in words.
-pub(crate) fn describe(device: Option<&PhotometricDevice>) -> String {
-    match device {
+impl LossDevices {
+    /// The executors on the device of `rasterizer` when it runs on wgpu (L_p's only when the run
+    /// uses L_p); none for the CPU rasterizer. An error names the kernel that failed to build.
+    pub(crate) fn for_rasterizer(rasterizer: &gs_raster::Rasterizer, uses_photometric: bool) -> Result<Self, String> {
         #[cfg(feature = "wgpu")]
-        Some(d) => format!("wgpu on {}", d.borrow().adapter_description()),
-        #[cfg(not(feature = "wgpu"))]
-        Some(d) => match *d {},
-        None => format!("cpu ({} threads)", rayon::current_num_threads()),
+        if let Some(ctx) = rasterizer.gpu_context() {
+            let photometric = match uses_photometric {
+                true => Some(gs_mvs::PhotometricGpu::new(ctx).map_err(|e| format!("L_p: {e}"))?.into()),
+                false => None,
+            };
+            let ssim = Some(gs_losses::SsimGpu::new(ctx).map_err(|e| format!("D-SSIM: {e}"))?.into());
+            return Ok(Self { photometric, ssim, adapter: Some(ctx.description()) });
+        }
+        let _ = (rasterizer, uses_photometric);
+        Ok(Self::default())
+    }
+
+    /// Where each term runs, in words: `"L_p and D-SSIM on wgpu (ADAPTER); the rest on the
+    /// CPU"`, or that every term runs on the CPU.
+    pub fn describe(&self) -> String {
+        let mut on = Vec::new();
+        #[cfg(feature = "wgpu")]
+        {
+            if self.photometric.is_some() {
+                on.push("L_p");
+            }
+            if self.ssim.is_some() {
+                on.push("D-SSIM");
+            }
+        }
+        match (&self.adapter, on.is_empty()) {
+            (Some(a), false) => format!("{} on wgpu ({a}); the other terms on the CPU", on.join(" and ")),
+            _ => format!("every loss term on the CPU ({} threads)", rayon::current_num_threads()),
+        }
     }
 }

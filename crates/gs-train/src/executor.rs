@@ -123,7 +123,7 @@ impl Trainer<'_> {
             grey: self.caches.grey(plan.slot),
             features: self.caches.features(plan.slot),
             sources: &sources,
-            photometric_device: self.photometric_device.as_ref(),
+            devices: &self.devices,
         };
         let mut values = LossValues::default();
         let mut grads = GradientBuffers::default();

@@ -11,7 +11,7 @@
 use crate::config::LossWeights;
 use crate::error::Result;
 use crate::profile::Part;
-use crate::devices::PhotometricDevice;
+use crate::devices::LossDevices;
 use gs_core::{Camera, Image};
 use gs_features::FeatureMap;
 use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, image_loss, normal_losses};
@@ -134,8 +134,8 @@ pub struct TermInputs<'a> {
     pub features: Option<&'a FeatureMap>,
     /// The source views.
     pub sources: &'a [SourceInputs<'a>],
-    /// L_p's device executor; `None` evaluates L_p on the CPU (the reference).
-    pub photometric_device: Option<&'a PhotometricDevice>,
+    /// The terms' device executors (a term without one runs on the CPU, the reference).
+    pub devices: &'a LossDevices,
 }
 
 /// One term (or a group of terms that share their computation) of the loss.
@@ -169,6 +169,12 @@ impl LossTerm for ImageTerm {
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
+        #[cfg(feature = "wgpu")]
+        let li = match &x.devices.ssim {
+            Some(d) => d.borrow_mut().image_loss(x.color, x.photo, x.guide, &cfg)?,
+            None => image_loss(x.color, x.photo, x.guide, &cfg)?,
+        };
+        #[cfg(not(feature = "wgpu"))]
         let li = image_loss(x.color, x.photo, x.guide, &cfg)?;
         (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
         GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
@@ -243,13 +249,13 @@ impl LossTerm for PhotometricTerm {
                 Ok(PhotometricSource { camera: s.camera, plane_depth: s.plane_depth.into(), grey: grey.into() })
             })
             .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
-        let lp = match x.photometric_device {
-            #[cfg(feature = "wgpu")]
+        #[cfg(feature = "wgpu")]
+        let lp = match &x.devices.photometric {
             Some(d) => d.borrow_mut().loss(&reference, &sources, &self.config)?,
-            #[cfg(not(feature = "wgpu"))]
-            Some(d) => match *d {},
             None => photometric_loss(&reference, &sources, &self.config)?,
         };
+        #[cfg(not(feature = "wgpu"))]
+        let lp = photometric_loss(&reference, &sources, &self.config)?;
         values.photometric = Some(lp.loss);
         let (gn, gd) = lp.grad_images();
         GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);

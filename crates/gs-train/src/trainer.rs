@@ -17,7 +17,7 @@ use crate::init::initial_gaussians;
 use crate::model::TrainedModel;
 use crate::plan::{StepPlan, plan_step};
 use crate::profile::{Clock, Part, StepProfile};
-use crate::devices::PhotometricDevice;
+use crate::devices::LossDevices;
 use crate::sh_policy::{self, ShBandDecision};
 use crate::source_depths::SourceDepths;
 use crate::terms::LossValues;
@@ -88,10 +88,10 @@ pub struct Trainer<'s> {
     pub(crate) budget: Budget,
     /// Where this process's training time went ([`crate::profile`]).
     pub(crate) profile: StepProfile,
-    /// L_p's device executor, when the rasterizer runs on wgpu ([`crate::devices`]).
-    pub(crate) photometric_device: Option<PhotometricDevice>,
-    /// Why L_p runs on the CPU although the rasterizer runs on wgpu, if it does.
-    photometric_device_error: Option<String>,
+    /// The loss terms' device executors, when the rasterizer runs on wgpu ([`crate::devices`]).
+    pub(crate) devices: LossDevices,
+    /// Why the terms run on the CPU although the rasterizer runs on wgpu, if they do.
+    devices_error: Option<String>,
 }
 
 fn check_scene(scene: &Scene, train_views: &[usize]) -> Result<()> {
@@ -203,8 +203,8 @@ impl<'s> Trainer<'s> {
             state,
             budget,
             profile: StepProfile::default(),
-            photometric_device: None,
-            photometric_device_error: None,
+            devices: LossDevices::default(),
+            devices_error: None,
         })
     }
 
@@ -267,21 +267,19 @@ impl<'s> Trainer<'s> {
 
     /// Uses `rasterizer` from now on (see [`Trainer::set_backend`]).
     pub fn set_rasterizer(&mut self, rasterizer: Rasterizer) {
-        let uses_photometric = self.config.losses.photometric;
-        (self.photometric_device, self.photometric_device_error) = match crate::devices::photometric_device(&rasterizer, uses_photometric) {
-            Some(Ok(d)) => (Some(d), None),
-            Some(Err(e)) => (None, Some(e)),
-            None => (None, None),
+        (self.devices, self.devices_error) = match LossDevices::for_rasterizer(&rasterizer, self.config.losses.photometric) {
+            Ok(d) => (d, None),
+            Err(e) => (LossDevices::default(), Some(e)),
         };
         self.rasterizer = rasterizer;
     }
 
-    /// Where L_p runs, in words (with the reason when the wgpu rasterizer's adapter could not
-    /// take it too).
-    pub fn photometric_executor(&self) -> String {
-        let on = crate::devices::describe(self.photometric_device.as_ref());
-        match &self.photometric_device_error {
-            Some(e) => format!("{on}: no device executor ({e})"),
+    /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device
+    /// could not take them).
+    pub fn loss_executors(&self) -> String {
+        let on = self.devices.describe();
+        match &self.devices_error {
+            Some(e) => format!("{on}: the device kernels failed to build ({e})"),
             None => on,
         }
     }

@@ -275,8 +275,8 @@ pub struct TrainReport {
     /// Where this process's training time went: milliseconds per iteration by part, per phase
     /// (gs_train::profile).
     pub time_by_part: gs_train::StepProfile,
-    /// Where L_p ran: `cpu (N threads)` or `wgpu on ADAPTER` (the rasterizer's: see stderr).
-    pub photometric_on: String,
+    /// Where the loss terms ran, in words (gs_train::devices).
+    pub loss_terms_on: String,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
 }
@@ -410,9 +410,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
     trainer.set_rasterizer(super::rasterizer(args.backend)?);
-    if config.losses.photometric {
-        eprintln!("L_p: {}", trainer.photometric_executor());
-    }
+    eprintln!("loss terms: {}", trainer.loss_executors());
     eprintln!("{}", gs_run::budget_check::check_train(&trainer, args.max_memory)?);
     let mesh_track = load_mesh_track(&args.track, gs_run::budget_check::limit(args.max_memory))?;
     if config.ncc_scale > 1 {
@@ -465,7 +463,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         growth_stopped: growth_stopped(growth, &b, trainer.gaussians().len()),
         floaters_removed,
         time_by_part: trainer.profile().clone(),
-        photometric_on: trainer.photometric_executor(),
+        loss_terms_on: trainer.loss_executors(),
         last,
     };
     // The report first, then the model it describes: a run stopped between the two leaves a

@@ -13,7 +13,7 @@ use crate::photometric::{
 };
 use crate::visibility::{Visibility, visibility_unchecked};
 use crate::geometry::PairGeometry;
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, GpuOptions, Kernel, PassUniform, ShrinkPolicy, WgslStruct};
+use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, WgslStruct};
 
 gs_gpu::wgsl_struct! {
     /// Constants of one L_p evaluation (binding 0 of the kernel; WGSL `struct NccFrame`).
@@ -122,9 +122,9 @@ fn gpu_error(e: gs_gpu::GpuError) -> MvsError {
 type Entry = [u32; 2];
 
 impl PhotometricGpu {
-    /// A context of its own on the best adapter (`opts`), the kernel compiled.
-    pub fn new(opts: &GpuOptions) -> Result<Self> {
-        let ctx = GpuContext::new(opts).map_err(gpu_error)?;
+    /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernel compiled.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let ctx = ctx.clone();
         let kernel = Kernel::new(&ctx, "ncc_patch", &[&declarations(), include_str!("ncc.wgsl")], &BINDINGS).map_err(gpu_error)?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let bufs = Buffers {

@@ -283,6 +283,11 @@ impl WgpuRasterizer {
         self.ctx.is_software()
     }
 
+    /// The device context, for kernels that share this rasterizer's device (the loss terms').
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
     /// Where the latest render and backward spent their wall time (host clock): what the
     /// raster bench reports, to tell transfers from kernels.
     pub fn timings(&self) -> CallTimings {
