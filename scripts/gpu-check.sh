@@ -3,7 +3,7 @@
 # put in .gpu/ (the GPU machine reaches no registry and builds nothing). In order of value:
 #   1. the machine: GPU name, memory, driver; the wgpu adapter;
 #   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests and
-#      gs-mvs's photometric_gpu tests of L_p);
+#      the loss kernels' tests: gs-mvs photometric_gpu (L_p), gs-losses ssim_gpu (D-SSIM));
 #   3. the rasterizer bench at 1920×1080 with 100k and 1M Gaussians, wgpu and 16 CPU threads;
 #   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
 #      on the CPU, with per-phase times, held-out PSNR and veils;
@@ -68,12 +68,15 @@ if [ -f "$OUT/parity.log" ]; then
   note ""; note "## wgpu parity: $r ($(grep -E '^test result' "$OUT/parity.log" | tail -1))"
 fi
 
-step lp_parity 30 env CI=true "$B/lp-parity" --test-threads 1 --nocapture; r=$?
-if [ -f "$OUT/lp_parity.log" ]; then
-  if [ $r = 0 ]; then r=passed; else r=FAILED; fi
-  note ""; note "## L_p device parity: $r ($(grep -E '^test result' "$OUT/lp_parity.log" | tail -1))"
-  grep -E "relative" "$OUT/lp_parity.log" | sed 's/^/    /' >> "$summary"
-fi
+# The loss kernels against their CPU twins (gs-mvs photometric_gpu, gs-losses ssim_gpu).
+for t in lp ssim; do
+  step ${t}_parity 30 env CI=true "$B/$t-parity" --test-threads 1 --nocapture; r=$?
+  if [ -f "$OUT/${t}_parity.log" ]; then
+    if [ $r = 0 ]; then r=passed; else r=FAILED; fi
+    note ""; note "## $t kernel parity: $r ($(grep -E '^test result' "$OUT/${t}_parity.log" | tail -1))"
+    grep -E "relative" "$OUT/${t}_parity.log" | sed 's/^/    /' >> "$summary"
+  fi
+done
 
 # 3. Rasterizer bench at 1920×1080.
 counts=100000,1000000; size=1920x1080; [ "$smoke" = 1 ] && counts=2000 && size=160x120

@@ -37,7 +37,8 @@ impl LossDevices {
     /// Where each term runs, in words: `"L_p and D-SSIM on wgpu (ADAPTER); the rest on the
     /// CPU"`, or that every term runs on the CPU.
     pub fn describe(&self) -> String {
-        let mut on = Vec::new();
+        #[allow(unused_mut)]
+        let mut on: Vec<&str> = Vec::new();
         #[cfg(feature = "wgpu")]
         {
             if self.photometric.is_some() {
