@@ -115,8 +115,16 @@ bunny=.gpu/data/synth-bunny
 step readme_wgpu_1 "$readme_need" train_job readme_wgpu_1 wgpu "$B/vagsl"
 step readme_wgpu_2 "$readme_need" train_job readme_wgpu_2 wgpu "$B/vagsl"
 [ -d "$bunny" ] && GT_MESH="$bunny/gt_mesh.ply" step bunny_wgpu "$bunny_need" train_job bunny_wgpu wgpu "$B/vagsl" "$bunny"
+# The baseline binary (gpu-pack.sh --baseline) on synth-bunny beside the new one, else on the
+# README job: a speed-up is a ratio measured on one machine.
+if [ -x "$B/vagsl-baseline" ]; then
+  if [ -d "$bunny" ]; then
+    GT_MESH="$bunny/gt_mesh.ply" step bunny_wgpu_baseline "$bunny_need" train_job bunny_wgpu_baseline wgpu "$B/vagsl-baseline" "$bunny"
+  else
+    step readme_wgpu_baseline "$readme_need" train_job readme_wgpu_baseline wgpu "$B/vagsl-baseline"
+  fi
+fi
 step readme_cpu "$readme_need" train_job readme_cpu cpu "$B/vagsl"
-[ -x "$B/vagsl-baseline" ] && step readme_wgpu_baseline "$readme_need" train_job readme_wgpu_baseline wgpu "$B/vagsl-baseline"
 if [ -f "$W/readme_wgpu_1/point_cloud.ply" ] && [ -f "$W/readme_wgpu_2/point_cloud.ply" ]; then
   if cmp -s "$W/readme_wgpu_1/point_cloud.ply" "$W/readme_wgpu_2/point_cloud.ply"; then same="the same bytes"; else same="DIFFERENT bytes"; fi
   note ""; note "two wgpu runs of the README job, one seed: point_cloud.ply has $same"
