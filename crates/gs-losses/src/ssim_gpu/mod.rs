@@ -56,6 +56,9 @@ pub struct SsimGpu {
     disp: Dispatcher,
     kernels: Vec<Kernel>,
     bufs: [BufId; 6],
+    /// The readback of the SSIM map and the gradient (pooled: a mappable buffer per call is
+    /// costly to create).
+    staging: BufId,
 }
 
 impl std::fmt::Debug for SsimGpu {
@@ -79,8 +82,9 @@ impl SsimGpu {
             .collect::<Result<Vec<_>>>()?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let bufs = ["ssim images", "ssim moments", "ssim partials", "ssim blurred", "ssim map", "ssim grad"].map(|l| pool.add_storage(l));
+        let staging = pool.add_staging("ssim readback");
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<SsimFrame>() as u64);
-        Ok(Self { ctx, pool, disp, kernels, bufs })
+        Ok(Self { ctx, pool, disp, kernels, bufs, staging })
     }
 
     /// [`crate::ssim::ssim_backward`] over the whole image ([`crate::SsimRegion::Full`]):
@@ -125,6 +129,7 @@ impl SsimGpu {
         for (id, planes) in [(images, 2), (moments, 5), (partials, 3), (blurred, 3), (smap, 1), (grad, 1)] {
             self.pool.ensure(id, planes * bytes);
         }
+        self.pool.ensure(self.staging, 2 * bytes);
         let q = self.ctx.queue();
         q.write_buffer(self.pool.buffer(images), 0, bytemuck::cast_slice(a));
         q.write_buffer(self.pool.buffer(images), bytes, bytemuck::cast_slice(b));
@@ -136,16 +141,23 @@ impl SsimGpu {
         for k in &self.kernels {
             self.disp.dispatch_1d(&mut enc, k, &binds, PassUniform { n: n as u32, ..Default::default() }).map_err(gpu_error)?;
         }
+        let staging = p.buffer(self.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(smap), 0, staging, 0, bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, staging, bytes, bytes);
         self.disp.submit(enc);
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
-        let values: Vec<f32> = bytemuck::pod_collect_to_vec(&self.ctx.download(p.buffer(smap), 0, bytes).map_err(gpu_error)?);
-        let dssim: Vec<f32> = bytemuck::pod_collect_to_vec(&self.ctx.download(p.buffer(grad), 0, bytes).map_err(gpu_error)?);
-        // The reference's sum: by rows in f64, the rows in order.
         let row = dims.width * dims.channels;
-        let sum = ordered_sum(dims.height, |y| values[y * row..(y + 1) * row].iter().map(|&v| v as f64).sum());
-        for (g, d) in grad_a.iter_mut().zip(&dssim) {
-            *g += d;
-        }
+        let sum = self
+            .ctx
+            .read_mapped(staging, 2 * bytes, |m| {
+                let (values, dssim): (&[f32], &[f32]) = bytemuck::cast_slice::<u8, f32>(m).split_at(n);
+                for (g, d) in grad_a.iter_mut().zip(dssim) {
+                    *g += d;
+                }
+                // The reference's sum: by rows in f64, the rows in order.
+                ordered_sum(dims.height, |y| values[y * row..(y + 1) * row].iter().map(|&v| v as f64).sum())
+            })
+            .map_err(gpu_error)?;
         Ok(sum / n as f64)
     }
 

@@ -97,6 +97,8 @@ struct Buffers {
     greys: BufId,
     rays: BufId,
     results: BufId,
+    /// The readback of the results (pooled: a mappable buffer per call is costly to create).
+    staging: BufId,
 }
 
 /// The device executor of L_p: its context, buffers and kernel.
@@ -135,6 +137,7 @@ impl PhotometricGpu {
             greys: pool.add_storage("ncc greys"),
             rays: pool.add_storage("ncc rays"),
             results: pool.add_storage("ncc results"),
+            staging: pool.add_staging("ncc readback"),
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<NccFrame>() as u64);
         Ok(Self { ctx, pool, disp, kernel, bufs })
@@ -241,6 +244,7 @@ impl PhotometricGpu {
             self.ctx.queue().write_buffer(self.pool.buffer(id), 0, bytes);
         }
         self.pool.ensure(b.results, result_bytes * chunk.min(entries.len()) as u64);
+        self.pool.ensure(b.staging, result_bytes * chunk.min(entries.len()) as u64);
         self.disp.write_frame(frame);
         let mut results = Vec::with_capacity(entries.len());
         for base in (0..entries.len()).step_by(chunk) {
@@ -251,10 +255,13 @@ impl PhotometricGpu {
             let pass = PassUniform { n: n as u32, base: base as u32, ..Default::default() };
             self.ctx.push_error_scopes();
             self.disp.dispatch_1d(&mut enc, &self.kernel, &binds, pass).map_err(gpu_error)?;
+            let bytes = result_bytes * n as u64;
+            enc.encoder.copy_buffer_to_buffer(p.buffer(b.results), 0, p.buffer(b.staging), 0, bytes);
             self.disp.submit(enc);
             self.ctx.pop_error_scopes().map_err(gpu_error)?;
-            let bytes = self.ctx.download(p.buffer(b.results), 0, result_bytes * n as u64).map_err(gpu_error)?;
-            results.extend(bytemuck::pod_collect_to_vec::<u8, NccResult>(&bytes));
+            self.ctx
+                .read_mapped(p.buffer(b.staging), bytes, |m| results.extend_from_slice(bytemuck::cast_slice::<u8, NccResult>(m)))
+                .map_err(gpu_error)?;
         }
         Ok(results)
     }
