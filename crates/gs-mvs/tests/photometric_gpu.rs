@@ -66,7 +66,8 @@ fn views(w: u32, h: u32, n: usize, grey_scale: u32) -> Views {
     Views { cams, maps, greys, normal }
 }
 
-fn compare(label: &str, v: &Views, config: &PhotometricConfig, g: &mut PhotometricGpu) {
+/// The reference (camera 0) and every other camera as a source.
+fn inputs(v: &Views) -> (PhotometricReference<'_, f32>, Vec<PhotometricSource<'_, f32>>) {
     let (w, h) = (v.cams[0].width as usize, v.cams[0].height as usize);
     let reference = PhotometricReference {
         camera: &v.cams[0],
@@ -75,9 +76,14 @@ fn compare(label: &str, v: &Views, config: &PhotometricConfig, g: &mut Photometr
         plane_depth: (&v.maps[0].plane_depth).into(),
         grey: (&v.greys[0]).into(),
     };
-    let sources: Vec<PhotometricSource<f32>> = (1..v.cams.len())
+    let sources = (1..v.cams.len())
         .map(|k| PhotometricSource { camera: &v.cams[k], plane_depth: (&v.maps[k].plane_depth).into(), grey: (&v.greys[k]).into() })
         .collect();
+    (reference, sources)
+}
+
+fn compare(label: &str, v: &Views, config: &PhotometricConfig, g: &mut PhotometricGpu) {
+    let (reference, sources) = inputs(v);
     let cpu = photometric_loss(&reference, &sources, config).unwrap();
     let dev = g.loss(&reference, &sources, config).unwrap();
     assert!(cpu.loss > 0.0, "{label}: the scene must exercise L_p");
@@ -123,17 +129,7 @@ fn device_patches_match_at_twice_the_grey_resolution_and_under_the_cap() {
 fn device_results_repeat_bit_for_bit() {
     let Some(mut g) = gpu() else { return };
     let v = views(64, 48, 3, 1);
-    let (w, h) = (64, 48);
-    let reference = PhotometricReference {
-        camera: &v.cams[0],
-        normal: MapView::new(w, h, 3, &v.normal).unwrap(),
-        distance: (&v.maps[0].distance).into(),
-        plane_depth: (&v.maps[0].plane_depth).into(),
-        grey: (&v.greys[0]).into(),
-    };
-    let sources: Vec<PhotometricSource<f32>> = (1..3)
-        .map(|k| PhotometricSource { camera: &v.cams[k], plane_depth: (&v.maps[k].plane_depth).into(), grey: (&v.greys[k]).into() })
-        .collect();
+    let (reference, sources) = inputs(&v);
     let config = PhotometricConfig::default();
     let a = g.loss(&reference, &sources, &config).unwrap();
     let b = g.loss(&reference, &sources, &config).unwrap();

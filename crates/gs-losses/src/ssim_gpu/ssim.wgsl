@@ -29,6 +29,26 @@ fn product(plane: u32, i: u32) -> f32 {
     }
 }
 
+// Horizontal blur of plane `plane` at value i: of the products of a and b (`from_images`), else
+// of the partials.
+fn blur_row(plane: u32, i: u32, from_images: bool) -> f32 {
+    let c = frame.channels;
+    let x = i32((i / c) % frame.width);
+    var acc = 0.0;
+    for (var k = 0u; k < 11u; k++) {
+        let xx = x + i32(k) - 5;
+        if (xx >= 0 && xx < i32(frame.width)) {
+            let j = u32(i32(i) + (xx - x) * i32(c));
+            if (from_images) {
+                acc += tap(k) * product(plane, j);
+            } else {
+                acc += tap(k) * partials[plane * frame.n + j];
+            }
+        }
+    }
+    return acc;
+}
+
 // Pass 1: horizontal blur of a, b, a², b², ab into `moments`.
 @compute @workgroup_size(256)
 fn blur_rows(ids: Ids) {
@@ -36,21 +56,13 @@ fn blur_rows(ids: Ids) {
     if (i >= frame.n) {
         return;
     }
-    let c = frame.channels;
-    let x = i32((i / c) % frame.width);
     for (var plane = 0u; plane < 5u; plane++) {
-        var acc = 0.0;
-        for (var k = 0u; k < 11u; k++) {
-            let xx = x + i32(k) - 5;
-            if (xx >= 0 && xx < i32(frame.width)) {
-                acc += tap(k) * product(plane, u32(i32(i) + (xx - x) * i32(c)));
-            }
-        }
-        moments[plane * frame.n + i] = acc;
+        moments[plane * frame.n + i] = blur_row(plane, i, true);
     }
 }
 
-// Vertical blur of plane `plane` of `src` at value i (row stride w·c).
+// Vertical blur of plane `plane` at value i (row stride w·c): of the moments, else of the
+// blurred partials.
 fn blur_column(plane: u32, i: u32, from_moments: bool) -> f32 {
     let row = frame.width * frame.channels;
     let y = i32(i / row);
@@ -109,17 +121,8 @@ fn blur_partials(ids: Ids) {
     if (i >= frame.n) {
         return;
     }
-    let c = frame.channels;
-    let x = i32((i / c) % frame.width);
     for (var plane = 0u; plane < 3u; plane++) {
-        var acc = 0.0;
-        for (var k = 0u; k < 11u; k++) {
-            let xx = x + i32(k) - 5;
-            if (xx >= 0 && xx < i32(frame.width)) {
-                acc += tap(k) * partials[plane * frame.n + u32(i32(i) + (xx - x) * i32(c))];
-            }
-        }
-        blurred[plane * frame.n + i] = acc;
+        blurred[plane * frame.n + i] = blur_row(plane, i, false);
     }
 }
 
