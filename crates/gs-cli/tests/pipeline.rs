@@ -38,6 +38,21 @@ fn builtin_scene_end_to_end() {
     let report = json(&out.join("report.json"));
     assert_eq!(report["iterations"], 40);
     assert!(report["gaussians"].as_u64().unwrap() > 0);
+    // Where the terms ran (`auto`: the CPU here, wgpu on a hardware GPU) and where the time went.
+    let on = report["loss_terms_on"].as_str().unwrap();
+    assert!(on.starts_with("every loss term on the CPU") || on.starts_with("L_p and D-SSIM on wgpu"), "{on}");
+    let prof = report["time_by_part"].as_object().unwrap();
+    let iterations: u64 = prof.values().map(|p| p["iterations"].as_u64().unwrap()).sum();
+    assert_eq!(iterations, 40, "{prof:?}");
+    for (phase, p) in prof {
+        let ms = p["ms_per_iteration"].as_object().unwrap();
+        let parts: f64 = ms.iter().filter(|(k, _)| *k != "whole").map(|(_, v)| v.as_f64().unwrap()).sum();
+        let whole = ms["whole"].as_f64().unwrap();
+        assert!(whole > 0.0 && (parts - whole).abs() <= 1e-6 * whole + 1e-9, "{phase}: parts {parts} ms, whole {whole} ms");
+        assert!(ms["render"].as_f64().unwrap() > 0.0 && ms["backward"].as_f64().unwrap() > 0.0, "{phase}: {ms:?}");
+    }
+    assert!(prof["photometric"]["ms_per_iteration"]["photometric"].as_f64().unwrap() > 0.0, "L_p ran in its phase: {prof:?}");
+    assert_eq!(prof["warm-up"]["ms_per_iteration"]["photometric"].as_f64().unwrap(), 0.0, "and not before: {prof:?}");
     let cfg = json(&out.join("config.json"));
     assert_eq!(cfg["test_views"].as_array().unwrap().len(), 4, "every 8th of 32 views held out");
     assert_eq!(cfg["train"]["iterations"], 40);
