@@ -13,6 +13,7 @@ use crate::photometric::{
 };
 use crate::visibility::{Visibility, visibility_unchecked};
 use crate::geometry::PairGeometry;
+use rayon::prelude::*;
 use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, WgslStruct};
 
 gs_gpu::wgsl_struct! {
@@ -123,6 +124,16 @@ fn gpu_error(e: gs_gpu::GpuError) -> MvsError {
 /// One selected patch: reference pixel and pair index.
 type Entry = [u32; 2];
 
+/// One source's host work before the kernel: υ/ω, the pair geometry and grey scale, the
+/// selection (0 not a candidate, 1 not sampled, 2 evaluated) and its evaluated entries.
+struct Prepared {
+    vis: Visibility<f32>,
+    g: PairGeometry<f32>,
+    scale: usize,
+    selected: Vec<u8>,
+    picked: Vec<Entry>,
+}
+
 impl PhotometricGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernel compiled.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
@@ -167,35 +178,41 @@ impl PhotometricGpu {
         if 4 * grey_values as u64 > self.ctx.max_storage_binding() {
             return photometric_loss(reference, sources, config);
         }
-        let weights: Vec<Visibility<f32>> = sources
-            .iter()
-            .map(|s| visibility_unchecked(&PairGeometry::new(reference.camera, s.camera), &reference.plane_depth, &s.plane_depth))
-            .collect();
         let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
+        // υ/ω, the pair geometry and the seeded selection of each source, sources in parallel
+        // (each is the reference's own computation; the results keep the source order).
+        let prepared = sources
+            .par_iter()
+            .enumerate()
+            .map(|(k, source)| {
+                let vis = visibility_unchecked(&PairGeometry::new(reference.camera, source.camera), &reference.plane_depth, &source.plane_depth);
+                let (g, scale) = patch_geometry(reference, source)?;
+                let selected = select_pixels(&vis, config, k, w, h);
+                let picked: Vec<Entry> = selected.iter().enumerate().filter(|(_, s)| **s == 2).map(|(p, _)| [p as u32, k as u32]).collect();
+                Ok(Prepared { vis, g, scale, selected, picked })
+            })
+            .collect::<Result<Vec<Prepared>>>()?;
         // Pairs, greys and the selected entries, source by source (row-major within each).
-        let mut pairs = Vec::with_capacity(sources.len());
-        let mut greys: Vec<f32> = reference.grey.data.to_vec();
-        let mut entries: Vec<Entry> = Vec::new();
-        let mut selections = Vec::with_capacity(sources.len());
         let mut frame = NccFrame { width: w as u32, grey_width: reference.grey.width as u32, side: config.patch_size as u32, ..Default::default() };
         frame.mode = match config.ncc {
             NccMode::Pgsr => 0,
             NccMode::Plain => 1,
         };
         let mut rays = Vec::new();
-        for (k, (source, vis)) in sources.iter().zip(&weights).enumerate() {
-            let (g, scale) = patch_geometry(reference, source)?;
-            if k == 0 {
-                let (xs, ys) = g.ref_ray_tables(reference.grey.width, reference.grey.height);
-                rays = [xs, ys].concat();
-                frame.grey_scale = scale as u32;
-            }
-            pairs.push(pair_record(&g, greys.len(), source));
+        if let Some(first) = prepared.first() {
+            let (xs, ys) = first.g.ref_ray_tables(reference.grey.width, reference.grey.height);
+            rays = [xs, ys].concat();
+            frame.grey_scale = first.scale as u32;
+        }
+        let mut pairs = Vec::with_capacity(sources.len());
+        let mut greys: Vec<f32> = reference.grey.data.to_vec();
+        let mut entries: Vec<Entry> = Vec::with_capacity(prepared.iter().map(|p| p.picked.len()).sum());
+        let mut ranges = Vec::with_capacity(sources.len());
+        for (p, source) in prepared.iter().zip(sources) {
+            pairs.push(pair_record(&p.g, greys.len(), source));
             greys.extend_from_slice(source.grey.data);
-            let selected = select_pixels(vis, config, k, w, h);
-            let first = entries.len();
-            entries.extend(selected.iter().enumerate().filter(|(_, s)| **s == 2).map(|(p, _)| [p as u32, k as u32]));
-            selections.push((selected, first..entries.len()));
+            ranges.push(entries.len()..entries.len() + p.picked.len());
+            entries.extend_from_slice(&p.picked);
         }
         let results = self.evaluate(&frame, &pairs, &entries, reference, &greys, &rays)?;
         let mut out = PhotometricOutput {
@@ -206,8 +223,8 @@ impl PhotometricGpu {
             width: w,
             height: h,
         };
-        for ((selected, range), vis) in selections.iter().zip(&weights) {
-            let stats = add_source(&mut out, &entries[range.clone()], &results[range.clone()], vis, selected, w);
+        for (p, range) in prepared.iter().zip(ranges) {
+            let stats = add_source(&mut out, &entries[range.clone()], &results[range], &p.vis, &p.selected, w);
             out.per_source.push(stats);
         }
         Ok(out)
