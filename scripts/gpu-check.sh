@@ -137,6 +137,7 @@ python3 - "$W" >> "$summary" <<'EOF'
 import json, os, sys
 w = sys.argv[1]
 rows = []
+prof = []  # where an iteration's time goes (report.json's time_by_part, gs_train::profile)
 for tag in sorted(os.listdir(w)):
     d = os.path.join(w, tag)
     try:
@@ -157,23 +158,16 @@ for tag in sorted(os.listdir(w)):
         f"{ev['psnr']:.2f} dB" if ev else "—",
         f"{worst['name']} {worst['psnr']:.2f} dB" if worst else "—", veils,
         f"{em['chamfer']:.5f} / {em['f1']:.3f}" if em else "—"))
-if rows:
-    print("\n## Training runs (train time; warm-up / L_p / refinement seconds; held-out PSNR without LPIPS)\n")
-    print("| run | train | warm-up / L_p / refine | Gaussians | held-out PSNR | worst view | veils | Chamfer / F1 |")
-    print("|---|---|---|---|---|---|---|---|")
-    print("\n".join(rows))
-# Where an iteration's time goes (report.json's time_by_part, gs_train::profile).
-prof = []
-for tag in sorted(os.listdir(w)):
-    try:
-        rep = json.load(open(os.path.join(w, tag, "report.json")))
-    except (OSError, ValueError):
-        continue
     for phase, e in rep.get("time_by_part", {}).items():
         ms = e["ms_per_iteration"]
         top = sorted(((v, k) for k, v in ms.items() if k != "whole"), reverse=True)
         prof.append("| {} | {} | {} | {:.1f} | {} |".format(tag, phase, e["iterations"], ms["whole"],
             ", ".join(f"{k} {v:.1f}" for v, k in top if v >= 0.01 * ms["whole"])))
+if rows:
+    print("\n## Training runs (train time; warm-up / L_p / refinement seconds; held-out PSNR without LPIPS)\n")
+    print("| run | train | warm-up / L_p / refine | Gaussians | held-out PSNR | worst view | veils | Chamfer / F1 |")
+    print("|---|---|---|---|---|---|---|---|")
+    print("\n".join(rows))
 if prof:
     print("\n## Where an iteration's time goes (ms per iteration, parts of at least 1 %)\n")
     print("| run | phase | iterations | ms each | parts |")

@@ -34,6 +34,37 @@ impl LossDevices {
         Ok(Self::default())
     }
 
+    /// L_I of `rendered` against `gt`: D-SSIM on the device when there is an executor for it,
+    /// else [`gs_losses::image_loss`] (the reference).
+    pub fn image_loss(
+        &self,
+        rendered: &gs_core::Image,
+        gt: &gs_core::Image,
+        guide: Option<&gs_losses::EdgeGuide>,
+        cfg: &gs_losses::ImageLossConfig,
+    ) -> gs_losses::Result<gs_losses::ImageLossOutput> {
+        #[cfg(feature = "wgpu")]
+        if let Some(d) = &self.ssim {
+            return d.borrow_mut().image_loss(rendered, gt, guide, cfg);
+        }
+        gs_losses::image_loss(rendered, gt, guide, cfg)
+    }
+
+    /// L_p of `reference` over `sources`: the patches on the device when there is an executor
+    /// for them, else [`gs_mvs::photometric_loss`] (the reference).
+    pub fn photometric_loss(
+        &self,
+        reference: &gs_mvs::PhotometricReference<'_, f32>,
+        sources: &[gs_mvs::PhotometricSource<'_, f32>],
+        config: &gs_mvs::PhotometricConfig,
+    ) -> gs_mvs::Result<gs_mvs::PhotometricOutput<f32>> {
+        #[cfg(feature = "wgpu")]
+        if let Some(d) = &self.photometric {
+            return d.borrow_mut().loss(reference, sources, config);
+        }
+        gs_mvs::photometric_loss(reference, sources, config)
+    }
+
     /// Where each term runs, in words: `"L_p and D-SSIM on wgpu (ADAPTER); the rest on the
     /// CPU"`, or that every term runs on the CPU.
     pub fn describe(&self) -> String {

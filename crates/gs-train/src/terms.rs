@@ -14,9 +14,9 @@ use crate::profile::Part;
 use crate::devices::LossDevices;
 use gs_core::{Camera, Image};
 use gs_features::FeatureMap;
-use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, image_loss, normal_losses};
+use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, normal_losses};
 use gs_mvs::{
-    FeatureReference, FeatureSource, PhotometricConfig, PhotometricReference, PhotometricSource, feature_loss, photometric_loss,
+    FeatureReference, FeatureSource, PhotometricConfig, PhotometricReference, PhotometricSource, feature_loss,
 };
 use gs_raster::{OutputGradients, RenderOutput};
 use serde::Serialize;
@@ -169,13 +169,7 @@ impl LossTerm for ImageTerm {
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
-        #[cfg(feature = "wgpu")]
-        let li = match &x.devices.ssim {
-            Some(d) => d.borrow_mut().image_loss(x.color, x.photo, x.guide, &cfg)?,
-            None => image_loss(x.color, x.photo, x.guide, &cfg)?,
-        };
-        #[cfg(not(feature = "wgpu"))]
-        let li = image_loss(x.color, x.photo, x.guide, &cfg)?;
+        let li = x.devices.image_loss(x.color, x.photo, x.guide, &cfg)?;
         (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
         GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
         Ok(())
@@ -249,13 +243,7 @@ impl LossTerm for PhotometricTerm {
                 Ok(PhotometricSource { camera: s.camera, plane_depth: s.plane_depth.into(), grey: grey.into() })
             })
             .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
-        #[cfg(feature = "wgpu")]
-        let lp = match &x.devices.photometric {
-            Some(d) => d.borrow_mut().loss(&reference, &sources, &self.config)?,
-            None => photometric_loss(&reference, &sources, &self.config)?,
-        };
-        #[cfg(not(feature = "wgpu"))]
-        let lp = photometric_loss(&reference, &sources, &self.config)?;
+        let lp = x.devices.photometric_loss(&reference, &sources, &self.config)?;
         values.photometric = Some(lp.loss);
         let (gn, gd) = lp.grad_images();
         GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);

@@ -159,11 +159,6 @@ impl PhotometricGpu {
         self.ctx.description()
     }
 
-    /// Whether the adapter is a CPU emulation (lavapipe).
-    pub fn is_software(&self) -> bool {
-        self.ctx.is_software()
-    }
-
     /// [`photometric_loss`] with the patches evaluated on the device: the same selection, υ/ω,
     /// statistics and gradient layout. Grey images too large for one storage binding of this
     /// device are evaluated on the host (the reference).

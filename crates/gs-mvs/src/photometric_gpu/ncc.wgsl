@@ -62,6 +62,20 @@ fn sample(pr: NccPair, u: f32, v: f32) -> vec3<f32> {
     return vec3<f32>(value, du, dv);
 }
 
+// Sample k of the patch around reference grey pixel (ci, cj): its reference ray q = (x, y, 1)
+// from the ray tables and the reference grey value there.
+struct Tap {
+    q: vec3<f32>,
+    grey: f32,
+}
+
+fn patch_tap(k: u32, ci: u32, cj: u32) -> Tap {
+    let half = frame.side / 2u;
+    let px = ci - half + k % frame.side;
+    let py = cj - half + k / frame.side;
+    return Tap(vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0), greys[py * frame.grey_width + px]);
+}
+
 fn put_result(t: u32, status: u32, cost: f32, gn: vec3<f32>, gd: f32) {
     var r: NccResult;
     r.grad_n = vec4<f32>(gn, 0.0);
@@ -87,7 +101,6 @@ fn ncc_patch(ids: Ids) {
         return;
     }
     let s = frame.grey_scale;
-    let half = frame.side / 2u;
     let ci = s * (p % frame.width) + s / 2u;
     let cj = s * (p / frame.width) + s / 2u;
     let count = frame.side * frame.side;
@@ -95,9 +108,8 @@ fn ncc_patch(ids: Ids) {
     var sr = 0.0;
     var ss = 0.0;
     for (var k = 0u; k < count; k++) {
-        let px = ci - half + k % frame.side;
-        let py = cj - half + k / frame.side;
-        let w = warp(pr, vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0), n, inv_d);
+        let tp = patch_tap(k, ci, cj);
+        let w = warp(pr, tp.q, n, inv_d);
         if (!(w.z > 0.0)) {
             put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
             return;
@@ -108,7 +120,7 @@ fn ncc_patch(ids: Ids) {
             put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
             return;
         }
-        sr += greys[py * frame.grey_width + px];
+        sr += tp.grey;
         ss += sample(pr, us, vs).x;
     }
     let nf = f32(count);
@@ -119,10 +131,9 @@ fn ncc_patch(ids: Ids) {
     var var_r = 0.0;
     var var_s = 0.0;
     for (var k = 0u; k < count; k++) {
-        let px = ci - half + k % frame.side;
-        let py = cj - half + k / frame.side;
-        let w = warp(pr, vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0), n, inv_d);
-        let a = greys[py * frame.grey_width + px] - mr;
+        let tp = patch_tap(k, ci, cj);
+        let w = warp(pr, tp.q, n, inv_d);
+        let a = tp.grey - mr;
         let b = sample(pr, w.x / w.z, w.y / w.z).x - ms;
         cov += a * b;
         var_r += a * a;
@@ -159,12 +170,11 @@ fn ncc_patch(ids: Ids) {
     var gn = vec3<f32>(0.0);
     var gd = 0.0;
     for (var k = 0u; k < count; k++) {
-        let px = ci - half + k % frame.side;
-        let py = cj - half + k / frame.side;
-        let q = vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0);
+        let tp = patch_tap(k, ci, cj);
+        let q = tp.q;
         let w = warp(pr, q, n, inv_d);
         let smp = sample(pr, w.x / w.z, w.y / w.z);
-        let a = greys[py * frame.grey_width + px] - mr;
+        let a = tp.grey - mr;
         let b = smp.x - ms;
         let dc_ds = ca * a + cb * b;
         let du = dc_ds * smp.y;
