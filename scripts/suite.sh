@@ -8,7 +8,7 @@
 # --quick     200x150 scenes instead of 480x360 (and --iterations, if given, for a shorter run)
 # --preset    passed to `vagsl train` (default: train's own default preset)
 # -o OUTDIR   where runs and the table go (default target/suite/quick or target/suite/full)
-# --scenes    indices or names, comma-separated (default: all eight), e.g. 0,knot,5
+# --scenes    indices or names, comma-separated (default: all nine), e.g. 0,knot,5
 # --seed      seed of the generated scenes (default 1) and of training (train's --seed)
 # --set       passed to `vagsl train` (repeatable), e.g. --set densify.floaters.enabled=true
 # --threads   rayon threads per scene (default 2); --jobs: scenes run at once (default 1)

@@ -1,4 +1,4 @@
-//! The eight objects of the validation suite (`crate::suite`), built from `crate::shapes`
+//! The nine objects of the validation suite (`crate::suite`), built from `crate::shapes`
 //! at a seeded size factor; each rests on the floor (z = 0) near the origin.
 
 use crate::geometry::{Builder, Material};
@@ -226,4 +226,26 @@ pub(crate) fn pillars(b: &mut Builder, s: f64) {
         Material::Part(1),
     );
     b.sphere(v(0.0, 0.0, 0.2 * s), 0.2 * s, (40, 20), Material::Part(2));
+}
+
+/// Suite scene object 'chair' at size factor `s`: a seat on four thin legs, a back of three
+/// slats between two posts, and a ball under the seat (seen only between the legs).
+pub(crate) fn chair(b: &mut Builder, s: f64) {
+    let (hx, hy, seat, st) = (0.28 * s, 0.26 * s, 0.42 * s, 0.04 * s);
+    b.aabox(v(-hx, -hy, seat), v(hx, hy, seat + st), Material::Part(0));
+    let leg = scaled(&[[0.0, 0.0], [0.022, 0.0], [0.022, 0.42], [0.0, 0.42]], s);
+    for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+        b.lathe(v(sx * (hx - 0.04 * s), sy * (hy - 0.04 * s), 0.0), &leg, 20, Material::Part(1));
+    }
+    // The back: two posts at the seat's +y edge and three horizontal slats between them.
+    let (post, top) = (0.025 * s, seat + st + 0.5 * s);
+    for sx in [-1.0, 1.0] {
+        let x = sx * (hx - 0.03 * s);
+        b.aabox(v(x - post, hy - 2.0 * post, seat + st), v(x + post, hy, top), Material::Part(0));
+    }
+    for k in 0..3 {
+        let z = seat + st + (0.14 + 0.15 * k as f64) * s;
+        b.aabox(v(-hx + 0.03 * s, hy - 0.035 * s, z), v(hx - 0.03 * s, hy - 0.015 * s, z + 0.06 * s), Material::Part(0));
+    }
+    b.sphere(v(0.05 * s, -0.05 * s, 0.14 * s), 0.14 * s, (40, 20), Material::Part(2));
 }
