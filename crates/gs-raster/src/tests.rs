@@ -412,6 +412,7 @@ fn splat_level_gradients_match_finite_differences() {
             height: 32,
             tiles_x: cp.tiles_x,
             threshold: cfg.alpha_threshold,
+            geometry_cut: 0.0,
         };
         let tiles = raster::forward_tiles(&ctx, true, true, false, false);
         let mut l = 0.0f64;

@@ -93,7 +93,7 @@ impl Default for RasterConfig {
 
 /// Which outputs to render. Geometry channels (Ñ, D) are blended only when normal, distance
 /// or plane depth is requested; the depth sum only for expected depth.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderRequest {
     /// Colour (3 channels, with background).
     pub color: bool,
@@ -109,6 +109,13 @@ pub struct RenderRequest {
     pub expected_depth: bool,
     /// Per-Gaussian observed counts (pixels where it contributed while T > 0.5).
     pub observed: bool,
+    /// Transmittance at which the geometry channels (Ñ, D, and so the plane depth) stop
+    /// blending: contributions count only while T > `geometry_cut`, the one that crosses it in
+    /// part (weight T − max(T', cut)). A pixel's geometry is then its front surface's, not that
+    /// of the semi-transparent shell a trained model keeps behind it (docs/method.md §TSDF).
+    /// 0 blends every contribution (training); in [0, 1). Forward only: a backward with
+    /// geometry gradients of a cut render is refused.
+    pub geometry_cut: f32,
 }
 
 impl Default for RenderRequest {
@@ -122,6 +129,7 @@ impl Default for RenderRequest {
             plane_depth: false,
             expected_depth: false,
             observed: false,
+            geometry_cut: 0.0,
         }
     }
 }
@@ -137,7 +145,12 @@ impl RenderRequest {
             plane_depth: true,
             expected_depth: true,
             observed: true,
+            geometry_cut: 0.0,
         }
+    }
+    /// Whether the geometry accumulators stop at a transmittance cut ([`Self::geometry_cut`]).
+    pub(crate) fn cut(&self) -> bool {
+        self.geometry_cut > 0.0 && self.geo()
     }
     /// Whether the geometry accumulators (Ñ, D) are blended.
     pub(crate) fn geo(&self) -> bool {

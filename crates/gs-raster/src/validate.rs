@@ -39,6 +39,19 @@ impl RasterConfig {
     }
 }
 
+impl RenderRequest {
+    /// Rejects a geometry cut outside [0, 1) (NaN included).
+    pub(crate) fn validate(&self) -> Result<()> {
+        if !(self.geometry_cut >= 0.0 && self.geometry_cut < 1.0) {
+            return Err(RasterError::InvalidConfig(format!(
+                "geometry_cut = {} must lie in [0, 1)",
+                self.geometry_cut
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// Validates the inputs of a render or backward and returns the f32 camera constants.
 pub(crate) fn check_inputs(
     g: &Gaussians,
@@ -126,6 +139,13 @@ pub(crate) fn check_all_grads(
     w: u32,
     h: u32,
 ) -> Result<()> {
+    let geo_grads = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
+    if req.cut() && geo_grads {
+        return Err(RasterError::InvalidGradients(format!(
+            "geometry gradients of a render with geometry_cut = {} (the cut is forward only)",
+            req.geometry_cut
+        )));
+    }
     check_grad(grads.color, req.color, "color", w, h, 3)?;
     check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
     check_grad(grads.normal, req.normal, "normal", w, h, 3)?;

@@ -180,6 +180,25 @@ fn parity_for_channel_subsets_and_single_gradients() {
 }
 
 #[test]
+fn parity_of_the_geometry_cut() {
+    // The front-surface geometry `vagsl mesh` fuses: the same cut on both backends, and the
+    // backward of its geometry refused on both.
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let g = random_scene(400, 1, 7, 1.0, (-3.5, -2.0));
+    let cam = &cameras(80, 64)[1];
+    let cfg = RasterConfig::default();
+    for cut in [0.15, 0.5] {
+        let req = RenderRequest { geometry_cut: cut, ..RenderRequest::all() };
+        let cpu = gs_raster::render(&g, cam, &req, &cfg).unwrap();
+        let gpu = r.render(&g, cam, &req, &cfg).unwrap();
+        compare_outputs(&format!("geometry cut {cut}"), &cpu, &gpu);
+        let grads = Grads::new(80, 64, 3);
+        let og = OutputGradients { plane_depth: Some(&grads.plane_depth), ..OutputGradients::default() };
+        assert!(matches!(r.backward(&g, cam, &cfg, &gpu, &og), Err(RasterError::InvalidGradients(_))));
+    }
+}
+
+#[test]
 fn parity_at_the_extremes() {
     let Some(mut r) = gpu(WgpuOptions::default()) else { return };
     let cfg = RasterConfig::default();

@@ -51,6 +51,7 @@ pub fn backward(
         height: h,
         tiles_x: cam.tiles_x,
         threshold: config.alpha_threshold,
+        geometry_cut: 0.0,
     };
     let wu = w as usize;
     let pixel_grads =

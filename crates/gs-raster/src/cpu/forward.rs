@@ -75,6 +75,7 @@ pub fn render(
     request: &RenderRequest,
     config: &RasterConfig,
 ) -> Result<RenderOutput> {
+    request.validate()?;
     let (cam, proj) = checked_projection(gaussians, camera, config)?;
     let (order, bins) = raster::bin(
         &proj.visible,
@@ -95,6 +96,7 @@ pub fn render(
         height: cam.height,
         tiles_x: cam.tiles_x,
         threshold: config.alpha_threshold,
+        geometry_cut: if request.cut() { request.geometry_cut } else { 0.0 },
     };
     let geo = request.geo();
     let tiles = raster::forward_tiles(
@@ -174,6 +176,7 @@ pub fn render_naive(
     request: &RenderRequest,
     config: &RasterConfig,
 ) -> Result<RenderOutput> {
+    request.validate()?;
     let (cam, proj) = checked_projection(gaussians, camera, config)?;
     let mut order = proj.visible.clone();
     order.sort_by(|&a, &b| {
@@ -194,6 +197,7 @@ pub fn render_naive(
                 x as f32 + 0.5,
                 y as f32 + 0.5,
                 config.alpha_threshold,
+                request.geometry_cut,
                 &mut observed,
             );
             acc[y * w + x] = a;

@@ -135,6 +135,8 @@ pub(crate) struct Ctx<'a> {
     pub height: u32,
     pub tiles_x: u32,
     pub threshold: f32,
+    /// [`crate::RenderRequest::geometry_cut`] (0: blend every contribution).
+    pub geometry_cut: f32,
 }
 
 /// Per-pixel results of one tile (tile-local row-major, `tw × th`).
@@ -211,6 +213,7 @@ pub(crate) fn forward_tile<
     };
     let mut box_pairs = 0u64;
     let thr = ctx.threshold;
+    let cut = ctx.geometry_cut;
     for (k, &gid) in list.iter().enumerate() {
         if n_done == npix {
             break;
@@ -251,10 +254,11 @@ pub(crate) fn forward_tile<
                     a[2] += w * f[2];
                 }
                 if GEO {
-                    a[3] += w * f[3];
-                    a[4] += w * f[4];
-                    a[5] += w * f[5];
-                    a[6] += w * f[6];
+                    let wg = if cut > 0.0 { (t - next_t.max(cut)).max(0.0) } else { w };
+                    a[3] += wg * f[3];
+                    a[4] += wg * f[4];
+                    a[5] += wg * f[5];
+                    a[6] += wg * f[6];
                 }
                 if DEPTH {
                     a[7] += w * f[7];
@@ -421,6 +425,7 @@ pub(crate) fn naive_pixel(
     px: f32,
     py: f32,
     threshold: f32,
+    geometry_cut: f32,
     observed: &mut [u32],
 ) -> ([f32; 8], f32) {
     let mut acc = [0.0f32; 8];
@@ -435,8 +440,10 @@ pub(crate) fn naive_pixel(
             break;
         }
         let f = &features[gid as usize];
+        let w = alpha * t;
+        let wg = if geometry_cut > 0.0 { (t - next_t.max(geometry_cut)).max(0.0) } else { w };
         for ch in 0..8 {
-            acc[ch] += alpha * t * f[ch];
+            acc[ch] += if (3..7).contains(&ch) { wg } else { w } * f[ch];
         }
         if t > 0.5 {
             observed[gid as usize] += 1;

@@ -93,7 +93,7 @@ impl WgpuRasterizer {
                 << 1
             | (grads.expected_depth.is_some() as u32) << 2;
         self.disp
-            .write_frame(&CamUniform::new(cam, config, g, flags));
+            .write_frame(&CamUniform::new(cam, config, g, flags, 0.0));
         // The parameters on the device are those of this frame's render (its generation was
         // checked, or it was just rebuilt): no second upload.
         let t0 = Instant::now();

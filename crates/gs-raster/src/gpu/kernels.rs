@@ -37,14 +37,16 @@ gs_gpu::wgsl_struct! {
         /// Channel flags: 1 colour, 2 geometry (normal, distance), 4 depth sum, 8 observed.
         flags: u32,
         n: u32,
-        pad0: u32,
+        /// `RenderRequest::geometry_cut` of a render (0 in a backward: the cut is forward only).
+        geometry_cut: f32,
         pad1: u32,
     }
 }
 
 impl CamUniform {
-    /// The uniform of camera `cam`, config `cfg` and Gaussians `g` with channel `flags`.
-    pub(crate) fn new(cam: &CamParams, cfg: &RasterConfig, g: &Gaussians, flags: u32) -> Self {
+    /// The uniform of camera `cam`, config `cfg` and Gaussians `g` with channel `flags` and
+    /// geometry cut `geometry_cut`.
+    pub(crate) fn new(cam: &CamParams, cfg: &RasterConfig, g: &Gaussians, flags: u32, geometry_cut: f32) -> Self {
         let r = cam.r;
         Self {
             r0: [r.x_axis.x, r.x_axis.y, r.x_axis.z, 0.0],
@@ -69,7 +71,7 @@ impl CamUniform {
             tiles_y: cam.tiles_y,
             flags,
             n: g.len() as u32,
-            pad0: 0,
+            geometry_cut,
             pad1: 0,
         }
     }

@@ -2,6 +2,7 @@
 // tile's list (the CPU backend's rule: pixel box, alpha = min(0.99, o G), skip alpha below
 // the threshold, stop when T (1 - alpha) < 1e-4 without blending). The accumulators are
 // written channel-planar (plane c at c * npix): colour 0..3, normal 3..6, distance 6, depth 7.
+// A geometry cut (cam.geometry_cut > 0) blends normal and distance only while T exceeds it.
 //
 // The list is walked in windows of list positions [pass_.shift, pass_.nb), one dispatch per
 // window, with the per-pixel state (accumulators, T, last) kept in the output buffers between
@@ -97,10 +98,15 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             a[2] += w * splat[o + 11u];
         }
         if (geo) {
-            a[3] += w * splat[o + 12u];
-            a[4] += w * splat[o + 13u];
-            a[5] += w * splat[o + 14u];
-            a[6] += w * splat[o + 15u];
+            // The geometry cut (RenderRequest::geometry_cut): blend only while T > cut.
+            var wg = w;
+            if (cam.geometry_cut > 0.0) {
+                wg = max(t - max(next_t, cam.geometry_cut), 0.0);
+            }
+            a[3] += wg * splat[o + 12u];
+            a[4] += wg * splat[o + 13u];
+            a[5] += wg * splat[o + 14u];
+            a[6] += wg * splat[o + 15u];
         }
         if (depth) {
             a[7] += w * splat[o + 16u];
