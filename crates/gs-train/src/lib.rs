@@ -64,7 +64,7 @@ pub use evaluate::{ImageMetrics, VEIL_MIN_COVER, Veil, ViewMetrics, evaluate_ima
 pub use exposure::{Exposure, ExposureParams};
 pub use floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
 pub use mesh::{
-    ComponentCleanup, DEFAULT_COMPONENT_SHARE, DEFAULT_SIMPLIFY_ERROR, DepthFilterReport, DepthSource, FINE_VOXEL_FRACTION, MIN_COMPONENT_TRIANGLES,
+    ComponentCleanup, DEFAULT_COMPONENT_SHARE, DEFAULT_SIMPLIFY_ERROR, DEFAULT_SURFACE_CUT, DepthFilterReport, DepthSource, FINE_VOXEL_FRACTION, MIN_COMPONENT_TRIANGLES,
     MeshOptions, MeshReport, Simplify, SimplifyApplied, default_voxel, extract_mesh, fuse_mesh, length_text,
 };
 pub use model::TrainedModel;

@@ -132,6 +132,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         plane_depth: geometry,
         expected_depth: false,
         observed: false,
+        geometry_cut: 0.0,
     };
     let w = &config.weights;
     let weights = LossWeights {

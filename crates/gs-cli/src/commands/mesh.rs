@@ -42,6 +42,11 @@ pub struct MeshArgs {
     /// pixel with a depth).
     #[arg(long)]
     pub min_alpha: Option<f32>,
+    /// Blend each pixel's rendered depth only until its transmittance falls to this (default
+    /// 0.15): the surface in front, not the semi-transparent shell behind it; 0 blends every
+    /// Gaussian the pixel sees (before stop 43's default).
+    #[arg(long, conflicts_with = "depth_dir")]
+    pub surface_cut: Option<f32>,
     /// Fuse only the depths that neighbouring views confirm (a multi-view depth consistency
     /// filter: a floating sheet that one view's depth holds and its neighbours see through is
     /// not fused). Off by default: on exact depths it drops the strips that fewer than two
@@ -118,6 +123,11 @@ fn options(args: &MeshArgs) -> Result<MeshOptions> {
     {
         bail!("--min-alpha {a}: an opacity is between 0 and 1");
     }
+    if let Some(c) = args.surface_cut
+        && !(0.0..1.0).contains(&c)
+    {
+        bail!("--surface-cut {c}: a transmittance cut is at least 0 and below 1");
+    }
     if let Some(s) = args.min_component_share
         && !(0.0..=1.0).contains(&s)
     {
@@ -145,6 +155,7 @@ fn options(args: &MeshArgs) -> Result<MeshOptions> {
         sdf_trunc: args.sdf_trunc,
         depth_trunc: args.depth_trunc,
         min_alpha: args.min_alpha.unwrap_or(d.min_alpha),
+        surface_cut: args.surface_cut.unwrap_or(d.surface_cut),
         max_normal_angle_deg: args.max_normal_angle,
         consistency,
         largest_component_only: args.largest,
