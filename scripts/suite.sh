@@ -4,6 +4,7 @@
 #
 #   scripts/suite.sh [--quick] [--preset P] [-o OUTDIR] [--scenes a,b] [--seed S]
 #                    [--iterations N] [--threads T] [--jobs J] [--backend B] [--set KEY=VALUE]...
+#                    [--remesh]
 #
 # --quick     200x150 scenes instead of 480x360 (and --iterations, if given, for a shorter run)
 # --preset    passed to `vagsl train` (default: train's own default preset)
@@ -13,6 +14,8 @@
 # --set       passed to `vagsl train` (repeatable), e.g. --set densify.floaters.enabled=true
 # --threads   rayon threads per scene (default 2); --jobs: scenes run at once (default 1)
 # --backend   rasterizer of train / mesh / eval-images (default: vagsl's auto)
+# --remesh    keep each scene's trained OUTDIR/NN-name/run and only mesh and score it again
+#             (for trying a meshing rule in minutes: the training columns stay the run's)
 #
 # Per scene: the GT-depth floor (`vagsl mesh SCENE --depth-dir SCENE/gt`, the same fusion as a
 # run's mesh, scored the same way), then `vagsl train SCENE --eval`, `vagsl mesh RUN`,
@@ -24,7 +27,7 @@ set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 ARGS="$*"
-QUICK=0; PRESET=""; OUT=""; SCENES=""; SEED=1; ITERS=""; THREADS=2; JOBS=1; BACKEND=auto; SETS=()
+QUICK=0; REMESH=0; PRESET=""; OUT=""; SCENES=""; SEED=1; ITERS=""; THREADS=2; JOBS=1; BACKEND=auto; SETS=()
 usage() { sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -38,6 +41,7 @@ while [[ $# -gt 0 ]]; do
     --jobs) JOBS="$2"; shift ;;
     --backend) BACKEND="$2"; shift ;;
     --set) SETS+=(--set "$2"); shift ;;
+    --remesh) REMESH=1 ;;
     -h|--help) usage 0 ;;
     *) echo "suite.sh: unknown argument '$1'" >&2; usage 2 ;;
   esac
@@ -84,19 +88,25 @@ T_SUITE=$(date +%s.%N)
 run_scene() {
   local s="$1" SCENE="$CACHE/$1" D="$OUT/$1" t0 t1 t2
   echo "== $s" >&2
-  rm -rf "$D/run" "$D/floor"; mkdir -p "$D/floor"
+  if [[ $REMESH == 1 ]]; then
+    [[ -f "$D/run/point_cloud.ply" ]] || { echo "suite.sh --remesh: $D/run has no trained model" >&2; return 1; }
+    rm -rf "$D/floor"
+  else
+    rm -rf "$D/run" "$D/floor"
+  fi
+  mkdir -p "$D/floor"
   t0=$(date +%s.%N)
   "$VAGSL" mesh "$SCENE" --depth-dir "$SCENE/gt" -o "$D/floor/mesh.ply" >&2
   "$VAGSL" eval-mesh --pred "$D/floor/mesh.ply" --gt "$SCENE/gt_mesh.ply" "${PROTOCOL[@]}" > "$D/floor/eval_mesh.json"
   t1=$(date +%s.%N)
-  "$VAGSL" train "$SCENE" -o "$D/run" "${TRAIN_ARGS[@]}" >&2
+  [[ $REMESH == 1 ]] || "$VAGSL" train "$SCENE" -o "$D/run" "${TRAIN_ARGS[@]}" >&2
   "$VAGSL" mesh "$D/run" --backend "$BACKEND" >&2
   "$VAGSL" eval-mesh --pred "$D/run/mesh.ply" --gt "$SCENE/gt_mesh.ply" "${PROTOCOL[@]}" > "$D/eval_mesh.json"
   "$VAGSL" eval-images "$D/run" --json --backend "$BACKEND" > "$D/eval_images.json"
   t2=$(date +%s.%N)
-  python3 - "$SCENE" "$D" "$t0" "$t1" "$t2" <<'PY'
+  python3 - "$SCENE" "$D" "$t0" "$t1" "$t2" "$REMESH" <<'PY'
 import json, sys
-scene, d, t0, t1, t2 = sys.argv[1], sys.argv[2], *map(float, sys.argv[3:])
+scene, d, (t0, t1, t2), remesh = sys.argv[1], sys.argv[2], map(float, sys.argv[3:6]), sys.argv[6] == "1"
 load = lambda p: json.load(open(p))
 meta, floor, em = load(f"{scene}/scene.json"), load(f"{d}/floor/eval_mesh.json"), load(f"{d}/eval_mesh.json")
 ei, rep, mesh = load(f"{d}/eval_images.json"), load(f"{d}/run/report.json"), load(f"{d}/run/mesh.json")
@@ -111,12 +121,14 @@ row = {
     "psnr": ei["psnr"], "worst_view": worst["name"], "worst_psnr": worst["psnr"],
     "veils": len(veils), "veil_views": [f'{v["name"]} ({v["veil"]["psnr_without"]:.1f} dB without)' for v in veils],
     "triangles": mesh["triangles"], "gaussians": rep["gaussians"], "train_seconds": rep["train_seconds"],
-    "total_seconds": t2 - t1, "floor_seconds": t1 - t0,
+    # --remesh: the run's own training time plus this mesh and its scoring.
+    "total_seconds": t2 - t1 + (rep["train_seconds"] if remesh else 0.0), "floor_seconds": t1 - t0,
 }
 json.dump(row, open(f"{d}/row.json", "w"), indent=1)
 PY
 }
 for s in "${SELECTED[@]}"; do
+  if [[ $REMESH == 1 ]]; then rm -f "$OUT/$s/row.json"; fi
   if [[ -f "$OUT/$s/row.json" ]]; then echo "== $s: kept $OUT/$s/row.json" >&2; continue; fi
   if [[ $JOBS -gt 1 ]]; then
     mkdir -p "$OUT/$s"
