@@ -344,7 +344,11 @@ fn the_mesh_curve_scores_each_point_against_the_ground_truth() {
     assert_eq!(its, [15, 37, 45, 67, 75, 97, 105, 120, 135, 150], "{text}");
     let chamfer = |p: &serde_json::Value| p["chamfer"].as_f64().unwrap();
     assert!(points.windows(2).all(|w| w[1]["seconds"].as_f64() >= w[0]["seconds"].as_f64()));
-    assert!(chamfer(&points[9]) < 0.6 * chamfer(&points[0]), "{text}");
+    // The last point beats the first by 30 % and every point of the curve's first half. (Since
+    // meshes fuse the front surface, stop 43, the first point is 0.081 where it was 0.145, and
+    // the last 0.051 where it was 0.069.)
+    assert!(chamfer(&points[9]) < 0.7 * chamfer(&points[0]), "{text}");
+    assert!(points[..5].iter().all(|p| chamfer(&points[9]) < chamfer(p)), "{text}");
     assert!(points.iter().all(|p| (0.0..=1.0).contains(&p["f1"].as_f64().unwrap()) && p["triangles"].as_u64().unwrap() > 0));
     // Training time leaves the meshing out: the last point's seconds are the run's.
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
