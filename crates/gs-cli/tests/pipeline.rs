@@ -109,6 +109,18 @@ fn builtin_scene_end_to_end() {
     assert!(ok, "{err}");
     assert!(gs_io::read_mesh_ply(&plain).unwrap().triangles.len() <= 500);
     assert!(json(&out.join("plain.json"))["simplification"]["error_bound"].is_null());
+    // The front surface by default; blending every Gaussian fuses other depths. Smoothing
+    // before simplifying is recorded with its steps.
+    assert!((mr["surface_cut"].as_f64().unwrap() - gs_train::DEFAULT_SURFACE_CUT as f64).abs() < 1e-6, "{mr}");
+    assert!(mr["smoothing"].is_null(), "off by default: {mr}");
+    let (ok, _, err) = vagsl(&["mesh", o, "-o", plain.to_str().unwrap(), "--surface-cut", "0", "--smooth", "5"]);
+    assert!(ok, "{err}");
+    let br = json(&out.join("plain.json"));
+    assert_eq!(br["surface_cut"], serde_json::json!(0.0), "{br}");
+    assert_eq!(br["smoothing"]["iterations"], 5, "{br}");
+    assert_ne!(gs_io::read_mesh_ply(&plain).unwrap().positions, mesh.positions);
+    let (ok, _, err) = vagsl(&["mesh", o, "--surface-cut", "1"]);
+    assert!(!ok && err.contains("--surface-cut 1"), "{err}");
     let (ok, _, err) = vagsl(&["mesh", o, "--min-alpha", "2"]);
     assert!(!ok && err.contains("between 0 and 1"), "{err}");
     let mesh_path = out.join("mesh.ply");

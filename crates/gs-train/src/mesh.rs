@@ -50,6 +50,9 @@ pub struct MeshOptions {
     /// Components with fewer than this share of the mesh's triangles (or fewer than
     /// [`MIN_COMPONENT_TRIANGLES`]) are removed; 0 keeps every component above that floor.
     pub min_component_share: f64,
+    /// Taubin smoothing of the cleaned mesh before it is simplified (`None`: off, the default;
+    /// BENCHMARKS.md §Validation suite, synth-bunny's mesh size).
+    pub smoothing: Option<gs_tsdf::Smoothing>,
     /// Simplification of the cleaned mesh.
     pub simplify: Simplify,
     /// Fuse only where the view's mask is set (object scenes with masks).
@@ -76,6 +79,7 @@ impl Default for MeshOptions {
             consistency: None,
             largest_component_only: false,
             min_component_share: DEFAULT_COMPONENT_SHARE,
+            smoothing: None,
             simplify: Simplify::FootprintError(DEFAULT_SIMPLIFY_ERROR),
             use_masks: false,
             max_blocks: TsdfConfig::default().max_blocks,
@@ -184,6 +188,8 @@ pub struct MeshReport {
     pub depth_filter: Option<DepthFilterReport>,
     /// The component clean-up.
     pub components: ComponentCleanup,
+    /// The smoothing before simplification (`None`: off).
+    pub smoothing: Option<gs_tsdf::Smoothing>,
     /// The simplification (`None`: off).
     pub simplification: Option<SimplifyApplied>,
     /// Seconds spent rendering (or reading) the depth maps.
@@ -377,6 +383,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         surface_cut: matches!(source, DepthSource::Rendered { .. }).then_some(opts.surface_cut),
         depth_filter,
         components,
+        smoothing: opts.smoothing,
         simplification,
         render_seconds: stats.seconds,
         fuse_seconds,
@@ -431,6 +438,10 @@ fn finish(raw: &TriangleMesh, opts: &MeshOptions, footprint: f64) -> Result<(Tri
         ComponentFilter::MinShare { share: opts.min_component_share, min_triangles: MIN_COMPONENT_TRIANGLES }
     };
     let (mesh, result) = clean_mesh(raw, filter)?;
+    let mesh = match opts.smoothing {
+        Some(sm) => gs_tsdf::smooth_mesh(&mesh, sm)?,
+        None => mesh,
+    };
     let components = ComponentCleanup {
         min_share: (!opts.largest_component_only).then_some(opts.min_component_share),
         min_triangles: MIN_COMPONENT_TRIANGLES,

@@ -28,6 +28,7 @@
 //! * [`consistency`]: multi-view geometric depth consistency, before fusion.
 //! * [`clean`]: connected components (absolute or relative size), degenerate / unreferenced
 //!   elements, mask culling.
+//! * [`smooth`]: Taubin λ|μ smoothing of the fused surface's voxel-scale ripples.
 //! * [`simplify`]: quadric-error simplification to a world-space error bound or a count.
 //! * [`fusion_memory`]: the peak-memory estimate of a fusion, made before allocating it.
 //! * [`metrics`]: area-weighted sampling, accuracy / completeness / Chamfer / F1.
@@ -41,6 +42,7 @@ pub mod fusion_memory;
 mod mc_table;
 pub mod metrics;
 pub mod simplify;
+pub mod smooth;
 pub mod volume;
 
 pub use clean::{ComponentFilter, ComponentReport, clean_mesh, cull_by_masks, filter_components, remove_degenerate_triangles, remove_unreferenced_vertices};
@@ -50,4 +52,5 @@ pub use extract::ExtractOptions;
 pub use fusion_memory::{BlockCensus, MemoryEstimate};
 pub use metrics::{Aabb, EvalOptions, EvalReport, PointMetrics, evaluate_meshes, point_metrics, sample_surface};
 pub use simplify::{SimplifyReport, SimplifyTarget, simplify_mesh};
+pub use smooth::{Smoothing, smooth_mesh};
 pub use volume::{IntegrateStats, TsdfConfig, TsdfVolume};

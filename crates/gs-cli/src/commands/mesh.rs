@@ -64,6 +64,11 @@ pub struct MeshArgs {
     /// (default 0.001; 0 keeps every component of at least 50 triangles).
     #[arg(long, conflicts_with = "largest")]
     pub min_component_share: Option<f64>,
+    /// Smooth the mesh with this many Taubin λ|μ step pairs before simplifying it (off by
+    /// default): the fused surface's voxel-scale ripples go, so the simplifier removes more
+    /// triangles within its error bound.
+    #[arg(long, value_name = "STEPS")]
+    pub smooth: Option<usize>,
     /// Simplify to at most this many triangles (instead of the error bound).
     #[arg(long, conflicts_with = "no_simplify")]
     pub triangles: Option<usize>,
@@ -160,6 +165,7 @@ fn options(args: &MeshArgs) -> Result<MeshOptions> {
         consistency,
         largest_component_only: args.largest,
         min_component_share: args.min_component_share.unwrap_or(d.min_component_share),
+        smoothing: args.smooth.filter(|&k| k > 0).map(gs_tsdf::Smoothing::taubin),
         simplify,
         use_masks: args.masks,
         bounds: args.bounds,
