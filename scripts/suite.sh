@@ -4,7 +4,7 @@
 #
 #   scripts/suite.sh [--quick] [--preset P] [-o OUTDIR] [--scenes a,b] [--seed S]
 #                    [--iterations N] [--threads T] [--jobs J] [--backend B] [--set KEY=VALUE]...
-#                    [--remesh]
+#                    [--remesh] [--mesh-arg ARG]...
 #
 # --quick     200x150 scenes instead of 480x360 (and --iterations, if given, for a shorter run)
 # --preset    passed to `vagsl train` (default: train's own default preset)
@@ -16,6 +16,7 @@
 # --backend   rasterizer of train / mesh / eval-images (default: vagsl's auto)
 # --remesh    keep each scene's trained OUTDIR/NN-name/run and only mesh and score it again
 #             (for trying a meshing rule in minutes: the training columns stay the run's)
+# --mesh-arg  passed to the run's `vagsl mesh` (repeatable), e.g. --mesh-arg --smooth --mesh-arg 10
 #
 # Per scene: the GT-depth floor (`vagsl mesh SCENE --depth-dir SCENE/gt`, the same fusion as a
 # run's mesh, scored the same way), then `vagsl train SCENE --eval`, `vagsl mesh RUN`,
@@ -27,7 +28,7 @@ set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 ARGS="$*"
-QUICK=0; REMESH=0; PRESET=""; OUT=""; SCENES=""; SEED=1; ITERS=""; THREADS=2; JOBS=1; BACKEND=auto; SETS=()
+QUICK=0; REMESH=0; MESH_ARGS=(); PRESET=""; OUT=""; SCENES=""; SEED=1; ITERS=""; THREADS=2; JOBS=1; BACKEND=auto; SETS=()
 usage() { sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -42,6 +43,7 @@ while [[ $# -gt 0 ]]; do
     --backend) BACKEND="$2"; shift ;;
     --set) SETS+=(--set "$2"); shift ;;
     --remesh) REMESH=1 ;;
+    --mesh-arg) MESH_ARGS+=("$2"); shift ;;
     -h|--help) usage 0 ;;
     *) echo "suite.sh: unknown argument '$1'" >&2; usage 2 ;;
   esac
@@ -100,7 +102,7 @@ run_scene() {
   "$VAGSL" eval-mesh --pred "$D/floor/mesh.ply" --gt "$SCENE/gt_mesh.ply" "${PROTOCOL[@]}" > "$D/floor/eval_mesh.json"
   t1=$(date +%s.%N)
   [[ $REMESH == 1 ]] || "$VAGSL" train "$SCENE" -o "$D/run" "${TRAIN_ARGS[@]}" >&2
-  "$VAGSL" mesh "$D/run" --backend "$BACKEND" >&2
+  "$VAGSL" mesh "$D/run" --backend "$BACKEND" "${MESH_ARGS[@]}" >&2
   "$VAGSL" eval-mesh --pred "$D/run/mesh.ply" --gt "$SCENE/gt_mesh.ply" "${PROTOCOL[@]}" > "$D/eval_mesh.json"
   "$VAGSL" eval-images "$D/run" --json --backend "$BACKEND" > "$D/eval_images.json"
   t2=$(date +%s.%N)
