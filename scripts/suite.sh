@@ -62,7 +62,13 @@ mkdir -p "$OUT" "$CACHE"
 
 # The suite's scene folders (NN-name), written (or kept) by `vagsl synth`.
 SYNTH_ARGS=(--seed "$SEED"); [[ $QUICK == 1 ]] && SYNTH_ARGS+=(--quick)
-"$VAGSL" synth -o "$CACHE" --suite "${SYNTH_ARGS[@]}" >&2
+# Scenes chosen by index only: write just those (a full-size scene takes about a minute).
+if [[ -n "$SCENES" && "$SCENES" =~ ^[0-9]+(,[0-9]+)*$ ]]; then
+  IFS=',' read -ra IDX <<< "$SCENES"
+  for i in "${IDX[@]}"; do "$VAGSL" synth -o "$CACHE" --scene "$((10#$i))" "${SYNTH_ARGS[@]}" >&2; done
+else
+  "$VAGSL" synth -o "$CACHE" --suite "${SYNTH_ARGS[@]}" >&2
+fi
 mapfile -t ALL < <(cd "$CACHE" && ls -d [0-9][0-9]-* | sort)
 SELECTED=()
 if [[ -z "$SCENES" ]]; then
