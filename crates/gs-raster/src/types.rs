@@ -148,9 +148,10 @@ impl RenderRequest {
             geometry_cut: 0.0,
         }
     }
-    /// Whether the geometry accumulators stop at a transmittance cut ([`Self::geometry_cut`]).
-    pub(crate) fn cut(&self) -> bool {
-        self.geometry_cut > 0.0 && self.geo()
+    /// The transmittance cut the geometry accumulators apply ([`Self::geometry_cut`]; 0 when
+    /// no geometry is blended).
+    pub(crate) fn applied_cut(&self) -> f32 {
+        if self.geo() { self.geometry_cut } else { 0.0 }
     }
     /// Whether the geometry accumulators (Ñ, D) are blended.
     pub(crate) fn geo(&self) -> bool {

@@ -140,7 +140,7 @@ pub(crate) fn check_all_grads(
     h: u32,
 ) -> Result<()> {
     let geo_grads = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
-    if req.cut() && geo_grads {
+    if req.applied_cut() > 0.0 && geo_grads {
         return Err(RasterError::InvalidGradients(format!(
             "geometry gradients of a render with geometry_cut = {} (the cut is forward only)",
             req.geometry_cut

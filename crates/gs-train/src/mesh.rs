@@ -308,6 +308,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     if let Some(i) = views.iter().find(|&&i| i >= scene.views.len()) {
         return Err(TrainError::InvalidScene(format!("view index {i} out of range")));
     }
+    let rendered = matches!(source, DepthSource::Rendered { .. });
     let mut stats = FetchStats::default();
     // Without a given voxel, the first views' depth maps (kept for the fusion) measure the footprint.
     let mut held: Vec<Fetched> = Vec::new();
@@ -332,7 +333,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     };
     if let Some(limit) = opts.max_memory {
         config.max_blocks = config.max_blocks.min((limit / MemoryEstimate::bytes_per_block(true)).max(1) as usize);
-        let kept = opts.consistency.map_or(0, |_| held_bytes(scene, views, matches!(source, DepthSource::Rendered { .. })));
+        let kept = opts.consistency.map_or(0, |_| held_bytes(scene, views, rendered));
         check_memory(scene, views.len(), &held, &config, opts.use_masks, (limit, kept), probe_footprint)?;
     }
     let depth_filter = match opts.consistency {
@@ -378,9 +379,9 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         tsdf_bytes: volume.memory_bytes(),
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
-        min_alpha: matches!(source, DepthSource::Rendered { .. }).then_some(opts.min_alpha),
+        min_alpha: rendered.then_some(opts.min_alpha),
         pixels_below_min_alpha: stats.below_alpha,
-        surface_cut: matches!(source, DepthSource::Rendered { .. }).then_some(opts.surface_cut),
+        surface_cut: rendered.then_some(opts.surface_cut),
         depth_filter,
         components,
         smoothing: opts.smoothing,

@@ -96,7 +96,7 @@ pub fn render(
         height: cam.height,
         tiles_x: cam.tiles_x,
         threshold: config.alpha_threshold,
-        geometry_cut: if request.cut() { request.geometry_cut } else { 0.0 },
+        geometry_cut: request.applied_cut(),
     };
     let geo = request.geo();
     let tiles = raster::forward_tiles(
@@ -197,7 +197,7 @@ pub fn render_naive(
                 x as f32 + 0.5,
                 y as f32 + 0.5,
                 config.alpha_threshold,
-                request.geometry_cut,
+                request.applied_cut(),
                 &mut observed,
             );
             acc[y * w + x] = a;

@@ -187,6 +187,14 @@ pub(crate) fn pixel_box(
     (lx0, lx1, ly0, ly1)
 }
 
+/// The weight of a contribution in the geometry channels: its blend weight `w` = αT, or under a
+/// transmittance cut `cut` > 0 ([`crate::RenderRequest::geometry_cut`]) the part of T → T′
+/// above the cut (the twin of raster_fwd.wgsl's).
+#[inline(always)]
+pub(crate) fn geometry_weight(w: f32, t: f32, next_t: f32, cut: f32) -> f32 {
+    if cut > 0.0 { (t - next_t.max(cut)).max(0.0) } else { w }
+}
+
 /// Front-to-back blend of one tile.
 pub(crate) fn forward_tile<
     const COLOR: bool,
@@ -254,7 +262,7 @@ pub(crate) fn forward_tile<
                     a[2] += w * f[2];
                 }
                 if GEO {
-                    let wg = if cut > 0.0 { (t - next_t.max(cut)).max(0.0) } else { w };
+                    let wg = geometry_weight(w, t, next_t, cut);
                     a[3] += wg * f[3];
                     a[4] += wg * f[4];
                     a[5] += wg * f[5];
@@ -418,6 +426,7 @@ pub(crate) fn backward_tile<const COLOR: bool, const GEO: bool, const DEPTH: boo
 
 /// Naive reference blend of one pixel: every Gaussian of `order` (depth-sorted), no tiles.
 /// Returns (acc, final T, observed ids).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn naive_pixel(
     splats: &[Splat],
     features: &[Features],
@@ -441,7 +450,7 @@ pub(crate) fn naive_pixel(
         }
         let f = &features[gid as usize];
         let w = alpha * t;
-        let wg = if geometry_cut > 0.0 { (t - next_t.max(geometry_cut)).max(0.0) } else { w };
+        let wg = geometry_weight(w, t, next_t, geometry_cut);
         for ch in 0..8 {
             acc[ch] += if (3..7).contains(&ch) { wg } else { w } * f[ch];
         }

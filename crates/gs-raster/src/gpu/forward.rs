@@ -107,7 +107,7 @@ impl WgpuRasterizer {
             | (request.expected_depth as u32) << 2
             | (request.observed as u32) << 3;
         self.disp
-            .write_frame(&CamUniform::new(cam, config, g, flags, if request.cut() { request.geometry_cut } else { 0.0 }));
+            .write_frame(&CamUniform::new(cam, config, g, flags, request.applied_cut()));
         // No buffer holds anything needed any more: the pool may shrink now.
         self.pool.begin_frame();
         let t0 = Instant::now();
