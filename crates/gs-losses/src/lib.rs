@@ -6,6 +6,8 @@
 //!   (docs/method.md §L_I; SSIM with the 3DGS 11×11 Gaussian window, zero-padded statistics).
 //! - [`normal_losses`]: L_nc (§L_nc) and L_ns (§L_ns) from the plane depth z and the rendered
 //!   normal Ñ, with ∂/∂z and ∂/∂Ñ (the caller chains ∂/∂z into Ñ and D).
+//! - [`opacity_entropy`]: L_o (§L_o), the mean binary entropy of the opacities, with ∂/∂logit
+//!   (a parameter-space term: it reads the model, not a render).
 //! - [`EdgeGuide`]: ∇I and δ = (1 − ∇I)² of a ground-truth image, computed once per view.
 //! - Metrics: [`psnr`], [`ssim_metric`], [`Lpips`] (AlexNet, v0.1, bundled f16 weights).
 //!
@@ -44,6 +46,7 @@ pub mod lpips;
 pub mod metrics;
 pub mod normal;
 pub mod normal_loss;
+pub mod opacity;
 pub mod ssim;
 #[cfg(feature = "wgpu")]
 pub mod ssim_gpu;
@@ -55,6 +58,7 @@ pub use image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, image_loss};
 pub use lpips::Lpips;
 pub use metrics::{masked_on_black, psnr, psnr_masked, ssim_metric, ssim_metric_with};
 pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, normal_losses};
+pub use opacity::opacity_entropy;
 pub use ssim::SsimRegion;
 #[cfg(feature = "wgpu")]
 pub use ssim_gpu::SsimGpu;

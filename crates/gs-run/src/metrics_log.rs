@@ -34,15 +34,17 @@ pub const HELDOUT_POINTS: u64 = 10;
 #[derive(Default)]
 struct Sums {
     n: u32,
-    terms: [(f64, u32); 7],
+    terms: [(f64, u32); 8],
 }
 
-const TERMS: [&str; 7] = ["total", "l1", "edge", "normal_consistency", "normal_smoothing", "photometric", "features"];
+const TERMS: [&str; 8] =
+    ["total", "l1", "edge", "normal_consistency", "normal_smoothing", "photometric", "features", "opacity_entropy"];
 
 impl Sums {
     fn add(&mut self, r: &StepReport) {
         let l = &r.losses;
-        let values = [Some(l.total), Some(l.l1), l.edge, l.normal_consistency, l.normal_smoothing, l.photometric, l.features];
+        let values =
+            [Some(l.total), Some(l.l1), l.edge, l.normal_consistency, l.normal_smoothing, l.photometric, l.features, l.opacity_entropy];
         for (slot, v) in self.terms.iter_mut().zip(values) {
             if let Some(v) = v {
                 slot.0 += v;

@@ -115,6 +115,7 @@ impl Trainer<'_> {
             })
             .collect();
         let inputs = TermInputs {
+            gaussians: &self.state.gaussians,
             camera,
             photo: self.caches.scaled(plan.slot, plan.scale).unwrap_or(&self.scene.views[plan.view].image),
             render: &out,
@@ -145,7 +146,10 @@ impl Trainer<'_> {
             }
             None => grad_color,
         };
-        let g = self.rasterizer.backward(&self.state.gaussians, camera, &self.raster, &out, &grads.as_output(Some(&grad_color)))?;
+        let mut g = self.rasterizer.backward(&self.state.gaussians, camera, &self.raster, &out, &grads.as_output(Some(&grad_color)))?;
+        if let Some(go) = &grads.opacity_logits {
+            g.opacity_logits.iter_mut().zip(go).for_each(|(a, b)| *a += b);
+        }
         self.profile.add(phase, Part::Backward, clock.lap());
         if plan.refine.accumulate {
             self.state.stats.accumulate(&out.radii, &g, plan.scale as f32);
@@ -172,6 +176,7 @@ fn describe(v: &LossValues) -> String {
         ("L_ns", v.normal_smoothing),
         ("L_p", v.photometric),
         ("L_f", v.features),
+        ("L_o", v.opacity_entropy),
     ] {
         if let Some(x) = x {
             s.push_str(&format!(", {name} {x}"));

@@ -10,7 +10,7 @@
 
 use crate::config::{Phase, TrainConfig};
 use crate::config::LossWeights;
-use crate::terms::{FeatureTerm, ImageTerm, LossTerm, NormalTerms, PhotometricTerm};
+use crate::terms::{FeatureTerm, ImageTerm, LossTerm, NormalTerms, OpacityTerm, PhotometricTerm};
 use gs_core::{ExponentialLr, Rng};
 use gs_losses::NormalLossConfig;
 use gs_mvs::{PhotometricConfig, SourceViewSelector};
@@ -84,6 +84,9 @@ impl StepPlan {
         if p.features && !self.sources.is_empty() {
             terms.push(Box::new(FeatureTerm));
         }
+        if self.weights.lambda_o > 0.0 {
+            terms.push(Box::new(OpacityTerm));
+        }
         terms
     }
 
@@ -143,6 +146,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         lambda_p: if photometric.is_some() { w.lambda_p } else { 0.0 },
         lambda_f: if phase.features && !sources.is_empty() { w.lambda_f } else { 0.0 },
         tau: w.tau,
+        lambda_o: if it > config.warmup_end { w.lambda_o } else { 0.0 },
     };
     let d = &config.densify;
     let mut refine = if it <= d.until {

@@ -26,7 +26,7 @@ pub enum Part {
     Features,
     /// The rasterizer's backward pass (and the exposure backward).
     Backward,
-    /// Adam (and the densification statistics).
+    /// Adam, the parameter-space terms (L_o) and the densification statistics.
     Optimizer,
     /// Density control: densify, prune, trims, opacity reset, floater removal.
     Refine,

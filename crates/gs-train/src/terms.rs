@@ -1,6 +1,7 @@
 //! The loss-term contract (docs/method.md §Losses): every term of L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p
-//! + λ4·L_f reads the rendered view, records its unweighted value(s) in [`LossValues`] and adds
-//! its weighted gradient into the renderer's output-gradient buffers ([`GradientBuffers`]).
+//! + λ4·L_f + λ_o·L_o reads the rendered view (or, L_o, the model), records its unweighted
+//! value(s) in [`LossValues`] and adds its weighted gradient into [`GradientBuffers`]: the
+//! renderer's output-gradient buffers, or the parameter gradients that join the rasterizer's.
 //! The weights come from one place (the [`LossWeights`] of the step plan: the configuration's,
 //! zero for the terms its phase leaves off), and so does the total ([`LossWeights::total`]).
 //!
@@ -12,9 +13,9 @@ use crate::config::LossWeights;
 use crate::error::Result;
 use crate::profile::Part;
 use crate::devices::LossDevices;
-use gs_core::{Camera, Image};
+use gs_core::{Camera, Gaussians, Image};
 use gs_features::FeatureMap;
-use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, normal_losses};
+use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, normal_losses, opacity_entropy};
 use gs_mvs::{
     FeatureReference, FeatureSource, PhotometricConfig, PhotometricReference, PhotometricSource, feature_loss,
 };
@@ -38,12 +39,14 @@ pub struct LossValues {
     pub photometric: Option<f64>,
     /// L_f (averaged over sources).
     pub features: Option<f64>,
+    /// L_o, the mean opacity entropy.
+    pub opacity_entropy: Option<f64>,
     /// The weighted total L.
     pub total: f64,
 }
 
 impl LossWeights {
-    /// L = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L_edge + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f of
+    /// L = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L_edge + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f + λ_o·L_o of
     /// recorded values (absent terms count 0). The step plan's weights are zero for the terms
     /// its phase leaves off.
     pub fn total(&self, v: &LossValues) -> f64 {
@@ -56,6 +59,7 @@ impl LossWeights {
             + w(self.lambda_ns) * v.normal_smoothing.unwrap_or(0.0)
             + w(self.lambda_p) * v.photometric.unwrap_or(0.0)
             + w(self.lambda_f) * v.features.unwrap_or(0.0)
+            + w(self.lambda_o) * v.opacity_entropy.unwrap_or(0.0)
     }
 }
 
@@ -70,6 +74,8 @@ pub struct GradientBuffers {
     pub distance: Option<Image>,
     /// ∂L/∂z, the plane depth.
     pub plane_depth: Option<Image>,
+    /// ∂L/∂opacity logit of the parameter-space terms (L_o), added to the rasterizer's.
+    pub opacity_logits: Option<Vec<f32>>,
 }
 
 impl GradientBuffers {
@@ -116,8 +122,10 @@ pub struct SourceInputs<'a> {
     pub features: Option<&'a FeatureMap>,
 }
 
-/// What the terms read: the reference view as rendered, its photo data and the sources.
+/// What the terms read: the model, the reference view as rendered, its photo data and the sources.
 pub struct TermInputs<'a> {
+    /// The model the view was rendered from.
+    pub gaussians: &'a Gaussians,
     /// The reference camera.
     pub camera: &'a Camera,
     /// The photograph I.
@@ -275,6 +283,22 @@ impl LossTerm for FeatureTerm {
         values.features = Some(lf.loss);
         let g = Image::from_vec(lf.width, lf.height, 1, lf.grad_plane_depth)?;
         GradientBuffers::add(&mut grads.plane_depth, g, w.lambda_f);
+        Ok(())
+    }
+}
+
+/// L_o, the opacity entropy of the model (a parameter-space term; docs/method.md §L_o).
+pub struct OpacityTerm;
+
+impl LossTerm for OpacityTerm {
+    fn part(&self) -> Part {
+        Part::Optimizer
+    }
+
+    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        let logits = &x.gaussians.opacity_logits;
+        let g = grads.opacity_logits.get_or_insert_with(|| vec![0.0; logits.len()]);
+        values.opacity_entropy = Some(opacity_entropy(logits, w.lambda_o, g)?);
         Ok(())
     }
 }

@@ -119,6 +119,9 @@ pub struct LossWeights {
     pub lambda_f: f32,
     /// τ of L_ns.
     pub tau: f32,
+    /// λ_o, L_o (the opacity entropy; from the end of the colour warm-up on).
+    #[serde(default)]
+    pub lambda_o: f32,
 }
 
 impl Default for LossWeights {
@@ -132,6 +135,7 @@ impl Default for LossWeights {
             lambda_p: LAMBDA_P,
             lambda_f: LAMBDA_F,
             tau: normal_loss::TAU,
+            lambda_o: gs_losses::opacity::LAMBDA_O,
         }
     }
 }
@@ -311,6 +315,10 @@ pub struct TrainConfig {
     pub background: [f32; 3],
     /// Near plane of the rasterizer.
     pub near: f32,
+    /// Mip-Splatting's opacity compensation √(det Σ / det Σ') for the screen-space low-pass
+    /// filter, in every render of the run (docs/method.md §Projection).
+    #[serde(default)]
+    pub antialiased: bool,
     /// Render resolution of the colour warm-up (coarse-to-fine); off = full size throughout.
     #[serde(default)]
     pub coarse_to_fine: CoarseToFine,
@@ -426,6 +434,7 @@ impl TrainConfig {
             random_points: 100_000,
             background: [0.0; 3],
             near: 0.01,
+            antialiased: false,
             coarse_to_fine: CoarseToFine::default(),
             multiview_interval: 1,
             source_depth_max_age: 0,
@@ -515,10 +524,10 @@ impl TrainConfig {
         self.losses.features && self.features_end > self.photometric_end
     }
 
-    /// The rasterizer settings of a run (near plane and background from this configuration);
+    /// The rasterizer settings of a run (near plane, background and antialiasing from this configuration);
     /// training, rendering and meshing a run all use these.
     pub fn raster_config(&self) -> gs_raster::RasterConfig {
-        gs_raster::RasterConfig { near: self.near, background: self.background, ..Default::default() }
+        gs_raster::RasterConfig { near: self.near, background: self.background, antialiased: self.antialiased, ..Default::default() }
     }
 
     /// The SH degree at 1-based iteration `it`.
@@ -618,6 +627,7 @@ mod tests {
             (TrainConfig { patch_size: 4, ..Default::default() }, "patch_size"),
             (TrainConfig { source_views: 0, ..Default::default() }, "source_views"),
             (TrainConfig { weights: LossWeights { lambda_p: f32::NAN, ..Default::default() }, ..Default::default() }, "lambda_p"),
+            (TrainConfig { weights: LossWeights { lambda_o: -1.0, ..Default::default() }, ..Default::default() }, "lambda_o = -1"),
             (TrainConfig { max_gaussians: 0, ..Default::default() }, "max_gaussians"),
             (TrainConfig { sh_min_gain: f32::NAN, ..Default::default() }, "sh_min_gain"),
             // A schedule longer than the run (`--set iterations=20`) names its boundaries.
@@ -637,5 +647,18 @@ mod tests {
         assert_eq!("mip360".parse::<Preset>(), Ok(Preset::Mip360));
         let round: TrainConfig = serde_json::from_str(&serde_json::to_string(&TrainConfig::preset(Preset::Fast)).unwrap()).unwrap();
         assert_eq!(round, TrainConfig::preset(Preset::Fast));
+    }
+
+    #[test]
+    fn runs_written_before_a_setting_existed_still_read() {
+        // λ_o and the antialiased renders came later: a config.json without them reads as
+        // they were (off), and the run's renders follow the setting.
+        let mut v = serde_json::to_value(TrainConfig::default()).unwrap();
+        v["weights"].as_object_mut().unwrap().remove("lambda_o");
+        v.as_object_mut().unwrap().remove("antialiased");
+        let old: TrainConfig = serde_json::from_value(v).unwrap();
+        assert_eq!(old, TrainConfig::default());
+        assert!(!old.raster_config().antialiased);
+        assert!(TrainConfig { antialiased: true, ..old }.raster_config().antialiased);
     }
 }

@@ -48,12 +48,13 @@ impl TrainConfig {
     }
 
     /// The terms after the colour warm-up and the iteration each one ends at (docs/method.md §Schedule):
-    /// edge, L_nc and L_ns run to the last iteration; L_p to `photometric_end`, L_f from there
+    /// edge, L_nc, L_ns and L_o run to the last iteration; L_p to `photometric_end`, L_f from there
     /// to `features_end` (with L_p when `overlap_mv`).
     fn phases_after_warmup(&self) -> String {
         let l = &self.losses;
         let n = self.iterations;
-        let geometry: Vec<&str> = [(l.edge, "edge"), (l.normal_consistency, "L_nc"), (l.normal_smoothing, "L_ns")]
+        let geometry: Vec<&str> =
+            [(l.edge, "edge"), (l.normal_consistency, "L_nc"), (l.normal_smoothing, "L_ns"), (self.weights.lambda_o > 0.0, "L_o")]
             .into_iter()
             .filter_map(|(on, name)| on.then_some(name))
             .collect();

@@ -47,6 +47,7 @@ impl TrainConfig {
             ("lambda_p", w.lambda_p),
             ("lambda_f", w.lambda_f),
             ("tau", w.tau),
+            ("lambda_o", w.lambda_o),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(format!("{name} = {v} must be finite and ≥ 0"));
