@@ -73,6 +73,7 @@ mod gpu;
 mod pixel;
 mod types;
 mod validate;
+pub use validate::MAX_LOW_PASS;
 
 pub use backend::{Backend, Rasterizer};
 pub use cpu::project::{JACOBIAN_CLAMP, LOW_PASS, MIN_COMPENSATION};

@@ -319,14 +319,21 @@ fn gradcheck_sixteen_gaussians_all_channels_all_groups() {
 
 #[test]
 fn gradcheck_antialiased_and_clamped_jacobian() {
-    // Antialiased compensation on, and a Gaussian beyond 1.3·tan(fov/2) whose tail still
-    // reaches the image (Jacobian clamp active).
+    // Antialiased compensation on (with 3DGS' low-pass filter and Mip-Splatting's), and a
+    // Gaussian beyond 1.3·tan(fov/2) whose tail still reaches the image (Jacobian clamp active).
+    for low_pass in [crate::LOW_PASS, 0.1] {
+        gradcheck_antialiased(low_pass);
+    }
+}
+
+fn gradcheck_antialiased(low_pass: f32) {
     let cam = camera(32, 32, 40.0);
     let mut g = random_scene(3, 1, 4, 0.6);
     g.means[0] = [3.2, 0.0, 0.0];
     g.log_scales[0] = [0.2, 0.0, -2.0];
     let cfg = RasterConfig {
         antialiased: true,
+        low_pass,
         ..test_config()
     };
     let cp = CamParams::new(&cam);
@@ -374,7 +381,7 @@ fn gradcheck_antialiased_and_clamped_jacobian() {
             indices: None,
         };
         let report = check_gradient(f, &x, &analytic, &opts);
-        assert!(report.is_ok(), "{group:?}: {report:?}");
+        assert!(report.is_ok(), "low-pass {low_pass} px², {group:?}: {report:?}");
     }
 }
 
@@ -1188,6 +1195,10 @@ fn invalid_inputs_are_errors() {
         )
         .is_err()
     );
+    for low_pass in [-0.1, f32::NAN, 9.5] {
+        let e = render(&g2, &cam, &RenderRequest::default(), &RasterConfig { low_pass, ..Default::default() });
+        assert!(matches!(&e, Err(RasterError::InvalidConfig(m)) if m.contains("low_pass")), "{e:?}");
+    }
     // Backward with a different model size than the forward.
     let g3 = random_scene(3, 0, 83, 0.2);
     let w3 = Image::filled(16, 16, 3, 1.0).unwrap();

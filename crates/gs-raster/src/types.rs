@@ -2,6 +2,7 @@
 //! outputs and gradients (shared by both backends).
 
 use crate::cpu::CpuState;
+use crate::cpu::project::LOW_PASS;
 use gs_core::Image;
 use thiserror::Error;
 
@@ -67,6 +68,9 @@ pub struct RasterConfig {
     pub background: [f32; 3],
     /// Mip-splatting / gsplat "antialiased" opacity compensation √(det Σ / det Σ').
     pub antialiased: bool,
+    /// Screen-space low-pass filter added to both diagonal entries of Σ' (px²; [`LOW_PASS`] =
+    /// 0.3 of 3DGS by default, 0.1 is Mip-Splatting's 2D filter).
+    pub low_pass: f32,
     /// Alpha skip threshold (1/255). It also sets the radius, so lowering it (tests do, to
     /// make the render continuous for finite differences) keeps everything consistent.
     pub alpha_threshold: f32,
@@ -84,6 +88,7 @@ impl Default for RasterConfig {
             far: 1e10,
             background: [0.0; 3],
             antialiased: false,
+            low_pass: LOW_PASS,
             alpha_threshold: ALPHA_THRESHOLD,
             plane_depth_min_denominator: 1e-4,
             max_intersections: 1 << 27,

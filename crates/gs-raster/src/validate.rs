@@ -5,6 +5,9 @@ use crate::cpu::project::CamParams;
 use crate::{OutputGradients, RasterConfig, RasterError, RenderRequest, Result};
 use gs_core::{Camera, Gaussians, Image};
 
+/// The largest screen-space low-pass filter accepted (px²): a blur of 3 px standard deviation.
+pub const MAX_LOW_PASS: f32 = 9.0;
+
 impl RasterConfig {
     /// Rejects out-of-range values (NaN included).
     pub(crate) fn validate(&self) -> Result<()> {
@@ -17,6 +20,9 @@ impl RasterConfig {
                 "far = {} must exceed near = {}",
                 self.far, self.near
             ));
+        }
+        if !(self.low_pass >= 0.0 && self.low_pass <= MAX_LOW_PASS) {
+            return bad(format!("low_pass = {} px² must lie in [0, {MAX_LOW_PASS}]", self.low_pass));
         }
         if !(self.alpha_threshold > 0.0 && self.alpha_threshold <= 0.5) {
             return bad(format!(

@@ -35,15 +35,17 @@ fn parity(r: &mut WgpuRasterizer, label: &str, g: &Gaussians, cam: &Camera, cfg:
 
 fn run_scenes(r: &mut WgpuRasterizer, n: usize, w: u32, h: u32, seed: u64) {
     for degree in [0, 3] {
-        for antialiased in [false, true] {
+        // 3DGS' low-pass filter with and without the compensation, and Mip-Splatting's 0.1 px².
+        for (antialiased, low_pass) in [(false, gs_raster::LOW_PASS), (true, gs_raster::LOW_PASS), (true, 0.1)] {
             let g = random_scene(n, degree, seed + degree as u64, 1.0, (-3.5, -2.0));
             let cfg = RasterConfig {
                 antialiased,
+                low_pass,
                 background: [0.2, 0.5, 0.9],
                 ..RasterConfig::default()
             };
             for (c, cam) in cameras(w, h).iter().enumerate() {
-                let label = format!("n={n} deg={degree} aa={antialiased} cam={c}");
+                let label = format!("n={n} deg={degree} aa={antialiased} low-pass={low_pass} cam={c}");
                 parity(r, &label, &g, cam, &cfg);
             }
         }

@@ -2,7 +2,7 @@
 //!
 //! Forward: camera-space mean t = R_c μ + t_c, near/far cull, Jacobian J at t with t_x/t_z and
 //! t_y/t_z clamped to ±1.3·tan(fov/2), Σ' = J R_c Σ R_cᵀ Jᵀ (formed as V Vᵀ with
-//! V = J R_c R S, PSD by construction) + 0.3 px², optional antialiased compensation, conic
+//! V = J R_c R S, PSD by construction) + the low-pass filter (0.3 px² by default), optional antialiased compensation, conic
 //! Σ'⁻¹, opacity-aware radius, SH colour, camera-facing normal n_c and plane distance d.
 //! Backward: the exact derivative of the same f32 computation, recomputed from the parameters.
 
@@ -12,7 +12,7 @@ use gs_core::gaussians::{rotation_matrix, rotation_matrix_backward, sigmoid, sma
 use gs_core::sh::{SH_COEFFS, eval_sh_backward, normalize_backward, sh_to_color};
 use gs_core::{Camera, Gaussians};
 
-/// Low-pass filter added to the diagonal of Σ' (px²).
+/// The default low-pass filter added to the diagonal of Σ' (px², 3DGS; `RasterConfig::low_pass`).
 pub const LOW_PASS: f32 = 0.3;
 /// Jacobian clamp factor: t_x/t_z is clamped to ±`JACOBIAN_CLAMP`·tan(fov_x/2).
 pub const JACOBIAN_CLAMP: f32 = 1.3;
@@ -159,7 +159,7 @@ fn geometry(g: &Gaussians, i: usize, cam: &CamParams, cfg: &RasterConfig) -> Opt
     let v0 = Vec3::new(j0.dot(p.x_axis), j0.dot(p.y_axis), j0.dot(p.z_axis));
     let v1 = Vec3::new(j1.dot(p.x_axis), j1.dot(p.y_axis), j1.dot(p.z_axis));
     let cov = [v0.dot(v0), v0.dot(v1), v1.dot(v1)];
-    let (a, b, c) = (cov[0] + LOW_PASS, cov[1], cov[2] + LOW_PASS);
+    let (a, b, c) = (cov[0] + cfg.low_pass, cov[1], cov[2] + cfg.low_pass);
     let det = a * c - b * b;
     if !(det > 0.0 && det.is_finite()) {
         return None;
@@ -389,10 +389,11 @@ pub(crate) fn project_backward(
         let g_comp = g_op * it.geo.o_raw;
         let [a, b, c] = it.geo.cov;
         let det_b = it.geo.det;
-        let det_o = (a - LOW_PASS) * (c - LOW_PASS) - b * b;
+        let lp = cfg.low_pass;
+        let det_o = (a - lp) * (c - lp) - b * b;
         let k = 0.5 / it.geo.comp / (det_b * det_b);
-        gcov_a += g_comp * k * ((c - LOW_PASS) * det_b - det_o * c);
-        gcov_c += g_comp * k * ((a - LOW_PASS) * det_b - det_o * a);
+        gcov_a += g_comp * k * ((c - lp) * det_b - det_o * c);
+        gcov_c += g_comp * k * ((a - lp) * det_b - det_o * a);
         // d/dB of the ratio, with B appearing in both off-diagonal entries: split evenly.
         gcov_b += 0.5 * g_comp * k * (-2.0 * b * det_b + 2.0 * b * det_o);
     }

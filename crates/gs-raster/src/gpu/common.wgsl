@@ -8,7 +8,6 @@
 const TILE: u32 = 16u;
 const MAX_ALPHA: f32 = 0.99;
 const T_STOP: f32 = 1e-4;
-const LOW_PASS: f32 = 0.3;
 const MIN_COMPENSATION: f32 = 0.005;
 const INVISIBLE: u32 = 0xffffffffu;
 const SPLAT_STRIDE: u32 = 17u;

@@ -39,7 +39,8 @@ gs_gpu::wgsl_struct! {
         n: u32,
         /// `RenderRequest::geometry_cut` of a render (0 in a backward: the cut is forward only).
         geometry_cut: f32,
-        pad1: u32,
+        /// `RasterConfig::low_pass` (px²).
+        low_pass: f32,
     }
 }
 
@@ -72,7 +73,7 @@ impl CamUniform {
             flags,
             n: g.len() as u32,
             geometry_cut,
-            pad1: 0,
+            low_pass: cfg.low_pass,
         }
     }
 }
@@ -299,7 +300,7 @@ mod tests {
     #[test]
     fn a_field_added_on_one_side_fails_the_check() {
         let edited = CamUniform::wgsl_decl()
-            .replace("    pad1: u32,\n", "    pad1: u32,\n    extra: u32,\n");
+            .replace("    low_pass: f32,\n", "    low_pass: f32,\n    extra: u32,\n");
         assert!(check_layout::<CamUniform>(&edited).is_err());
     }
 }

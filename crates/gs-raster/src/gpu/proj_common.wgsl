@@ -194,9 +194,9 @@ fn internals(i: u32, pr: Param) -> Internals {
     it.v0 = v0;
     it.v1 = v1;
     let cov = vec3<f32>(dot(v0, v0), dot(v0, v1), dot(v1, v1));
-    let a = cov.x + LOW_PASS;
+    let a = cov.x + cam.low_pass;
     let b = cov.y;
-    let c = cov.z + LOW_PASS;
+    let c = cov.z + cam.low_pass;
     let det = a * c - b * b;
     if (!(det > 0.0 && is_finite(det))) {
         return it;

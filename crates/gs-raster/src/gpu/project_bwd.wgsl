@@ -131,10 +131,11 @@ fn project_bwd(ids: Ids) {
         let b = it.cov.y;
         let c = it.cov.z;
         let det_b = it.det;
-        let det_o = (a - LOW_PASS) * (c - LOW_PASS) - b * b;
+        let lp = cam.low_pass;
+        let det_o = (a - lp) * (c - lp) - b * b;
         let k = 0.5 / it.comp / (det_b * det_b);
-        gcov_a += g_comp * k * ((c - LOW_PASS) * det_b - det_o * c);
-        gcov_c += g_comp * k * ((a - LOW_PASS) * det_b - det_o * a);
+        gcov_a += g_comp * k * ((c - lp) * det_b - det_o * c);
+        gcov_c += g_comp * k * ((a - lp) * det_b - det_o * a);
         gcov_b += 0.5 * g_comp * k * (-2.0 * b * det_b + 2.0 * b * det_o);
     }
     let gv0 = 2.0 * (gcov_a * it.v0 + gcov_b * it.v1);

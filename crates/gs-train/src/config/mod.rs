@@ -319,6 +319,10 @@ pub struct TrainConfig {
     /// filter, in every render of the run (docs/method.md §Projection).
     #[serde(default)]
     pub antialiased: bool,
+    /// The screen-space low-pass filter of every render of the run (px²; docs/method.md
+    /// §Projection): 3DGS' 0.3 by default, Mip-Splatting's 0.1 with `antialiased`.
+    #[serde(default = "default_low_pass")]
+    pub low_pass: f32,
     /// Render resolution of the colour warm-up (coarse-to-fine); off = full size throughout.
     #[serde(default)]
     pub coarse_to_fine: CoarseToFine,
@@ -346,6 +350,10 @@ fn one_u64() -> u64 {
 
 fn one_u32() -> u32 {
     1
+}
+
+fn default_low_pass() -> f32 {
+    gs_raster::LOW_PASS
 }
 
 fn default_sh_min_gain() -> f32 {
@@ -435,6 +443,7 @@ impl TrainConfig {
             background: [0.0; 3],
             near: 0.01,
             antialiased: false,
+            low_pass: default_low_pass(),
             coarse_to_fine: CoarseToFine::default(),
             multiview_interval: 1,
             source_depth_max_age: 0,
@@ -524,10 +533,16 @@ impl TrainConfig {
         self.losses.features && self.features_end > self.photometric_end
     }
 
-    /// The rasterizer settings of a run (near plane, background and antialiasing from this configuration);
+    /// The rasterizer settings of a run (near plane, background, antialiasing and low-pass filter);
     /// training, rendering and meshing a run all use these.
     pub fn raster_config(&self) -> gs_raster::RasterConfig {
-        gs_raster::RasterConfig { near: self.near, background: self.background, antialiased: self.antialiased, ..Default::default() }
+        gs_raster::RasterConfig {
+            near: self.near,
+            background: self.background,
+            antialiased: self.antialiased,
+            low_pass: self.low_pass,
+            ..Default::default()
+        }
     }
 
     /// The SH degree at 1-based iteration `it`.
@@ -629,6 +644,7 @@ mod tests {
             (TrainConfig { weights: LossWeights { lambda_p: f32::NAN, ..Default::default() }, ..Default::default() }, "lambda_p"),
             (TrainConfig { weights: LossWeights { lambda_o: -1.0, ..Default::default() }, ..Default::default() }, "lambda_o = -1"),
             (TrainConfig { max_gaussians: 0, ..Default::default() }, "max_gaussians"),
+            (TrainConfig { low_pass: f32::NAN, ..Default::default() }, "low_pass = NaN"),
             (TrainConfig { sh_min_gain: f32::NAN, ..Default::default() }, "sh_min_gain"),
             // A schedule longer than the run (`--set iterations=20`) names its boundaries.
             (TrainConfig { iterations: 20, ..Default::default() }, "warmup_end = 7000 (the colour warm-up), photometric_end = 15000"),
@@ -656,9 +672,11 @@ mod tests {
         let mut v = serde_json::to_value(TrainConfig::default()).unwrap();
         v["weights"].as_object_mut().unwrap().remove("lambda_o");
         v.as_object_mut().unwrap().remove("antialiased");
+        v.as_object_mut().unwrap().remove("low_pass");
         let old: TrainConfig = serde_json::from_value(v).unwrap();
         assert_eq!(old, TrainConfig::default());
         assert!(!old.raster_config().antialiased);
-        assert!(TrainConfig { antialiased: true, ..old }.raster_config().antialiased);
+        assert!(TrainConfig { antialiased: true, ..old.clone() }.raster_config().antialiased);
+        assert_eq!(TrainConfig { low_pass: 0.1, ..old }.raster_config().low_pass, 0.1);
     }
 }

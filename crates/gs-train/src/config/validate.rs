@@ -38,6 +38,9 @@ impl TrainConfig {
         if self.max_gaussians == 0 || self.max_gaussians > gs_core::gaussians::MAX_GAUSSIANS {
             return bad(format!("max_gaussians = {} must be in 1..={}", self.max_gaussians, gs_core::gaussians::MAX_GAUSSIANS));
         }
+        if !(self.low_pass >= 0.0 && self.low_pass <= gs_raster::MAX_LOW_PASS) {
+            return bad(format!("low_pass = {} px² must lie in [0, {}]", self.low_pass, gs_raster::MAX_LOW_PASS));
+        }
         let w = &self.weights;
         for (name, v) in [
             ("beta1", w.beta1),
