@@ -1,7 +1,8 @@
-//! The loss-term contract (docs/method.md §Losses): every term of L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p
-//! + λ4·L_f + λ_o·L_o reads the rendered view (or, L_o, the model), records its unweighted
-//! value(s) in [`LossValues`] and adds its weighted gradient into [`GradientBuffers`]: the
-//! renderer's output-gradient buffers, or the parameter gradients that join the rasterizer's.
+//! The loss-term contract (docs/method.md §Losses): every term of
+//! L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f + λ_o·L_o reads the rendered view (or, L_o, the
+//! model), records its unweighted value(s) in [`LossValues`] and adds its weighted gradient into
+//! [`GradientBuffers`]: the renderer's output-gradient buffers, or the parameter gradients that
+//! join the rasterizer's.
 //! The weights come from one place (the [`LossWeights`] of the step plan: the configuration's,
 //! zero for the terms its phase leaves off), and so does the total ([`LossWeights::total`]).
 //!
