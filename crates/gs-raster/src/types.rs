@@ -116,8 +116,8 @@ pub struct RenderRequest {
     pub observed: bool,
     /// Transmittance at which the geometry channels (Ñ, D, and so the plane depth) stop
     /// blending: contributions count only while T > `geometry_cut`, the one that crosses it in
-    /// part (weight T − max(T', cut)). A pixel's geometry is then its front surface's, not that
-    /// of the semi-transparent shell a trained model keeps behind it (docs/method.md §TSDF).
+    /// part (weight T − max(T', cut)). A pixel's geometry is then that of the front of its
+    /// blend (docs/method.md §TSDF).
     /// 0 blends every contribution (training); in [0, 1). Forward only: a backward with
     /// geometry gradients of a cut render is refused.
     pub geometry_cut: f32,

@@ -32,9 +32,9 @@ pub struct MeshOptions {
     /// Rendered plane depths where the rendered alpha is below this are not fused.
     pub min_alpha: f32,
     /// Rendered plane depths blend each pixel's contributions only until its transmittance
-    /// falls to this ([`gs_raster::RenderRequest::geometry_cut`]): the depth of the surface in
-    /// front, not of the semi-transparent shell a trained model keeps behind it. 0 blends them
-    /// all. Default [`DEFAULT_SURFACE_CUT`].
+    /// falls to this ([`gs_raster::RenderRequest::geometry_cut`]): the depth of the front of
+    /// each pixel's blend, nearer the true surface than the whole blend on curved objects. 0
+    /// blends them all. Default [`DEFAULT_SURFACE_CUT`].
     pub surface_cut: f32,
     /// Optional single-view filter: drop depths whose depth normal is more than this many
     /// degrees from the viewing ray (docs/method.md §TSDF: 80).
@@ -105,10 +105,10 @@ pub enum Simplify {
 /// The absolute floor of the component clean-up, triangles.
 pub const MIN_COMPONENT_TRIANGLES: usize = 50;
 
-/// Default [`MeshOptions::surface_cut`]. A trained model's surfaces are shells of
-/// semi-transparent Gaussians (median opacity 0.3–0.4 on the validation suite) whose blended
-/// plane depth lies about one pixel footprint behind the true surface on curved and weakly
-/// textured objects. Cutting the last 15 % of each pixel's opacity lowered the quick suite's mean
+/// Default [`MeshOptions::surface_cut`]. On curved objects a trained model's blended plane
+/// depth lies about one pixel footprint behind the true surface (training pulls the Gaussians
+/// in to match the silhouettes: docs/method.md §TSDF), and the front of each pixel's blend lies
+/// nearer it. Cutting the last 15 % of each pixel's opacity lowered the quick suite's mean
 /// mesh error from 2.13 to 2.05× its floor (worst 2.97 → 2.94) and raised F1 from 0.60 to 0.66
 /// of the floor's (worst 0.26 → 0.37); deeper cuts (0.3, 0.5, 0.7) raised F1 further but made
 /// the worst scene's Chamfer worse (BENCHMARKS.md §Validation suite).

@@ -43,7 +43,7 @@ pub struct MeshArgs {
     #[arg(long)]
     pub min_alpha: Option<f32>,
     /// Blend each pixel's rendered depth only until its transmittance falls to this (default
-    /// 0.15): the surface in front, not the semi-transparent shell behind it; 0 blends every
+    /// 0.15): the front of the blend, nearer the true surface on curved objects; 0 blends every
     /// Gaussian the pixel sees (before stop 43's default).
     #[arg(long, conflicts_with = "depth_dir")]
     pub surface_cut: Option<f32>,
