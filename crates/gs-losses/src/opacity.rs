@@ -26,8 +26,13 @@ fn sigmoid(x: f64) -> f64 {
 
 /// H(σ(x)) in nats, in f64 (0 at |x| → ∞, ln 2 at x = 0).
 pub fn entropy_of_logit(x: f64) -> f64 {
+    entropy_and_opacity(x).0
+}
+
+/// (H(σ(x)), σ(x)): the value and the opacity its gradient needs, from one sigmoid.
+fn entropy_and_opacity(x: f64) -> (f64, f64) {
     let o = sigmoid(x);
-    o * softplus(-x) + (1.0 - o) * softplus(x)
+    (o * softplus(-x) + (1.0 - o) * softplus(x), o)
 }
 
 /// The mean entropy (1/N)·Σ H(σ(xᵢ)) of `logits`, summed in index order (the same value at
@@ -55,8 +60,8 @@ pub fn opacity_entropy(logits: &[f32], weight: f32, grad: &mut [f32]) -> Result<
     let mut sum = 0.0;
     for (g, &x) in grad.iter_mut().zip(logits) {
         let x = x as f64;
-        sum += entropy_of_logit(x);
-        let o = sigmoid(x);
+        let (h, o) = entropy_and_opacity(x);
+        sum += h;
         *g += (scale * -x * o * (1.0 - o)) as f32;
     }
     Ok(sum / n)

@@ -9,8 +9,8 @@ use gs_core::{Camera, Gaussians, Image};
 pub const MAX_LOW_PASS: f32 = 9.0;
 
 impl RasterConfig {
-    /// Rejects out-of-range values (NaN included).
-    pub(crate) fn validate(&self) -> Result<()> {
+    /// Rejects out-of-range values (NaN included); every render and backward checks this first.
+    pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(RasterError::InvalidConfig(m));
         if !(self.near > 0.0 && self.near.is_finite()) {
             return bad(format!("near = {} must be positive and finite", self.near));

@@ -38,9 +38,6 @@ impl TrainConfig {
         if self.max_gaussians == 0 || self.max_gaussians > gs_core::gaussians::MAX_GAUSSIANS {
             return bad(format!("max_gaussians = {} must be in 1..={}", self.max_gaussians, gs_core::gaussians::MAX_GAUSSIANS));
         }
-        if !(self.low_pass >= 0.0 && self.low_pass <= gs_raster::MAX_LOW_PASS) {
-            return bad(format!("low_pass = {} px² must lie in [0, {}]", self.low_pass, gs_raster::MAX_LOW_PASS));
-        }
         let w = &self.weights;
         for (name, v) in [
             ("beta1", w.beta1),
@@ -131,11 +128,9 @@ impl TrainConfig {
         if !(1..=8).contains(&self.source_depth_downscale) {
             return bad(format!("source_depth_downscale = {} must be in 1..=8", self.source_depth_downscale));
         }
-        if !(self.near > 0.0 && self.near.is_finite()) {
-            return bad(format!("near = {} must be positive", self.near));
-        }
-        if !self.background.iter().all(|c| c.is_finite()) {
-            return bad("background must be finite".into());
+        // The renderer's settings (near plane, background, low-pass filter) by the renderer's rules.
+        if let Err(gs_raster::RasterError::InvalidConfig(m)) = self.raster_config().validate() {
+            return bad(m);
         }
         if matches!(self.init, InitMode::Cube | InitMode::Sphere) && self.random_points == 0 {
             return bad("random_points must be positive for cube/sphere init".into());
