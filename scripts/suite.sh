@@ -2,7 +2,7 @@
 # The validation suite: trains a preset on every generated suite scene (`vagsl synth`), meshes
 # and scores it with the object protocol, and writes ONE markdown table, OUTDIR/suite.md.
 #
-#   scripts/suite.sh [--quick] [--preset P] [-o OUTDIR] [--scenes a,b] [--seed S]
+#   scripts/suite.sh [--quick] [--preset P] [-o OUTDIR] [--scenes a,b] [--seed S] [--train-seed S]
 #                    [--iterations N] [--threads T] [--jobs J] [--backend B] [--set KEY=VALUE]...
 #                    [--remesh] [--mesh-arg ARG]...
 #
@@ -11,6 +11,7 @@
 # -o OUTDIR   where runs and the table go (default target/suite/quick or target/suite/full)
 # --scenes    indices or names, comma-separated (default: all nine), e.g. 0,knot,5
 # --seed      seed of the generated scenes (default 1) and of training (train's --seed)
+# --train-seed  training seed alone (default: --seed), for telling a setting's effect from seed noise
 # --set       passed to `vagsl train` (repeatable), e.g. --set densify.floaters.enabled=true
 # --threads   rayon threads per scene (default 2); --jobs: scenes run at once (default 1)
 # --backend   rasterizer of train / mesh / eval-images (default: vagsl's auto)
@@ -28,8 +29,8 @@ set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 ARGS="$*"
-QUICK=0; REMESH=0; MESH_ARGS=(); PRESET=""; OUT=""; SCENES=""; SEED=1; ITERS=""; THREADS=2; JOBS=1; BACKEND=auto; SETS=()
-usage() { sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+QUICK=0; REMESH=0; MESH_ARGS=(); PRESET=""; OUT=""; SCENES=""; SEED=1; TRAIN_SEED=""; ITERS=""; THREADS=2; JOBS=1; BACKEND=auto; SETS=()
+usage() { sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --quick) QUICK=1 ;;
@@ -37,6 +38,7 @@ while [[ $# -gt 0 ]]; do
     -o|--output) OUT="$2"; shift ;;
     --scenes) SCENES="$2"; shift ;;
     --seed) SEED="$2"; shift ;;
+    --train-seed) TRAIN_SEED="$2"; shift ;;
     --iterations) ITERS="$2"; shift ;;
     --threads) THREADS="$2"; shift ;;
     --jobs) JOBS="$2"; shift ;;
@@ -85,7 +87,7 @@ else
   done
 fi
 
-TRAIN_ARGS=(--eval --seed "$SEED" --backend "$BACKEND")
+TRAIN_ARGS=(--eval --seed "${TRAIN_SEED:-$SEED}" --backend "$BACKEND")
 [[ -n "$PRESET" ]] && TRAIN_ARGS+=(--preset "$PRESET")
 [[ -n "$ITERS" ]] && TRAIN_ARGS+=(--iterations "$ITERS")
 TRAIN_ARGS+=("${SETS[@]}")
