@@ -345,7 +345,12 @@ fn the_mesh_curve_scores_each_point_against_the_ground_truth() {
     let track = ["--track-gt", gt.to_str().unwrap(), "--track-crop-to-gt", "0.05", "--track-min-z", "0.005"];
     // Opacity resets every 30 iterations (until densification ends at 112): the points that
     // fall on one (30, 60, 90) move half an interval later instead of scoring a transparent model.
-    let mut args = vec!["train", bunny.to_str().unwrap(), "-o", out.to_str().unwrap(), "-r", "4", "--iterations", "150", "--set", "densify.opacity_reset_interval=30"];
+    // 3DGS' screen filter: with the compensated Mip filter of the CPU presets the model is still
+    // below the mesh's opacity 7 iterations after a reset, and those points record a mesh error.
+    let mut args = vec![
+        "train", bunny.to_str().unwrap(), "-o", out.to_str().unwrap(), "-r", "4", "--iterations", "150",
+        "--set", "densify.opacity_reset_interval=30", "--set", "antialiased=false", "--set", "low_pass=0.3",
+    ];
     args.extend(track);
     let (ok, _, err) = vagsl(&args);
     assert!(ok, "{err}");
