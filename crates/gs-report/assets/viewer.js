@@ -1,8 +1,9 @@
 // vagsl report viewer: WebGL2 renderer of the trained Gaussians and of the mesh.
 //
 // It draws a scene view the way gs-raster does (docs/method.md §Rendering): camera-space mean
-// t = R μ + t_c, culled at z ≤ 0.01; Σ' = J R Σ Rᵀ Jᵀ + 0.3 px² with t_x/t_z and t_y/t_z
-// clamped to ±1.3·tan(fov/2); α = min(0.99, o·exp(−½ dᵀΣ'⁻¹d)), skipped below 1/255; colour
+// t = R μ + t_c, culled at z ≤ near; Σ' = J R Σ Rᵀ Jᵀ + the run's low-pass filter (px²) with
+// t_x/t_z and t_y/t_z clamped to ±1.3·tan(fov/2); with the run's antialiasing, o scaled by
+// max(√(det Σ'_raw / det Σ'), 0.005); α = min(0.99, o·exp(−½ dᵀΣ'⁻¹d)), skipped below 1/255; colour
 // max(SH(d) + 0.5, 0) along d = (μ − C)/‖μ − C‖; blended in depth order over the background.
 // Blending runs back to front with premultiplied alpha (the "over" operator), which equals the
 // rasterizer's front-to-back sum; it accumulates in a half-float framebuffer when the browser
@@ -25,6 +26,7 @@ precision highp float; precision highp int; precision highp sampler2D;
 uniform sampler2D u_geo; uniform sampler2D u_sh;
 uniform mat3 u_R; uniform vec3 u_t; uniform vec3 u_C;
 uniform vec4 u_K; uniform vec2 u_size; uniform vec2 u_lim;
+uniform float u_near; uniform float u_lowPass; uniform float u_minComp; uniform bool u_aa;
 uniform int u_shTexels; uniform int u_degree;
 in vec2 a_corner; in uint a_index;
 out vec3 v_color; out float v_opacity; out vec3 v_conic; out vec2 v_center; out float v_sigmaMax;
@@ -69,16 +71,21 @@ void main() {
   vec3 t = u_R * g0.xyz + u_t;
   gl_Position = vec4(0.0, 0.0, 2.0, 1.0);
   float op = g0.w;
-  if (!(t.z > 0.01) || op < 1.0 / 255.0) return;
+  if (!(t.z > u_near) || op < 1.0 / 255.0) return;
   mat3 S = mat3(g1.x, g1.y, g1.z, g1.y, g1.w, g2.x, g1.z, g2.x, g2.y);
   float iz = 1.0 / t.z;
   float cx = clamp(t.x * iz, -u_lim.x, u_lim.x), cy = clamp(t.y * iz, -u_lim.y, u_lim.y);
   mat3 J = mat3(u_K.x * iz, 0.0, 0.0, 0.0, u_K.y * iz, 0.0, -u_K.x * cx * iz, -u_K.y * cy * iz, 0.0);
   mat3 T = J * u_R;
   mat3 V = T * S * transpose(T);
-  float a = V[0][0] + 0.3, b = V[0][1], c = V[1][1] + 0.3;
+  float a = V[0][0] + u_lowPass, b = V[0][1], c = V[1][1] + u_lowPass;
   float det = a * c - b * b;
   if (!(det > 0.0)) return;
+  if (u_aa) {
+    float ratio = (V[0][0] * V[1][1] - b * b) / det;
+    op *= ratio > u_minComp * u_minComp ? sqrt(ratio) : u_minComp;
+    if (op < 1.0 / 255.0) return;
+  }
   vec2 center = vec2(u_K.x * t.x * iz + u_K.z, u_K.y * t.y * iz + u_K.w);
   float sigmaMax = log(op * 255.0);
   float level = sqrt(max(2.0 * sigmaMax, 0.0));
@@ -313,7 +320,12 @@ class Viewer {
     gl.uniform3fv(gl.getUniformLocation(p, "u_C"), C);
     gl.uniform4fv(gl.getUniformLocation(p, "u_K"), K);
     gl.uniform2f(gl.getUniformLocation(p, "u_size"), w, h);
-    gl.uniform2f(gl.getUniformLocation(p, "u_lim"), 1.3 * (0.5 * w / cam.fx), 1.3 * (0.5 * h / cam.fy));
+    const proj = this.splats.projection;
+    gl.uniform2f(gl.getUniformLocation(p, "u_lim"), proj.jacobian_clamp * (0.5 * w / cam.fx), proj.jacobian_clamp * (0.5 * h / cam.fy));
+    gl.uniform1f(gl.getUniformLocation(p, "u_near"), proj.near);
+    gl.uniform1f(gl.getUniformLocation(p, "u_lowPass"), proj.low_pass);
+    gl.uniform1f(gl.getUniformLocation(p, "u_minComp"), proj.min_compensation);
+    gl.uniform1i(gl.getUniformLocation(p, "u_aa"), proj.antialiased ? 1 : 0);
     gl.uniform1i(gl.getUniformLocation(p, "u_shTexels"), this.shTexels);
     gl.uniform1i(gl.getUniformLocation(p, "u_degree"), this.splats.sh_degree);
     gl.activeTexture(gl.TEXTURE0);

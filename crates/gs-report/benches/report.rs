@@ -17,7 +17,7 @@ fn model(n: usize) -> Gaussians {
 
 fn bench(c: &mut Criterion) {
     let g = model(100_000);
-    c.bench_function("splat_data_100k_sh3", |b| b.iter(|| SplatData::from_gaussians(&g).unwrap()));
+    c.bench_function("splat_data_100k_sh3", |b| b.iter(|| SplatData::from_gaussians(&g, &gs_raster::RasterConfig::default()).unwrap()));
 }
 
 criterion_group!(benches, bench);

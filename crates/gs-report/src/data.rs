@@ -44,11 +44,42 @@ pub struct SplatData {
     pub geo: String,
     /// `count × 4⌈3K/4⌉` f32 (coefficient-major RGB triples, padded to whole texels), base64.
     pub sh: String,
+    /// How the run projects its splats (its own `RasterConfig`), so the page draws what
+    /// `vagsl render` draws (docs/method.md §Projection).
+    pub projection: Projection,
+}
+
+/// The projection settings of a run that the viewer's shader applies.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Projection {
+    /// Near plane: splats with camera z ≤ near are culled.
+    pub near: f32,
+    /// Screen-space low-pass filter added to Σ' (px²).
+    pub low_pass: f32,
+    /// Mip-Splatting's opacity compensation √(det Σ'_raw / det Σ'), floored at `min_compensation`.
+    pub antialiased: bool,
+    /// Floor of the compensation (`gs_raster::MIN_COMPENSATION`).
+    pub min_compensation: f32,
+    /// t_x/t_z and t_y/t_z are clamped to ±this·tan(fov/2) (`gs_raster::JACOBIAN_CLAMP`).
+    pub jacobian_clamp: f32,
+}
+
+impl From<&gs_raster::RasterConfig> for Projection {
+    fn from(c: &gs_raster::RasterConfig) -> Self {
+        Self {
+            near: c.near,
+            low_pass: c.low_pass,
+            antialiased: c.antialiased,
+            min_compensation: gs_raster::MIN_COMPENSATION,
+            jacobian_clamp: gs_raster::JACOBIAN_CLAMP,
+        }
+    }
 }
 
 impl SplatData {
-    /// Packs `g` for the viewer; refuses a model too large for the page's textures.
-    pub fn from_gaussians(g: &Gaussians) -> Result<Self> {
+    /// Packs `g`, drawn as `raster` projects it, for the viewer; refuses a model too large for
+    /// the page's textures.
+    pub fn from_gaussians(g: &Gaussians, raster: &gs_raster::RasterConfig) -> Result<Self> {
         let k = gs_core::sh::coeffs_for_degree(g.sh_degree);
         let sh_floats = (3 * k).div_ceil(4) * 4;
         let texels = g.len() * (GEO_FLOATS / 4).max(sh_floats / 4);
@@ -72,7 +103,14 @@ impl SplatData {
             sh.extend(g.sh[i][..k].iter().flatten());
             sh.resize(start + sh_floats, 0.0);
         }
-        Ok(Self { count: g.len(), sh_degree: g.sh_degree, sh_coeffs: k, geo: b64_f32(&geo), sh: b64_f32(&sh) })
+        Ok(Self {
+            count: g.len(),
+            sh_degree: g.sh_degree,
+            sh_coeffs: k,
+            geo: b64_f32(&geo),
+            sh: b64_f32(&sh),
+            projection: Projection::from(raster),
+        })
     }
 }
 
@@ -240,7 +278,7 @@ mod tests {
         sh[3] = [0.4, 0.5, 0.6];
         g.push([1.0, 2.0, 3.0], [0.0, (2.0f32).ln(), (3.0f32).ln()], [1.0, 0.0, 0.0, 0.0], 0.0, sh);
         g.sh_degree = 1;
-        let d = SplatData::from_gaussians(&g).unwrap();
+        let d = SplatData::from_gaussians(&g, &gs_raster::RasterConfig::default()).unwrap();
         assert_eq!((d.count, d.sh_coeffs), (1, 4));
         let geo = decode_f32(&d.geo);
         assert_eq!(&geo[..4], &[1.0, 2.0, 3.0, 0.5]);
@@ -250,6 +288,11 @@ mod tests {
         let shd = decode_f32(&d.sh);
         assert_eq!(shd.len(), 12);
         assert_eq!(&shd[..3], &[0.1, 0.2, 0.3]);
+        // The page draws with the run's projection, not the rasterizer's defaults.
+        let mip = gs_raster::RasterConfig { antialiased: true, low_pass: 0.1, near: 0.2, ..Default::default() };
+        let p = serde_json::to_value(SplatData::from_gaussians(&g, &mip).unwrap()).unwrap()["projection"].clone();
+        assert_eq!((p["antialiased"].as_bool(), p["low_pass"].as_f64(), p["near"].as_f64()), (Some(true), Some(0.1f32 as f64), Some(0.2f32 as f64)));
+        assert_eq!(p["min_compensation"].as_f64(), Some(gs_raster::MIN_COMPENSATION as f64));
         assert_eq!(&shd[9..12], &[0.4, 0.5, 0.6]);
     }
 

@@ -11,8 +11,8 @@
 //!
 //! Why our own renderer rather than an npm splat library: the page must show a scene view
 //! exactly as `vagsl render` does (the test compares them pixel by pixel), so it needs our
-//! camera model (fx, fy, cx, cy of each photo), our projection (0.3 px² low-pass, the 1.3·fov
-//! Jacobian clamp, 1/255 alpha cut, 0.99 alpha cap) and our SH convention; the web viewers
+//! camera model (fx, fy, cx, cy of each photo), the run's projection (its low-pass filter and
+//! opacity compensation, the 1.3·fov Jacobian clamp, 1/255 alpha cut, 0.99 alpha cap) and our SH convention; the web viewers
 //! take a field of view and their own conventions. The renderer is ~300 lines of JavaScript
 //! and GLSL with no dependency, so nothing is downloaded at build or view time.
 
@@ -22,6 +22,6 @@ mod error;
 mod writer;
 
 pub use colormap::depth_colormap;
-pub use data::{CameraData, MeshData, SplatData};
+pub use data::{CameraData, MeshData, Projection, SplatData};
 pub use error::{ReportError, Result};
 pub use writer::{Curves, PageData, ReportWriter, ViewScores, escape_html};

@@ -45,7 +45,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     let lpips = if args.no_lpips { None } else { Some(gs_losses::Lpips::bundled()?) };
     let mut rasterizer = super::rasterizer(args.backend)?;
     let req = RenderRequest { color: true, normal: true, plane_depth: true, ..Default::default() };
-    let splats = gs_report::SplatData::from_gaussians(model.gaussians)?;
+    let splats = gs_report::SplatData::from_gaussians(model.gaussians, model.raster)?;
     let mut writer = ReportWriter::new(&run.dir)?;
     let mut test_psnr = Vec::new();
     let splits = [("test", model.test), ("train", model.train)];
