@@ -3,7 +3,8 @@
 // It draws a scene view the way gs-raster does (docs/method.md §Rendering): camera-space mean
 // t = R μ + t_c, culled at z ≤ near; Σ' = J R Σ Rᵀ Jᵀ + the run's low-pass filter (px²) with
 // t_x/t_z and t_y/t_z clamped to ±1.3·tan(fov/2); with the run's antialiasing, o scaled by
-// max(√(det Σ'_raw / det Σ'), 0.005); α = min(0.99, o·exp(−½ dᵀΣ'⁻¹d)), skipped below 1/255; colour
+// max(√(det Σ'_raw / det Σ'), 0.005) (near, filter, clamp and floor from the page's
+// `splats.projection`, which gs-report fills from the run's RasterConfig); α = min(0.99, o·exp(−½ dᵀΣ'⁻¹d)), skipped below 1/255; colour
 // max(SH(d) + 0.5, 0) along d = (μ − C)/‖μ − C‖; blended in depth order over the background.
 // Blending runs back to front with premultiplied alpha (the "over" operator), which equals the
 // rasterizer's front-to-back sum; it accumulates in a half-float framebuffer when the browser

@@ -288,12 +288,12 @@ mod tests {
         let shd = decode_f32(&d.sh);
         assert_eq!(shd.len(), 12);
         assert_eq!(&shd[..3], &[0.1, 0.2, 0.3]);
+        assert_eq!(&shd[9..12], &[0.4, 0.5, 0.6]);
         // The page draws with the run's projection, not the rasterizer's defaults.
         let mip = gs_raster::RasterConfig { antialiased: true, low_pass: 0.1, near: 0.2, ..Default::default() };
         let p = serde_json::to_value(SplatData::from_gaussians(&g, &mip).unwrap()).unwrap()["projection"].clone();
         assert_eq!((p["antialiased"].as_bool(), p["low_pass"].as_f64(), p["near"].as_f64()), (Some(true), Some(0.1f32 as f64), Some(0.2f32 as f64)));
         assert_eq!(p["min_compensation"].as_f64(), Some(gs_raster::MIN_COMPENSATION as f64));
-        assert_eq!(&shd[9..12], &[0.4, 0.5, 0.6]);
     }
 
     #[test]

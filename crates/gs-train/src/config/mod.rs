@@ -684,22 +684,23 @@ mod tests {
 
     #[test]
     fn runs_written_before_a_setting_existed_still_read() {
-        // λ_o and the antialiased renders came later: a config.json without them reads as
-        // they were (off), and the run's renders follow the setting.
-        let mut v = serde_json::to_value(TrainConfig::default()).unwrap();
-        v["weights"].as_object_mut().unwrap().remove("lambda_o");
-        v.as_object_mut().unwrap().remove("antialiased");
-        v.as_object_mut().unwrap().remove("low_pass");
-        let old: TrainConfig = serde_json::from_value(v).unwrap();
+        // λ_o and the run's screen filter came later: a config.json without them reads as it
+        // was trained (no L_o, 3DGS' filter without compensation) whatever its preset, and the
+        // run's renders follow the setting.
+        let without = |preset: Preset| {
+            let mut v = serde_json::to_value(TrainConfig::preset(preset)).unwrap();
+            v["weights"].as_object_mut().unwrap().remove("lambda_o");
+            v.as_object_mut().unwrap().remove("antialiased");
+            v.as_object_mut().unwrap().remove("low_pass");
+            serde_json::from_value::<TrainConfig>(v).unwrap()
+        };
+        let old = without(Preset::Dtu);
         assert_eq!(old, TrainConfig::default());
         assert!(!old.raster_config().antialiased);
         assert!(TrainConfig { antialiased: true, ..old.clone() }.raster_config().antialiased);
         assert_eq!(TrainConfig { low_pass: 0.1, ..old }.raster_config().low_pass, 0.1);
         // A `standard` run trained before its presets took the Mip filter renders as trained.
-        let mut v = serde_json::to_value(TrainConfig::preset(Preset::Standard)).unwrap();
-        v.as_object_mut().unwrap().remove("antialiased");
-        v.as_object_mut().unwrap().remove("low_pass");
-        let old: TrainConfig = serde_json::from_value(v).unwrap();
+        let old = without(Preset::Standard);
         assert_eq!((old.antialiased, old.low_pass), (false, gs_raster::LOW_PASS));
     }
 

@@ -129,8 +129,10 @@ impl TrainConfig {
             return bad(format!("source_depth_downscale = {} must be in 1..=8", self.source_depth_downscale));
         }
         // The renderer's settings (near plane, background, low-pass filter) by the renderer's rules.
-        if let Err(gs_raster::RasterError::InvalidConfig(m)) = self.raster_config().validate() {
-            return bad(m);
+        match self.raster_config().validate() {
+            Err(gs_raster::RasterError::InvalidConfig(m)) => return bad(m),
+            Err(e) => return bad(e.to_string()),
+            Ok(()) => {}
         }
         if matches!(self.init, InitMode::Cube | InitMode::Sphere) && self.random_points == 0 {
             return bad("random_points must be positive for cube/sphere init".into());
