@@ -71,6 +71,17 @@ fn every_format_of_a_trained_run() {
         let (ok, stdout, err) = vagsl(&args);
         assert!(ok, "{format}: {err}");
         assert!(stdout.contains(format.name()) && stdout.contains(name), "{stdout}");
+        // The default preset trains with opacity compensation: spz records it, the other
+        // Gaussian formats cannot and say so.
+        if !format.is_mesh() {
+            let recorded = format.records_antialiasing();
+            assert_eq!(stdout.contains("antialiased"), recorded, "{format}: {stdout}");
+            assert_eq!(err.contains("opacity compensation"), !recorded, "{format}: {err}");
+        }
+        if format == Format::Spz {
+            let bytes = std::fs::read(&o).unwrap();
+            assert!(gs_export::spz::decode_spz(&bytes, &o).unwrap().1, "spz's antialiased flag");
+        }
         if format.is_mesh() {
             let back = read_mesh(format, &o).unwrap();
             assert_eq!(back.triangles.len(), mesh.triangles.len(), "{format}");

@@ -21,9 +21,9 @@ fn bench(c: &mut Criterion) {
     let g = gaussians(100_000);
     let p = Path::new("bench");
     c.bench_function("splat encode 100k", |b| b.iter(|| gs_export::splat::encode_splat(&g, p).unwrap()));
-    c.bench_function("spz encode 100k", |b| b.iter(|| gs_export::spz::encode_spz(&g, p).unwrap()));
+    c.bench_function("spz encode 100k", |b| b.iter(|| gs_export::spz::encode_spz(&g, false, p).unwrap()));
     c.bench_function("compressed-ply encode 100k", |b| b.iter(|| gs_export::compressed_ply::encode_compressed_ply(&g)));
-    let spz = gs_export::spz::encode_spz(&g, p).unwrap();
+    let spz = gs_export::spz::encode_spz(&g, false, p).unwrap();
     c.bench_function("spz decode 100k", |b| b.iter(|| gs_export::spz::decode_spz(&spz, p).unwrap()));
     let cply = gs_export::compressed_ply::encode_compressed_ply(&g);
     c.bench_function("compressed-ply decode 100k", |b| b.iter(|| gs_export::compressed_ply::decode_compressed_ply(&cply, p).unwrap()));

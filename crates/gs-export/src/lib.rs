@@ -21,7 +21,7 @@
 //! g.means[1] = [0.5, -1.0, 2.0];
 //! let path = dir.path().join("model.spz");
 //! let format = Format::from_path(&path).unwrap(); // Format::Spz
-//! write_gaussians(format, &path, &g).unwrap();
+//! write_gaussians(format, &path, &g, false).unwrap(); // trained without opacity compensation
 //! let back = read_gaussians(format, &path).unwrap();
 //! assert!((back.means[1][1] + 1.0).abs() < 1e-5);
 //! ```
@@ -80,6 +80,13 @@ impl Format {
         Self::ALL.into_iter().find(|f| f.name() == name)
     }
 
+    /// Whether the format records that a model was trained with opacity compensation (the
+    /// `antialiased` argument of [`write_gaussians`]): only spz has a field for it. Viewers of
+    /// the other formats render every model with the original 3DGS projection.
+    pub fn records_antialiasing(self) -> bool {
+        self == Format::Spz
+    }
+
     /// Whether the format holds a mesh (else Gaussians).
     pub fn is_mesh(self) -> bool {
         matches!(self, Format::MeshPly | Format::Obj | Format::Glb)
@@ -118,15 +125,17 @@ fn gaussian_format(format: Format, path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Writes `g` at `path` in the Gaussian format `format`, atomically. Fails, writing nothing, on
+/// Writes `g` at `path` in the Gaussian format `format`, atomically. `antialiased`: the model
+/// was trained with Mip-Splatting's opacity compensation (docs/method.md §Projection), recorded
+/// where the format can say so ([`Format::records_antialiasing`]). Fails, writing nothing, on
 /// a model that does not validate or that the format cannot hold.
-pub fn write_gaussians(format: Format, path: &Path, g: &Gaussians) -> Result<()> {
+pub fn write_gaussians(format: Format, path: &Path, g: &Gaussians, antialiased: bool) -> Result<()> {
     gaussian_format(format, path)?;
     g.validate().map_err(|source| gs_io::IoError::Core { path: path.to_path_buf(), source })?;
     let bytes = match format {
         Format::Ply => return Ok(gs_io::write_gaussian_ply(path, g)?),
         Format::Splat => splat::encode_splat(g, path)?,
-        Format::Spz => spz::encode_spz(g, path)?,
+        Format::Spz => spz::encode_spz(g, antialiased, path)?,
         _ => compressed_ply::encode_compressed_ply(g),
     };
     Ok(gs_io::write_atomic(path, |w| w.write_all(&bytes))?)
@@ -141,7 +150,7 @@ pub fn read_gaussians(format: Format, path: &Path) -> Result<Gaussians> {
     let bytes = std::fs::read(path).map_err(|e| gs_io::IoError::io(path, e))?;
     match format {
         Format::Splat => splat::decode_splat(&bytes, path),
-        Format::Spz => spz::decode_spz(&bytes, path),
+        Format::Spz => spz::decode_spz(&bytes, path).map(|(g, _)| g),
         _ => compressed_ply::decode_compressed_ply(&bytes, path),
     }
 }

@@ -8,6 +8,10 @@
 //! versions 2 and 3; version 1 (float16 positions, never released) and version 4 (ZSTD streams)
 //! are refused with a message saying so.
 //!
+//! **Flags.** Bit [`FLAG_ANTIALIASED`] says the model was trained with Mip-Splatting's opacity
+//! compensation (vagsl's `antialiased` projection, docs/method.md §Projection), so that viewers
+//! that honour it (Niantic's library reads it as `antialiased`) render it as trained.
+//!
 //! **Coordinates.** spz stores RUB (x right, y up, z back: OpenGL / three.js); a 3DGS PLY, and
 //! so a vagsl model, is RDF (COLMAP's x right, y down, z forward). The writer converts RDF → RUB
 //! as Niantic's `coordinateConverter(RDF, RUB)` does: positions `(x, −y, −z)`, quaternion
@@ -39,6 +43,8 @@ use std::path::Path;
 pub const MAGIC: u32 = 0x5053_474e;
 /// The version the writer produces.
 pub const WRITE_VERSION: u32 = 3;
+/// Header flag: the model was trained with opacity compensation (spz's `FlagAntialiased`).
+pub const FLAG_ANTIALIASED: u8 = 0x1;
 /// spz's DC colour scale (`colorScale` in `splat-utils.h`).
 pub const COLOR_SCALE: f32 = 0.15;
 /// Largest number of fractional position bits the writer uses.
@@ -67,8 +73,9 @@ pub fn fractional_bits(g: &Gaussians) -> Option<u8> {
     (0..=MAX_FRACTIONAL_BITS).rev().find(|&fb| (max * (1u64 << fb) as f64).round() <= ((1 << 23) - 1) as f64)
 }
 
-/// Encodes `g` as spz version 3 (gzip); `path` only names the file in errors.
-pub fn encode_spz(g: &Gaussians, path: &Path) -> Result<Vec<u8>> {
+/// Encodes `g` as spz version 3 (gzip), with [`FLAG_ANTIALIASED`] set when `antialiased`;
+/// `path` only names the file in errors.
+pub fn encode_spz(g: &Gaussians, antialiased: bool, path: &Path) -> Result<Vec<u8>> {
     let n = u32::try_from(g.len()).map_err(|_| ExportError::unencodable(path, "spz", "more than 2^32 Gaussians"))?;
     let fb = fractional_bits(g).ok_or_else(|| {
         ExportError::unencodable(path, "spz", "a coordinate exceeds ±8388607, the range of spz's 24-bit fixed-point positions")
@@ -79,7 +86,8 @@ pub fn encode_spz(g: &Gaussians, path: &Path) -> Result<Vec<u8>> {
     for v in [MAGIC, WRITE_VERSION, n] {
         raw.extend_from_slice(&v.to_le_bytes());
     }
-    raw.extend_from_slice(&[degree as u8, fb, 0, 0]);
+    let flags = if antialiased { FLAG_ANTIALIASED } else { 0 };
+    raw.extend_from_slice(&[degree as u8, fb, flags, 0]);
     let unit = (1u64 << fb) as f64;
     for p in &g.means {
         for (v, f) in p.iter().zip([1.0f32, -1.0, -1.0]) {
@@ -156,8 +164,9 @@ fn unpack_smallest_three(mut comp: u32) -> [f32; 4] {
     q
 }
 
-/// Decodes an spz file (version 2 or 3); `path` only names the file in errors.
-pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<Gaussians> {
+/// Decodes an spz file (version 2 or 3): the Gaussians and whether [`FLAG_ANTIALIASED`] is set;
+/// `path` only names the file in errors.
+pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<(Gaussians, bool)> {
     if bytes.starts_with(b"NGSP") {
         return Err(ExportError::unsupported(path, "spz version 4 (ZSTD streams); vagsl reads versions 2 and 3 (gzip)"));
     }
@@ -172,6 +181,7 @@ pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<Gaussians> {
         return Err(ExportError::format(path, format!("not an spz file: magic {:#010x}, expected {MAGIC:#010x}", word(0))));
     }
     let (version, n, degree, fb) = (word(1), word(2) as usize, head[12] as u32, head[13]);
+    let antialiased = head[14] & FLAG_ANTIALIASED != 0;
     match version {
         2 | 3 => {}
         1 => return Err(ExportError::unsupported(path, "spz version 1 (float16 positions); vagsl reads versions 2 and 3")),
@@ -234,7 +244,7 @@ pub fn decode_spz(bytes: &[u8], path: &Path) -> Result<Gaussians> {
         g.push(mean, log_scale, [w, x, -y, -z], inverse_sigmoid(alphas[i] as f32 / 255.0), sh);
     }
     g.sh_degree = degree;
-    Ok(g)
+    Ok((g, antialiased))
 }
 
 #[cfg(test)]

@@ -68,7 +68,7 @@ impl Max {
 fn round_trip(format: Format, g: &Gaussians) -> Gaussians {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(format!("model.{}", format.name()));
-    write_gaussians(format, &path, g).unwrap();
+    write_gaussians(format, &path, g, false).unwrap();
     let read = read_gaussians(format, &path).unwrap();
     assert_eq!(read.len(), g.len());
     let order = write_order(format, g);
@@ -152,6 +152,30 @@ fn spz_round_trip() {
         check_rotation(&mut max, &g, &b, i, 2e-3);
     }
     eprintln!("spz (fractional bits {fb}): {max:?}");
+}
+
+/// The antialiased flag is bit 0x1 of the header's flags byte (byte 14 of the decompressed
+/// stream, as Niantic's `PackedGaussiansHeader` lays it out), read back by the decoder; the
+/// Gaussians are the same bytes either way.
+#[test]
+fn spz_records_the_antialiased_flag() {
+    let g = scene_gaussians();
+    let dir = tempfile::tempdir().unwrap();
+    let mut streams = Vec::new();
+    for antialiased in [false, true] {
+        let path = dir.path().join(format!("aa-{antialiased}.spz"));
+        write_gaussians(Format::Spz, &path, &g, antialiased).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let mut raw = Vec::new();
+        std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut raw).unwrap();
+        assert_eq!(raw[14], u8::from(antialiased), "flags byte");
+        assert_eq!(gs_export::spz::decode_spz(&bytes, &path).unwrap().1, antialiased);
+        raw[14] = 0;
+        streams.push(raw);
+    }
+    assert_eq!(streams[0], streams[1], "only the flag differs");
+    assert!(Format::Spz.records_antialiasing());
+    assert!(Format::ALL.iter().filter(|f| f.records_antialiasing()).count() == 1);
 }
 
 #[test]
@@ -260,18 +284,18 @@ fn failed_writes_leave_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let g = scene_gaussians();
     let missing = dir.path().join("no/such/folder/model.spz");
-    let e = write_gaussians(Format::Spz, &missing, &g).unwrap_err().to_string();
+    let e = write_gaussians(Format::Spz, &missing, &g, false).unwrap_err().to_string();
     assert!(e.contains("model.spz"), "{e}");
     // A model spz cannot hold: nothing is written, an existing file is kept.
     let path = dir.path().join("far.spz");
     std::fs::write(&path, b"old").unwrap();
     let mut far = g.clone();
     far.means[0] = [1e8, 0.0, 0.0];
-    let e = write_gaussians(Format::Spz, &path, &far).unwrap_err();
+    let e = write_gaussians(Format::Spz, &path, &far, false).unwrap_err();
     assert!(matches!(e, ExportError::Unencodable { .. }) && e.to_string().contains("24-bit"), "{e}");
     let mut nan = g.clone();
     nan.means[3][0] = f32::NAN;
-    assert!(write_gaussians(Format::Splat, &path, &nan).is_err());
+    assert!(write_gaussians(Format::Splat, &path, &nan, false).is_err());
     let empty = TriangleMesh::default();
     let e = write_mesh(Format::Glb, &path.with_extension("glb"), &empty).unwrap_err().to_string();
     assert!(e.contains("no triangles"), "{e}");
@@ -292,7 +316,7 @@ fn damaged_files_are_errors() {
         if format.is_mesh() {
             write_mesh(format, &good, &object_mesh(true)).unwrap();
         } else {
-            write_gaussians(format, &good, &g).unwrap();
+            write_gaussians(format, &good, &g, false).unwrap();
         }
         let bytes = std::fs::read(&good).unwrap();
         let bad = dir.path().join(format!("bad.{}", format.name()));

@@ -51,9 +51,18 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         let colours = if mesh.colors.is_some() { "with vertex colours" } else { "without colours" };
         format!("{} vertices, {} triangles {colours}", mesh.positions.len(), mesh.triangles.len())
     } else {
-        gs_export::write_gaussians(format, &args.output, &gaussians)?;
+        let antialiased = config.train.antialiased;
+        gs_export::write_gaussians(format, &args.output, &gaussians, antialiased)?;
         let degree = if matches!(format, Format::Splat) { 0 } else { gaussians.sh_degree };
-        format!("{} Gaussians, SH degree {degree}", gaussians.len())
+        if antialiased && !format.records_antialiasing() {
+            eprintln!(
+                "note: the model was trained with opacity compensation (the Mip filter of the standard and fast \
+                 presets); {format} has no field for it, so viewers render it without: small splats look a \
+                 little more opaque than in training. spz records it."
+            );
+        }
+        let aa = if antialiased && format.records_antialiasing() { ", antialiased" } else { "" };
+        format!("{} Gaussians, SH degree {degree}{aa}", gaussians.len())
     };
     record(&args.run, &args.output, format, &current);
     let size = std::fs::metadata(&args.output).with_context(|| format!("{}: written but cannot be read back", args.output.display()))?.len();
