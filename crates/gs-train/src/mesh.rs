@@ -16,7 +16,7 @@ use gs_core::{Camera, Image, NeighbourRule, Scene, TriangleMesh, View, source_vi
 use gs_raster::{Rasterizer, RenderRequest};
 use gs_tsdf::{
     BlockCensus, ComponentFilter, ComponentReport, ConsistencyConfig, ConsistencyReport, MemoryEstimate, SimplifyReport,
-    SimplifyTarget, TsdfConfig, TsdfError, TsdfVolume, clean_mesh, filter_depths, format_bytes, simplify_mesh,
+    SimplifyTarget, TsdfConfig, TsdfError, TsdfVolume, clean_mesh, filter_depths, format_bytes, simplify_mesh, simplify_mesh_graded,
 };
 use serde::Serialize;
 
@@ -95,8 +95,9 @@ impl Default for MeshOptions {
 pub enum Simplify {
     /// The mesh as marching cubes made it.
     Off,
-    /// Edge collapses while the error stays within this multiple of the pixel footprint
-    /// ([`MeshReport::pixel_footprint`]; the voxel when there is none).
+    /// Edge collapses while each vertex's error stays within this multiple of the pixel
+    /// footprint at it (the smallest depth / fx over the fused views that image it), and never
+    /// below this multiple of the voxel ([`gs_tsdf::simplify_mesh_graded`]).
     FootprintError(f64),
     /// At most this many triangles.
     Triangles(usize),
@@ -369,7 +370,8 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     let raw = volume.extract_mesh()?;
     let fuse_seconds = t.elapsed().as_secs_f64() - fetch_s;
     let footprint = median(footprints);
-    let (mesh, components, simplification) = finish(&raw, opts, footprint.unwrap_or(voxel))?;
+    let cameras: Vec<&Camera> = views.iter().map(|&i| &scene.views[i].camera).collect();
+    let (mesh, components, simplification) = finish(&raw, opts, voxel, &cameras)?;
     let report = MeshReport {
         voxel_size: voxel,
         sdf_trunc: volume.config().truncation(),
@@ -430,9 +432,11 @@ fn integrate(volume: &mut TsdfVolume, scene: &Scene, f: &Fetched, opts: &MeshOpt
     Ok(fused.median_depth.map(|z| z as f64 / view.camera.intrinsics.fx))
 }
 
-/// The clean-up and simplification of the raw marching-cubes mesh; `footprint` scales
-/// [`Simplify::FootprintError`].
-fn finish(raw: &TriangleMesh, opts: &MeshOptions, footprint: f64) -> Result<(TriangleMesh, ComponentCleanup, Option<SimplifyApplied>)> {
+/// The clean-up and simplification of the raw marching-cubes mesh. [`Simplify::FootprintError`]
+/// bounds each vertex by a multiple of the pixel footprint at it ([`gs_tsdf::pixel_footprints`]
+/// over the fused views' `cameras`), never below the `voxel`: the fusion resolves nothing
+/// finer, and surfaces seen only from afar (a far wall) are simplified more than the object.
+fn finish(raw: &TriangleMesh, opts: &MeshOptions, voxel: f64, cameras: &[&Camera]) -> Result<(TriangleMesh, ComponentCleanup, Option<SimplifyApplied>)> {
     let filter = if opts.largest_component_only {
         ComponentFilter::Largest
     } else {
@@ -448,13 +452,16 @@ fn finish(raw: &TriangleMesh, opts: &MeshOptions, footprint: f64) -> Result<(Tri
         min_triangles: MIN_COMPONENT_TRIANGLES,
         result,
     };
-    let target = match opts.simplify {
-        Simplify::Off => return Ok((mesh, components, None)),
-        Simplify::FootprintError(k) => SimplifyTarget::MaxError(k * footprint),
-        Simplify::Triangles(n) => SimplifyTarget::Triangles(n),
-    };
     let t = std::time::Instant::now();
-    let (mesh, result) = simplify_mesh(&mesh, target)?;
+    let (mesh, result) = match opts.simplify {
+        Simplify::Off => return Ok((mesh, components, None)),
+        Simplify::FootprintError(k) => {
+            let bounds: Vec<f64> =
+                gs_tsdf::pixel_footprints(&mesh.positions, cameras).into_iter().map(|f| k * f.unwrap_or(voxel).max(voxel)).collect();
+            simplify_mesh_graded(&mesh, &bounds)?
+        }
+        Simplify::Triangles(n) => simplify_mesh(&mesh, SimplifyTarget::Triangles(n))?,
+    };
     Ok((mesh, components, Some(SimplifyApplied { target: opts.simplify, result, seconds: t.elapsed().as_secs_f64() })))
 }
 

@@ -29,7 +29,8 @@
 //! * [`clean`]: connected components (absolute or relative size), degenerate / unreferenced
 //!   elements, mask culling.
 //! * [`smooth`]: Taubin λ|μ smoothing of the fused surface's voxel-scale ripples.
-//! * [`simplify`]: quadric-error simplification to a world-space error bound or a count.
+//! * [`simplify`]: quadric-error simplification to a world-space error bound (one, or one per
+//!   vertex from the pixel footprint at it) or a count.
 //! * [`fusion_memory`]: the peak-memory estimate of a fusion, made before allocating it.
 //! * [`metrics`]: area-weighted sampling, accuracy / completeness / Chamfer / F1.
 
@@ -51,6 +52,6 @@ pub use error::{Result, TsdfError, format_bytes};
 pub use extract::ExtractOptions;
 pub use fusion_memory::{BlockCensus, MemoryEstimate};
 pub use metrics::{Aabb, EvalOptions, EvalReport, PointMetrics, evaluate_meshes, point_metrics, sample_surface};
-pub use simplify::{SimplifyReport, SimplifyTarget, simplify_mesh};
+pub use simplify::{GradedBounds, SimplifyReport, SimplifyTarget, pixel_footprints, simplify_mesh, simplify_mesh_graded};
 pub use smooth::{Smoothing, smooth_mesh};
 pub use volume::{IntegrateStats, TsdfConfig, TsdfVolume};

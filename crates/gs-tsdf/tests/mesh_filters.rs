@@ -6,7 +6,7 @@ mod common;
 use gs_core::{Camera, Image, NeighbourRule, TriangleMesh, source_view_candidates};
 use gs_tsdf::{
     Aabb, ConsistencyConfig, EvalOptions, SimplifyTarget, TsdfConfig, TsdfVolume, evaluate_meshes, filter_depths, metrics::nearest_distances,
-    sample_surface, simplify_mesh,
+    pixel_footprints, sample_surface, simplify_mesh, simplify_mesh_graded,
 };
 
 fn fuse(views: &[(Camera, Image)], voxel: f64, bounds: Option<Aabb>) -> TriangleMesh {
@@ -110,8 +110,8 @@ fn the_simplified_bunny_keeps_its_accuracy_with_a_fraction_of_the_triangles() {
         s.f1
     );
     assert!(r.error <= bound);
-    // Measured 2026-11-26: 392,253 -> 17,965 triangles (4.6 %), Chamfer 0.00551 -> 0.00561,
-    // F1 0.9453 -> 0.9442, largest distance 0.0031.
+    // Measured 2026-11-27: 389,124 -> 29,215 triangles (7.5 %), Chamfer 0.00553 -> 0.00558,
+    // F1 0.9452 -> 0.9442, largest distance 0.0027.
     assert!(r.triangles_after * 10 < r.triangles_before, "{r:?}");
     assert!(s.chamfer <= full.chamfer * 1.02, "Chamfer {} vs {}", s.chamfer, full.chamfer);
     assert!(s.f1 >= full.f1 - 0.005, "F1 {} vs {}", s.f1, full.f1);
@@ -127,12 +127,55 @@ fn the_simplified_bunny_keeps_its_accuracy_with_a_fraction_of_the_triangles() {
     eprintln!("largest distance to the unsimplified surface {max:.5}, {} samples", d.len());
     assert!(max <= bound + 0.004, "{max}");
     // A triangle count is met exactly or below. 20,000 (the bound's count) keeps the scores;
-    // 2,000 is a coarse bunny (measured: Chamfer 0.0125, F1 0.53).
-    for (n, max_chamfer) in [(20_000, 1.05 * full.chamfer), (2_000, 3.0 * full.chamfer)] {
+    // 2,000 is a coarse bunny (measured: Chamfer 0.0076, F1 0.89, clustered).
+    for (n, max_chamfer) in [(20_000, 1.05 * full.chamfer), (2_000, 1.6 * full.chamfer)] {
         let (m, r) = simplify_mesh(&mesh, SimplifyTarget::Triangles(n)).unwrap();
         assert!(m.triangles.len() <= n, "asked {n}, got {}", m.triangles.len());
         let e = evaluate_meshes(&m, &gt, &protocol).unwrap().metrics;
         eprintln!("{n} triangles: Chamfer {:.5}, F1 {:.4}, error {:.5}, sloppy {}", e.chamfer, e.f1, r.error, r.sloppy);
         assert!(e.chamfer < max_chamfer, "{n} triangles: Chamfer {}", e.chamfer);
     }
+}
+
+/// The whole synth-bunny scene (room and bunny) fused from exact depths at about the pixel
+/// footprint, simplified as `vagsl mesh` does by default (a tenth of the footprint at each
+/// vertex, never below a tenth of the voxel): the flat room collapses, so the mesh keeps about
+/// a twentieth of its triangles while the bunny keeps its scores. Measured 2026-11-27:
+/// 5,012,106 -> 266,192 triangles (5.3 %; `vagsl mesh`, which also drops small components,
+/// keeps 3.8 %), Chamfer 0.00560 -> 0.00560, F1 0.9448 -> 0.9450. Before the depth lookup on
+/// each voxel's ray and the cell-wise simplification, the same bound kept 50 %.
+#[test]
+#[cfg_attr(debug_assertions, ignore = "release only: fuses 40 views of 480x360")]
+fn the_whole_scene_keeps_a_twentieth_of_its_triangles_and_the_bunny_its_scores() {
+    if !gs_testdata::needs!("data/synth-bunny") {
+        return;
+    }
+    let views = common::bunny_views();
+    let gt = common::read_ply(&common::bunny_dir().join("gt_mesh.ply"));
+    let protocol = EvalOptions::object_protocol(&gt).unwrap();
+    let voxel = 0.00614;
+    let mesh = fuse(&views, voxel, None);
+    let full = evaluate_meshes(&mesh, &gt, &protocol).unwrap().metrics;
+    let cameras: Vec<&Camera> = views.iter().map(|v| &v.0).collect();
+    let bounds: Vec<f64> = pixel_footprints(&mesh.positions, &cameras).into_iter().map(|f| 0.1 * f.unwrap_or(voxel).max(voxel)).collect();
+    let t = std::time::Instant::now();
+    let (simple, r) = simplify_mesh_graded(&mesh, &bounds).unwrap();
+    let s = evaluate_meshes(&simple, &gt, &protocol).unwrap().metrics;
+    let share = r.triangles_after as f64 / r.triangles_before as f64;
+    eprintln!(
+        "{} -> {} triangles ({:.1} %) in {:.1}s, bounds {:?}; Chamfer {:.5} -> {:.5}, F1 {:.4} -> {:.4}",
+        r.triangles_before,
+        r.triangles_after,
+        100.0 * share,
+        t.elapsed().as_secs_f64(),
+        r.graded,
+        full.chamfer,
+        s.chamfer,
+        full.f1,
+        s.f1
+    );
+    simple.validate().unwrap();
+    assert!(share < 0.06, "{share}");
+    assert!(s.chamfer <= full.chamfer * 1.01, "Chamfer {} vs {}", s.chamfer, full.chamfer);
+    assert!(s.f1 >= full.f1 - 0.003, "F1 {} vs {}", s.f1, full.f1);
 }

@@ -72,7 +72,8 @@ pub struct MeshArgs {
     /// Simplify to at most this many triangles (instead of the error bound).
     #[arg(long, conflicts_with = "no_simplify")]
     pub triangles: Option<usize>,
-    /// Simplify while the surface moves at most this multiple of the pixel footprint
+    /// Simplify while each vertex moves at most this multiple of the pixel footprint at it
+    /// (its nearest training view's depth / fx; never less than this multiple of the voxel)
     /// (default 0.1).
     #[arg(long, conflicts_with_all = ["no_simplify", "triangles"])]
     pub simplify_error: Option<f64>,
@@ -256,7 +257,11 @@ fn cleanup_line(r: &gs_train::MeshReport) -> String {
             s.result.triangles_before,
             s.result.triangles_after,
             s.result.error,
-            s.result.error_bound.map_or(String::new(), |b| format!(", bound {b:.2e}"))
+            match (s.result.graded, s.result.error_bound) {
+                (Some(g), _) => format!(", bounds {:.2e} to {:.2e} by the pixel footprint at each vertex", g.smallest, g.largest),
+                (None, Some(b)) => format!(", bound {b:.2e}"),
+                (None, None) => String::new(),
+            }
         ));
     }
     line
