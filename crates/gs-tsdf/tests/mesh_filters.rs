@@ -138,9 +138,9 @@ fn the_simplified_bunny_keeps_its_accuracy_with_a_fraction_of_the_triangles() {
 }
 
 /// The whole synth-bunny scene (room and bunny) fused from exact depths at about the pixel
-/// footprint, simplified as `vagsl mesh` does by default (a tenth of the footprint at each
-/// vertex, never below a tenth of the voxel): the flat room collapses, so the mesh keeps about
-/// a twentieth of its triangles while the bunny keeps its scores. Measured 2026-11-27:
+/// footprint, simplified with a tenth of the footprint at each vertex (never below a tenth of
+/// the voxel; `vagsl mesh` uses 0.3): the flat room collapses, so the mesh keeps about a
+/// twentieth of its triangles while the bunny keeps its scores. Measured 2026-11-27:
 /// 5,012,106 -> 266,192 triangles (5.3 %; `vagsl mesh`, which also drops small components,
 /// keeps 3.8 %), Chamfer 0.00560 -> 0.00560, F1 0.9448 -> 0.9450. Before the depth lookup on
 /// each voxel's ray and the cell-wise simplification, the same bound kept 50 %.

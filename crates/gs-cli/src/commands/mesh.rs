@@ -74,7 +74,7 @@ pub struct MeshArgs {
     pub triangles: Option<usize>,
     /// Simplify while each vertex moves at most this multiple of the pixel footprint at it
     /// (its nearest training view's depth / fx; never less than this multiple of the voxel)
-    /// (default 0.1).
+    /// (default 0.3).
     #[arg(long, conflicts_with_all = ["no_simplify", "triangles"])]
     pub simplify_error: Option<f64>,
     /// Keep the mesh as marching cubes made it (no simplification).
