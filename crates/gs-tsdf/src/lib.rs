@@ -37,6 +37,7 @@
 pub mod analytic_depth;
 pub mod clean;
 pub mod consistency;
+mod ray_depth;
 pub mod error;
 pub mod extract;
 pub mod fusion_memory;

@@ -38,7 +38,7 @@ pub struct SimplifyReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub graded: Option<GradedBounds>,
     /// Whether a triangle count out of reach of topology-preserving collapses was met by
-    /// meshoptimizer's topology-free ("sloppy") simplifier on the result.
+    /// meshoptimizer's topology-free ("sloppy") simplifier, clustering the whole mesh.
     pub sloppy: bool,
 }
 

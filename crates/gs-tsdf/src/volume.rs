@@ -10,6 +10,7 @@
 
 use crate::error::{Result, TsdfError};
 use crate::metrics::Aabb;
+use crate::ray_depth::RayDepth;
 use gs_core::glam::{DVec3, Vec3};
 use gs_core::{Camera, Image};
 use rayon::prelude::*;
@@ -491,53 +492,17 @@ struct ViewContext<'a> {
     cy: f32,
     w: usize,
     h: usize,
-    depth: &'a [f32],
-    /// Whether pixel `k` and its right / lower neighbour lie on one surface ([`joined`]).
-    joins_right: Vec<bool>,
-    joins_down: Vec<bool>,
+    /// The view's depths, read on each voxel's ray.
+    depth: RayDepth<'a>,
     color: Option<&'a Image>,
     voxel: f64,
     trunc: f32,
 }
 
-/// Whether neighbouring depths `a` and `b` lie on one surface, given the depths `before` `a`
-/// and `after` `b` on the same line (0 = none): both valid and either within `band` of each
-/// other or, further apart (a plane seen at a grazing angle), changing at the rate of their
-/// neighbours: each neighbouring step in inverse depth within half of theirs. A depth edge is
-/// a step that its neighbours do not share.
-fn joined(before: f32, a: f32, b: f32, after: f32, band: f32) -> bool {
-    if !(a > 0.0 && b > 0.0) {
-        return false;
-    }
-    if (b - a).abs() <= band {
-        return true;
-    }
-    let step = 1.0 / b - 1.0 / a;
-    let near = |d: f32| (d - step).abs() <= 0.5 * step.abs();
-    let left = (before > 0.0).then(|| near(1.0 / a - 1.0 / before));
-    let right = (after > 0.0).then(|| near(1.0 / after - 1.0 / b));
-    match (left, right) {
-        (None, None) => false,
-        (l, r) => l.unwrap_or(true) && r.unwrap_or(true),
-    }
-}
-
 impl<'a> ViewContext<'a> {
     fn new(camera: &Camera, depth: &'a [f32], color: Option<&'a Image>, config: &TsdfConfig) -> Self {
         let k = camera.intrinsics;
-        let (w, h) = (camera.width as usize, camera.height as usize);
         let trunc = config.truncation() as f32;
-        let at = |x: usize, y: usize| depth[y * w + x];
-        let get = |x: isize, y: isize| if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h { at(x as usize, y as usize) } else { 0.0 };
-        let mut joins_right = vec![false; w * h];
-        let mut joins_down = vec![false; w * h];
-        for y in 0..h as isize {
-            for x in 0..w as isize {
-                let k = y as usize * w + x as usize;
-                joins_right[k] = joined(get(x - 1, y), get(x, y), get(x + 1, y), get(x + 2, y), trunc);
-                joins_down[k] = joined(get(x, y - 1), get(x, y), get(x, y + 1), get(x, y + 2), trunc);
-            }
-        }
         Self {
             rot: [camera.rotation.col(0), camera.rotation.col(1), camera.rotation.col(2)],
             trans: camera.translation,
@@ -547,41 +512,11 @@ impl<'a> ViewContext<'a> {
             cy: k.cy as f32,
             w: camera.width as usize,
             h: camera.height as usize,
-            depth,
-            joins_right,
-            joins_down,
+            depth: RayDepth::new(depth, camera.width as usize, camera.height as usize, trunc),
             color: if config.with_color { color } else { None },
             voxel: config.voxel_size,
             trunc,
         }
-    }
-
-    /// The surface depth on the ray through continuous pixel coordinates `(u, v)` (pixel `pix`
-    /// holds them): the inverse depths of the four nearest pixel centres interpolated
-    /// bilinearly (exact on a plane, whose inverse depth is affine in the pixel coordinates)
-    /// where the four lie on one surface ([`joined`]), else the depth of `pix` alone (a depth
-    /// edge, which interpolation would bridge). The nearest pixel alone is off by up to half a
-    /// pixel's depth change: from synth-bunny's exact depths it left the fused floor and walls
-    /// a third of a voxel rough (docs/method.md §TSDF).
-    #[inline]
-    fn depth_at(&self, u: f32, v: f32, pix: usize) -> f32 {
-        let nearest = self.depth[pix];
-        let (x, y) = (u - 0.5, v - 0.5);
-        if !(x >= 0.0 && y >= 0.0) {
-            return nearest;
-        }
-        let (i, j) = (x as usize, y as usize);
-        if i + 1 >= self.w || j + 1 >= self.h {
-            return nearest;
-        }
-        let k = j * self.w + i;
-        if !(self.joins_right[k] && self.joins_right[k + self.w] && self.joins_down[k] && self.joins_down[k + 1]) {
-            return nearest;
-        }
-        let q = [self.depth[k], self.depth[k + 1], self.depth[k + self.w], self.depth[k + self.w + 1]];
-        let (a, b) = (x - i as f32, y - j as f32);
-        let inv = (1.0 - b) * ((1.0 - a) / q[0] + a / q[1]) + b * ((1.0 - a) / q[2] + a / q[3]);
-        1.0 / inv
     }
 
     fn update_block(&self, b: &mut Block) {
@@ -616,7 +551,7 @@ impl<'a> ViewContext<'a> {
                         continue;
                     }
                     let pix = (vv as usize) * self.w + u as usize;
-                    let d = self.depth_at(u, vv, pix);
+                    let d = self.depth.at(u, vv, pix);
                     if d <= 0.0 {
                         continue;
                     }

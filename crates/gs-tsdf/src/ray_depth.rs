@@ -1,0 +1,125 @@
+//! The depth a voxel reads from a view's depth map: the surface depth on the voxel's own ray
+//! (docs/method.md §TSDF), not the nearest pixel centre's, which is off by up to half a
+//! pixel's depth change (from synth-bunny's exact depths it left the fused floor and walls a
+//! median 0.1 voxel, 90th percentile 0.4, off their planes).
+
+/// A depth map (row-major, camera z, 0 = none) with, per pixel, whether it and its right /
+/// lower neighbour lie on one surface ([`joined`]).
+pub(crate) struct RayDepth<'a> {
+    depth: &'a [f32],
+    w: usize,
+    h: usize,
+    joins_right: Vec<bool>,
+    joins_down: Vec<bool>,
+}
+
+/// Whether neighbouring depths `a` and `b` lie on one surface, given the depths `before` `a`
+/// and `after` `b` on the same line (0 = none): both valid and either within `band` of each
+/// other or, further apart (a plane seen at a grazing angle), changing at the rate of their
+/// neighbours: each neighbouring step in inverse depth within half of theirs. A depth edge is
+/// a step that its neighbours do not share.
+fn joined(before: f32, a: f32, b: f32, after: f32, band: f32) -> bool {
+    if !(a > 0.0 && b > 0.0) {
+        return false;
+    }
+    if (b - a).abs() <= band {
+        return true;
+    }
+    let step = 1.0 / b - 1.0 / a;
+    let near = |d: f32| (d - step).abs() <= 0.5 * step.abs();
+    let left = (before > 0.0).then(|| near(1.0 / a - 1.0 / before));
+    let right = (after > 0.0).then(|| near(1.0 / after - 1.0 / b));
+    match (left, right) {
+        (None, None) => false,
+        (l, r) => l.unwrap_or(true) && r.unwrap_or(true),
+    }
+}
+
+impl<'a> RayDepth<'a> {
+    /// The `w × h` map `depth`; neighbours within `band` (the truncation) always join.
+    pub(crate) fn new(depth: &'a [f32], w: usize, h: usize, band: f32) -> Self {
+        let get = |x: isize, y: isize| {
+            if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h { depth[y as usize * w + x as usize] } else { 0.0 }
+        };
+        let mut joins_right = vec![false; w * h];
+        let mut joins_down = vec![false; w * h];
+        for y in 0..h as isize {
+            for x in 0..w as isize {
+                let k = y as usize * w + x as usize;
+                joins_right[k] = joined(get(x - 1, y), get(x, y), get(x + 1, y), get(x + 2, y), band);
+                joins_down[k] = joined(get(x, y - 1), get(x, y), get(x, y + 1), get(x, y + 2), band);
+            }
+        }
+        Self { depth, w, h, joins_right, joins_down }
+    }
+
+    /// The surface depth on the ray through continuous pixel coordinates `(u, v)` (pixel `pix`
+    /// holds them): the inverse depths of the four nearest pixel centres interpolated
+    /// bilinearly (exact on a plane, whose inverse depth is affine in the pixel coordinates)
+    /// where the four lie on one surface, else the depth of `pix` alone (a depth edge, which
+    /// interpolation would bridge).
+    #[inline]
+    pub(crate) fn at(&self, u: f32, v: f32, pix: usize) -> f32 {
+        let nearest = self.depth[pix];
+        let (x, y) = (u - 0.5, v - 0.5);
+        if !(x >= 0.0 && y >= 0.0) {
+            return nearest;
+        }
+        let (i, j) = (x as usize, y as usize);
+        if i + 1 >= self.w || j + 1 >= self.h {
+            return nearest;
+        }
+        let k = j * self.w + i;
+        if !(self.joins_right[k] && self.joins_right[k + self.w] && self.joins_down[k] && self.joins_down[k + 1]) {
+            return nearest;
+        }
+        let q = [self.depth[k], self.depth[k + 1], self.depth[k + self.w], self.depth[k + self.w + 1]];
+        let (a, b) = (x - i as f32, y - j as f32);
+        let inv = (1.0 - b) * ((1.0 - a) / q[0] + a / q[1]) + b * ((1.0 - a) / q[2] + a / q[3]);
+        1.0 / inv
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tilted plane's depth map (inverse depth affine in the pixel coordinates): every point
+    /// between pixel centres reads the plane's exact depth.
+    #[test]
+    fn a_plane_is_read_exactly_between_pixel_centres() {
+        let (w, h) = (8, 6);
+        let inv = |u: f32, v: f32| 0.2 + 0.03 * u - 0.01 * v;
+        let depth: Vec<f32> = (0..h).flat_map(|y| (0..w).map(move |x| 1.0 / inv(x as f32 + 0.5, y as f32 + 0.5))).collect();
+        let r = RayDepth::new(&depth, w, h, 0.01);
+        for (u, v) in [(1.3, 2.7), (4.2, 3.8), (6.9, 1.1)] {
+            let pix = v as usize * w + u as usize;
+            let d = r.at(u, v, pix);
+            assert!((d - 1.0 / inv(u, v)).abs() < 1e-5, "({u}, {v}): {d} vs {}", 1.0 / inv(u, v));
+            assert!((d - depth[pix]).abs() > 1e-3, "differs from the nearest pixel's depth");
+        }
+    }
+
+    /// A step between two flat levels is a depth edge: reads beside it take the nearest pixel's
+    /// depth, never a depth between the levels; a missing depth stops interpolation too.
+    #[test]
+    fn depth_edges_and_holes_are_not_bridged() {
+        let (w, h) = (8, 4);
+        let mut depth: Vec<f32> = (0..h).flat_map(|_| (0..w).map(|x| if x < 4 { 1.0 } else { 2.0 })).collect();
+        let r = RayDepth::new(&depth, w, h, 0.05);
+        for u in [3.2, 3.6, 4.4] {
+            let pix = w + u as usize;
+            assert_eq!(r.at(u, 1.5, pix), depth[pix], "u = {u}");
+        }
+        assert_eq!(r.at(1.7, 1.5, w + 1), 1.0);
+        depth[w + 2] = 0.0;
+        let r = RayDepth::new(&depth, w, h, 0.05);
+        assert_eq!(r.at(1.7, 1.5, w + 1), 1.0);
+        assert_eq!(r.at(2.2, 1.5, w + 2), 0.0, "a hole stays a hole");
+        assert!(joined(0.0, 1.0, 1.0, 0.0, 0.0), "equal depths join");
+        assert!(!joined(0.0, 1.0, 0.0, 1.0, 1.0), "a missing depth never joins");
+        // A grazing plane: steps far beyond the band but equal to the neighbours' join.
+        assert!(joined(1.0 / 0.5, 1.0 / 0.4, 1.0 / 0.3, 1.0 / 0.2, 0.01));
+        assert!(!joined(1.0 / 0.51, 1.0 / 0.5, 1.0 / 0.3, 1.0 / 0.29, 0.01), "a step its neighbours do not share");
+    }
+}
