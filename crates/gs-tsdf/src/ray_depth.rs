@@ -3,14 +3,14 @@
 //! pixel's depth change (from synth-bunny's exact depths it left the fused floor and walls a
 //! median 0.1 voxel, 90th percentile 0.4, off their planes).
 
-/// A depth map (row-major, camera z, 0 = none) with, per pixel, whether it and its right /
-/// lower neighbour lie on one surface ([`joined`]).
+/// A depth map (row-major, camera z, 0 = none) with its inverse depths and, per pixel, whether
+/// it and its right, lower and lower-right neighbours lie on one surface ([`joined`]).
 pub(crate) struct RayDepth<'a> {
     depth: &'a [f32],
     w: usize,
     h: usize,
-    joins_right: Vec<bool>,
-    joins_down: Vec<bool>,
+    inverse: Vec<f32>,
+    cell: Vec<bool>,
 }
 
 /// Whether neighbouring depths `a` and `b` lie on one surface, given the depths `before` `a`
@@ -50,7 +50,11 @@ impl<'a> RayDepth<'a> {
                 joins_down[k] = joined(get(x, y - 1), get(x, y), get(x, y + 1), get(x, y + 2), band);
             }
         }
-        Self { depth, w, h, joins_right, joins_down }
+        let cell = (0..w * h)
+            .map(|k| k % w + 1 < w && k / w + 1 < h && joins_right[k] && joins_right[k + w] && joins_down[k] && joins_down[k + 1])
+            .collect();
+        let inverse = depth.iter().map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 }).collect();
+        Self { depth, w, h, inverse, cell }
     }
 
     /// The surface depth on the ray through continuous pixel coordinates `(u, v)` (pixel `pix`
@@ -70,13 +74,14 @@ impl<'a> RayDepth<'a> {
             return nearest;
         }
         let k = j * self.w + i;
-        if !(self.joins_right[k] && self.joins_right[k + self.w] && self.joins_down[k] && self.joins_down[k + 1]) {
+        if !self.cell[k] {
             return nearest;
         }
-        let q = [self.depth[k], self.depth[k + 1], self.depth[k + self.w], self.depth[k + self.w + 1]];
+        let q = &self.inverse;
         let (a, b) = (x - i as f32, y - j as f32);
-        let inv = (1.0 - b) * ((1.0 - a) / q[0] + a / q[1]) + b * ((1.0 - a) / q[2] + a / q[3]);
-        1.0 / inv
+        let top = q[k] + a * (q[k + 1] - q[k]);
+        let bottom = q[k + self.w] + a * (q[k + self.w + 1] - q[k + self.w]);
+        1.0 / (top + b * (bottom - top))
     }
 }
 
