@@ -33,6 +33,11 @@ pub fn block_bytes(with_color: bool) -> u64 {
 /// this rounds that up by half.
 pub const EXTRACT_BYTES_PER_BLOCK: u64 = 12 * 1024;
 
+/// Bytes per pixel a view holds while it is integrated: its filtered depths and their copy for
+/// the median (8), the inverse depths read on each voxel's ray (4) and the surface-join flags
+/// (3; `ray_depth`). Added once, for the largest probed view, to the volume's bytes.
+pub const VIEW_BYTES_PER_PIXEL: u64 = 15;
+
 /// Peak memory of a fusion with a given number of blocks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MemoryEstimate {
@@ -75,12 +80,13 @@ pub struct BlockCensus {
     half: Vec<[i32; 3]>,
     probes: usize,
     half_probes: usize,
+    max_pixels: u64,
 }
 
 impl BlockCensus {
     /// An empty census for fusions with `config`.
     pub fn new(config: TsdfConfig) -> Result<Self> {
-        Ok(Self { probe: TsdfVolume::new(config)?, all: Vec::new(), half: Vec::new(), probes: 0, half_probes: 0 })
+        Ok(Self { probe: TsdfVolume::new(config)?, all: Vec::new(), half: Vec::new(), probes: 0, half_probes: 0, max_pixels: 0 })
     }
 
     /// Adds one probe view; the 1st, 3rd, 5th … probe also enter the half union (so probes
@@ -103,6 +109,7 @@ impl BlockCensus {
         }
         merge(&mut self.all, &keys)?;
         self.probes += 1;
+        self.max_pixels = self.max_pixels.max(camera.width as u64 * camera.height as u64);
         Ok(())
     }
 
@@ -121,9 +128,12 @@ impl BlockCensus {
         extrapolate_blocks(self.half.len() as u64, self.half_probes, self.all.len() as u64, self.probes, views)
     }
 
-    /// [`MemoryEstimate`] of fusing `views` views.
+    /// [`MemoryEstimate`] of fusing `views` views, the largest probed view's buffers
+    /// ([`VIEW_BYTES_PER_PIXEL`]) included in the volume's bytes.
     pub fn estimate(&self, views: usize) -> MemoryEstimate {
-        MemoryEstimate::for_blocks(self.estimate_blocks(views), self.probe.config().with_color)
+        let mut e = MemoryEstimate::for_blocks(self.estimate_blocks(views), self.probe.config().with_color);
+        e.volume_bytes = e.volume_bytes.saturating_add(self.max_pixels * VIEW_BYTES_PER_PIXEL);
+        e
     }
 }
 
