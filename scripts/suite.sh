@@ -22,7 +22,8 @@
 # Per scene: the GT-depth floor (`vagsl mesh SCENE --depth-dir SCENE/gt`, the same fusion as a
 # run's mesh, scored the same way), then `vagsl train SCENE --eval`, `vagsl mesh RUN`,
 # `vagsl eval-mesh --crop-to-gt 0.05 --min-z 0.005` (the object protocol) and
-# `vagsl eval-images RUN --json`. Generated scenes are cached under target/suite-scenes; a scene
+# `vagsl eval-images RUN --json` (the whole image, and `--seen-from SCENE/gt`: the pixels some
+# training view sees). Generated scenes are cached under target/suite-scenes; a scene
 # whose OUTDIR/NN-name/row.json exists is not run again (delete it to rerun). VAGSL=path picks
 # the binary (default target/release/vagsl, built if missing).
 set -euo pipefail
@@ -113,6 +114,7 @@ run_scene() {
   "$VAGSL" mesh "$D/run" --backend "$BACKEND" "${MESH_ARGS[@]}" >&2
   "$VAGSL" eval-mesh --pred "$D/run/mesh.ply" --gt "$SCENE/gt_mesh.ply" "${PROTOCOL[@]}" > "$D/eval_mesh.json"
   "$VAGSL" eval-images "$D/run" --json --backend "$BACKEND" > "$D/eval_images.json"
+  "$VAGSL" eval-images "$D/run" --json --no-lpips --seen-from "$SCENE/gt" --backend "$BACKEND" > "$D/eval_images_seen.json"
   t2=$(date +%s.%N)
   python3 - "$SCENE" "$D" "$t0" "$t1" "$t2" "$REMESH" <<'PY'
 import json, sys
@@ -120,15 +122,18 @@ scene, d, (t0, t1, t2), remesh = sys.argv[1], sys.argv[2], map(float, sys.argv[3
 load = lambda p: json.load(open(p))
 meta, floor, em = load(f"{scene}/scene.json"), load(f"{d}/floor/eval_mesh.json"), load(f"{d}/eval_mesh.json")
 ei, rep, mesh = load(f"{d}/eval_images.json"), load(f"{d}/run/report.json"), load(f"{d}/run/mesh.json")
+seen = load(f"{d}/eval_images_seen.json")["views"]
 fm, m = floor, em
 views = ei["views"]
 worst = min(views, key=lambda v: v["psnr"])
+worst_seen = min(seen, key=lambda v: v["psnr"])
 veils = [v for v in views if v.get("veil")]
 row = {
     "scene": d.rstrip("/").split("/")[-1], "views": meta["views"], "texture": meta["texture_strength"]["object"],
     "chamfer": m["chamfer"], "floor_chamfer": fm["chamfer"], "chamfer_ratio": m["chamfer"] / fm["chamfer"],
     "f1": m["f1"], "floor_f1": fm["f1"], "f1_ratio": m["f1"] / fm["f1"], "accuracy": m["accuracy"], "completeness": m["completeness"],
     "psnr": ei["psnr"], "worst_view": worst["name"], "worst_psnr": worst["psnr"],
+    "worst_seen_view": worst_seen["name"], "worst_seen_psnr": worst_seen["psnr"], "worst_seen_share": worst_seen["mask_fraction"],
     "veils": len(veils), "veil_views": [f'{v["name"]} ({v["veil"]["psnr_without"]:.1f} dB without)' for v in veils],
     "triangles": mesh["triangles"], "gaussians": rep["gaussians"], "train_seconds": rep["train_seconds"],
     # --remesh: the run's own training time plus this mesh and its scoring.
@@ -166,7 +171,8 @@ commit = subprocess.run(["git", "-C", os.environ["SUITE_ROOT"], "describe", "--a
 cols = [  # header, key, format, worst = max or min
     ("Chamfer", "chamfer", "{:.5f}", max), ("floor", "floor_chamfer", "{:.5f}", max), ("× floor", "chamfer_ratio", "{:.2f}", max),
     ("F1", "f1", "{:.3f}", min), ("floor F1", "floor_f1", "{:.3f}", min), ("F1 ÷ floor", "f1_ratio", "{:.3f}", min),
-    ("PSNR", "psnr", "{:.2f}", min), ("worst view", "worst_psnr", "{:.2f}", min), ("veils", "veils", "{:d}", max),
+    ("PSNR", "psnr", "{:.2f}", min), ("worst view", "worst_psnr", "{:.2f}", min), ("worst seen", "worst_seen_psnr", "{:.2f}", min),
+    ("veils", "veils", "{:d}", max),
     ("triangles", "triangles", "{:,}", max), ("Gaussians", "gaussians", "{:,}", max),
     ("train s", "train_seconds", "{:.0f}", max), ("total s", "total_seconds", "{:.0f}", max),
 ]
@@ -177,7 +183,8 @@ lines = [
     f"(RAYON_NUM_THREADS); load average {load0} at the start, {load1} at the end; {float(wall) / 60:.1f} min of wall time "
     "for the scenes run now. Object protocol: crop to the object's box + 5 %, floor (z < 0.005) removed, "
     "τ = 0.5 % of its diagonal; the floor is `vagsl mesh SCENE --depth-dir SCENE/gt` scored the same way. "
-    "PSNR: held-out views (every 8th); worst view = its lowest PSNR; veils = held-out views where "
+    "PSNR: held-out views (every 8th); worst view = its lowest PSNR; worst seen = the lowest PSNR over the pixels "
+    "some training view sees (`eval-images --seen-from SCENE/gt`), with that share of the view; veils = held-out views where "
     "`eval-images` names a veil. Times: train = the training loop; total = train + mesh + both evals.", "",
     "| scene | views | texture | " + " | ".join(c[0] for c in cols) + " |",
     "|---|---|---|" + "---|" * len(cols),
@@ -185,6 +192,7 @@ lines = [
 for r in rows:
     cells = [fmt(f, r[k]) for _, k, f, _ in cols]
     cells[7] = f'{r["worst_view"]} {r["worst_psnr"]:.2f}'
+    cells[8] = f'{r["worst_seen_view"]} {r["worst_seen_psnr"]:.2f} ({100 * r["worst_seen_share"]:.0f} %)'
     lines.append(f'| {r["scene"]} | {r["views"]} | {r["texture"]:.2f} | ' + " | ".join(cells) + " |")
 mean = [fmt(f.replace(":d", ":.1f").replace(":,", ":,.0f"), sum(r[k] for r in rows) / len(rows)) for _, k, f, _ in cols]
 lines.append("| **mean** | | | " + " | ".join(mean) + " |")

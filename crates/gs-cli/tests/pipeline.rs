@@ -164,12 +164,36 @@ fn builtin_scene_end_to_end() {
     let (ok, stdout, err) = vagsl(&["eval-images", o, "--json", "--masked", "--no-lpips"]);
     assert!(ok, "{err}");
     let mm: serde_json::Value = serde_json::from_str(&stdout).unwrap();
-    assert_eq!(mm["masked"], true);
+    assert_eq!(mm["scored"], "object_masks");
     let frac = mm["views"][0]["mask_fraction"].as_f64().unwrap();
     assert!(frac > 0.0 && frac < 1.0, "mask fraction {frac}");
     let masked_psnr = mm["psnr"].as_f64().unwrap();
     assert!(masked_psnr > 10.0 && masked_psnr < 60.0 && masked_psnr != psnr, "masked PSNR {masked_psnr} vs {psnr}");
     assert!(out.join("eval_images_masked.json").is_file());
+    // The pixels some training view sees, from the scene's exact depth maps: on the built-in
+    // ring nearly all of each held-out view, and a missing map is an error naming the view.
+    let built = gs_synth::generate(&gs_synth::BuiltinOptions::default()).unwrap();
+    let gt = dir.path().join("gt");
+    std::fs::create_dir_all(&gt).unwrap();
+    for (v, d) in built.scene.views.iter().zip(&built.gt_depth) {
+        gs_io::write_npy(&gt.join(format!("depth_{}.npy", v.name.trim_end_matches(".png"))), d).unwrap();
+    }
+    let (ok, stdout, err) = vagsl(&["eval-images", o, "--json", "--seen-from", gt.to_str().unwrap(), "--no-lpips"]);
+    assert!(ok, "{err}");
+    let ms: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(ms["scored"], "seen");
+    for v in ms["views"].as_array().unwrap() {
+        let frac = v["mask_fraction"].as_f64().unwrap();
+        assert!(frac > 0.9 && frac <= 1.0, "{}: {frac} of the image seen", v["name"]);
+    }
+    let seen_psnr = ms["psnr"].as_f64().unwrap();
+    assert!(seen_psnr > 10.0 && seen_psnr < 60.0, "seen PSNR {seen_psnr}");
+    assert!(out.join("eval_images_seen.json").is_file());
+    std::fs::remove_file(gt.join("depth_0008.npy")).unwrap();
+    let (ok, _, err) = vagsl(&["eval-images", o, "--seen-from", gt.to_str().unwrap(), "--no-lpips"]);
+    assert!(!ok && err.contains("no depth map for view '0008.png'") && err.contains("depth_0008.npy"), "{err}");
+    let (ok, _, err) = vagsl(&["eval-images", o, "--seen-from", gt.to_str().unwrap(), "--masked"]);
+    assert!(!ok && err.contains("cannot be used with"), "{err}");
 
     let (ok, stdout, err) = vagsl(&["eval-mesh", "--pred", out.join("mesh.ply").to_str().unwrap(), "--gt", out.join("mesh.ply").to_str().unwrap(), "--samples", "50000", "--json"]);
     assert!(ok, "{err}");

@@ -54,6 +54,7 @@
 pub mod atomic;
 pub mod capped;
 pub mod colmap;
+pub mod depth_dir;
 pub mod error;
 pub mod exr;
 pub mod integrity;
@@ -72,6 +73,7 @@ pub mod undistort;
 pub use atomic::{remove_stale_temps, write_atomic};
 pub use capped::{JSON_CAP, SETTINGS_CAP, read_capped};
 pub use colmap::{ColmapModel, read_model};
+pub use depth_dir::{depth_candidates, read_view_depth};
 pub use layout::{SceneLayout, SceneModel, detect_layout};
 pub use scene::{LoadOptions, MaskPolicy, Resolution, load_scene, mask_path, model_summary, read_scene_model};
 pub use error::{IoError, Result};

@@ -40,6 +40,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod analytic_scene;
+pub mod coverage;
 pub mod error;
 pub mod feature_alignment;
 pub mod geometry;
@@ -52,6 +53,7 @@ pub mod visibility;
 #[cfg(test)]
 mod testutil;
 
+pub use coverage::{DepthView, SEEN_DEPTH_TOLERANCE, seen_mask};
 pub use error::{MvsError, Result};
 pub use gs_core::float::Real;
 pub use feature_alignment::{

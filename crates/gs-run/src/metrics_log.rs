@@ -163,7 +163,7 @@ impl MetricsLog {
         {
             let mut lines = Vec::new();
             if !test.is_empty() {
-                let m = gs_train::evaluate_images(&tr.model(), rasterizer, test, None, false)?;
+                let m = gs_train::evaluate_images(&tr.model(), rasterizer, test, None, gs_train::PixelMasks::None)?;
                 lines.push(json!({ "iteration": r.iteration, "seconds": seconds, "heldout_psnr": m.psnr, "heldout_ssim": m.ssim }));
             }
             if let Some(track) = &self.mesh_track {

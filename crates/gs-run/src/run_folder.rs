@@ -8,7 +8,7 @@ use crate::error::{Context, Result, RunError, refuse};
 use std::path::Path;
 
 /// The files vagsl writes into a run folder: `train` (configuration, model, report,
-/// checkpoint, exposure, curves), `mesh` (mesh and its report), `eval-images` (its four score
+/// checkpoint, exposure, curves), `mesh` (mesh and its report), `eval-images` (its six score
 /// files), `eval-mesh` (its scores of the run's mesh), `view` (the report page) and `export`
 /// (its index of the run's exports, [`crate::provenance::EXPORTS_INDEX`]).
 pub const RUN_FILES: &[&str] = &[
@@ -24,6 +24,8 @@ pub const RUN_FILES: &[&str] = &[
     "eval_images_train.json",
     "eval_images_masked.json",
     "eval_images_train_masked.json",
+    "eval_images_seen.json",
+    "eval_images_train_seen.json",
     "eval_mesh.json",
     "report.html",
     "exports.json",

@@ -73,7 +73,7 @@ impl LossDevices {
         #[cfg(feature = "wgpu")]
         {
             if self.photometric.is_some() {
-                on.push("L_p");
+                on.push(crate::terms::term_name::PHOTOMETRIC);
             }
             if self.ssim.is_some() {
                 on.push("D-SSIM");

@@ -1,5 +1,6 @@
 //! Image metrics of a trained model on chosen views (docs/method.md §Metrics): PSNR, SSIM and
-//! LPIPS-alex, on whole images or on the object inside each view's mask.
+//! LPIPS-alex, on whole images, on the object inside each view's mask, or on the pixels some
+//! training view sees.
 
 use crate::error::{Result, TrainError};
 use crate::model::TrainedModel;
@@ -19,7 +20,7 @@ pub struct ViewMetrics {
     pub ssim: f64,
     /// LPIPS-alex v0.1 (when computed).
     pub lpips: Option<f64>,
-    /// Fraction of the image inside the view's mask (masked evaluation only).
+    /// Fraction of the image scored (masked evaluations only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mask_fraction: Option<f64>,
     /// Splats close in front of the camera that cover much of the image (a veil), when
@@ -44,7 +45,7 @@ pub struct Veil {
     pub splats: usize,
     /// Share of the image where those splats alone accumulate alpha ≥ 0.5.
     pub cover: f64,
-    /// PSNR of the view rendered without them (whole image, or inside the mask when masked).
+    /// PSNR of the view rendered without them, over the pixels scored.
     pub psnr_without: f64,
 }
 
@@ -76,32 +77,93 @@ pub struct ImageMetrics {
     pub ssim: f64,
     /// Mean LPIPS.
     pub lpips: Option<f64>,
-    /// True when the metrics are of the object inside each view's mask: PSNR over the mask's
-    /// pixels, SSIM and LPIPS of render and photo both composited on black outside it.
-    pub masked: bool,
+    /// Which pixels were scored.
+    pub scored: Scored,
+}
+
+/// Which pixels of a view [`evaluate_images`] scores. Masked kinds score PSNR over the mask's
+/// pixels, SSIM and LPIPS of render and photo both composited on black outside it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scored {
+    /// The whole image.
+    Whole,
+    /// The object inside each view's mask (SCENE/masks/<stem>.png): the masked protocol of
+    /// DTU novel-view benchmarks.
+    ObjectMasks,
+    /// The pixels whose surface some training view sees, from exact depth maps
+    /// ([`gs_mvs::seen_mask`]): what any reconstruction from the training views can know.
+    Seen,
+}
+
+impl Scored {
+    /// The pixels in words, for a mean's line: empty for the whole image.
+    pub fn describe(&self) -> &'static str {
+        match self {
+            Scored::Whole => "",
+            Scored::ObjectMasks => " (inside the masks)",
+            Scored::Seen => " (pixels some training view sees)",
+        }
+    }
+}
+
+/// The masks of a masked evaluation: each view's object mask, or one given mask per scored
+/// view (in the order of the views).
+#[derive(Debug, Clone, Copy)]
+pub enum PixelMasks<'a> {
+    /// Every pixel.
+    None,
+    /// Each view's own object mask.
+    Object,
+    /// [`Scored::Seen`] masks, one per scored view.
+    Seen(&'a [Image]),
+}
+
+impl PixelMasks<'_> {
+    /// What these masks score.
+    pub fn scored(&self) -> Scored {
+        match self {
+            PixelMasks::None => Scored::Whole,
+            PixelMasks::Object => Scored::ObjectMasks,
+            PixelMasks::Seen(_) => Scored::Seen,
+        }
+    }
+
+    /// The mask of the `k`-th scored view (scene view `view`): `None` for whole images, an
+    /// error naming the view when it has no object mask or no given one.
+    pub fn of<'v>(&'v self, view: &'v gs_core::View, k: usize) -> Result<Option<&'v Image>> {
+        match self {
+            PixelMasks::None => Ok(None),
+            PixelMasks::Object => view_mask(view).map(Some),
+            PixelMasks::Seen(m) => m.get(k).map(Some).ok_or_else(|| {
+                TrainError::InvalidScene(format!("view {}: no seen-pixel mask given ({} for the scored views)", view.name, m.len()))
+            }),
+        }
+    }
 }
 
 /// Renders `views` (indices into the model's scene) and scores them against their images (PSNR, SSIM and, with `lpips`,
-/// LPIPS-alex). Rendered colours are clamped to [0, 1] as an 8-bit export would be. With
-/// `masked` every view needs a mask and only the object inside it is scored (see
-/// [`ImageMetrics::masked`]); a view without one is an error naming it.
+/// LPIPS-alex). Rendered colours are clamped to [0, 1] as an 8-bit export would be. `masks`
+/// picks the pixels scored ([`PixelMasks`]); a view without its mask is an error naming it.
 pub fn evaluate_images(
     model: &TrainedModel<'_>,
     rasterizer: &mut Rasterizer,
     views: &[usize],
     lpips: Option<&Lpips>,
-    masked: bool,
+    masks: PixelMasks<'_>,
 ) -> Result<ImageMetrics> {
     if views.is_empty() {
         return Err(TrainError::InvalidScene("no views to evaluate (train with --eval to hold out test views)".into()));
     }
     let req = RenderRequest { color: true, alpha: false, ..RenderRequest::default() };
     let mut out = Vec::with_capacity(views.len());
-    for &i in views {
+    for (k, &i) in views.iter().enumerate() {
+        let view = model.scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
+        let mask = masks.of(view, k)?;
         let mut img: Image = model.render(rasterizer, i, &req)?.color.expect("requested");
         img.data_mut().iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
-        let mut m = score_view(&model.scene.views[i], &img, lpips, masked)?;
-        m.veil = find_veil(model, rasterizer, i, masked)?;
+        let mut m = score_view(view, &img, lpips, mask)?;
+        m.veil = find_veil(model, rasterizer, i, mask)?;
         out.push(m);
     }
     let k = out.len() as f64;
@@ -110,32 +172,60 @@ pub fn evaluate_images(
         ssim: out.iter().map(|v| v.ssim).sum::<f64>() / k,
         lpips: lpips.map(|_| out.iter().filter_map(|v| v.lpips).sum::<f64>() / k),
         views: out,
-        masked,
+        scored: masks.scored(),
     })
 }
 
+/// [`Scored::Seen`] masks of `views` (indices into the model's scene), in order: a pixel counts
+/// where its surface, from the exact depth map `depth` returns for its view, is held by the
+/// depth map of some training view ([`gs_mvs::seen_mask`], within
+/// [`gs_mvs::SEEN_DEPTH_TOLERANCE`]). A training view among `views` sees itself. The training
+/// views' maps are read once and kept.
+pub fn seen_masks(
+    model: &TrainedModel<'_>,
+    views: &[usize],
+    depth: &mut dyn FnMut(&gs_core::View) -> Result<Image>,
+) -> Result<Vec<Image>> {
+    let scene_view = |i: usize| model.scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")));
+    let witness_maps: Vec<Image> = model.train.iter().map(|&t| depth(scene_view(t)?)).collect::<Result<_>>()?;
+    let witnesses: Vec<gs_mvs::DepthView<'_>> = model
+        .train
+        .iter()
+        .zip(&witness_maps)
+        .map(|(&t, d)| Ok(gs_mvs::DepthView { camera: &scene_view(t)?.camera, depth: d }))
+        .collect::<Result<_>>()?;
+    views
+        .iter()
+        .map(|&i| {
+            let v = scene_view(i)?;
+            let d = depth(v)?;
+            gs_mvs::seen_mask(gs_mvs::DepthView { camera: &v.camera, depth: &d }, &witnesses, gs_mvs::SEEN_DEPTH_TOLERANCE)
+                .map_err(|e| TrainError::InvalidScene(format!("view {}: {e}", v.name)))
+        })
+        .collect()
+}
+
 /// Scores one render (colours already clamped to [0, 1]) against its view's photo: PSNR, SSIM
-/// and, with `lpips`, LPIPS-alex; with `masked` only the object inside the view's mask (an
-/// error naming the view when it has none). [`evaluate_images`] calls this for every view; a
-/// caller that keeps its renders (the report page) calls it directly.
-pub fn score_view(view: &gs_core::View, img: &Image, lpips: Option<&Lpips>, masked: bool) -> Result<ViewMetrics> {
-    if !masked {
+/// and, with `lpips`, LPIPS-alex; with a `mask` only the pixels inside it (see [`Scored`]).
+/// [`evaluate_images`] calls this for every view; a caller that keeps its renders (the report
+/// page) calls it directly.
+pub fn score_view(view: &gs_core::View, img: &Image, lpips: Option<&Lpips>, mask: Option<&Image>) -> Result<ViewMetrics> {
+    let Some(mask) = mask else {
         return Ok(ViewMetrics {
             name: view.name.clone(),
-            psnr: view_psnr(view, img, false)?,
+            psnr: view_psnr(view, img, None)?,
             ssim: ssim_metric(img, &view.image)?,
             lpips: lpips.map(|l| l.distance(img, &view.image)).transpose()?,
             mask_fraction: None,
             veil: None,
         });
-    }
-    let mask = view_mask(view)?;
+    };
     let named = |e: gs_losses::LossError| mask_error(view, e);
     let (render_obj, photo_obj) =
         (gs_losses::masked_on_black(img, mask).map_err(named)?, gs_losses::masked_on_black(&view.image, mask).map_err(named)?);
     Ok(ViewMetrics {
         name: view.name.clone(),
-        psnr: view_psnr(view, img, true)?,
+        psnr: view_psnr(view, img, Some(mask))?,
         ssim: ssim_metric(&render_obj, &photo_obj)?,
         lpips: lpips.map(|l| l.distance(&render_obj, &photo_obj)).transpose()?,
         mask_fraction: Some(mask.data().iter().filter(|m| **m >= 0.5).count() as f64 / mask.data().len() as f64),
@@ -143,13 +233,13 @@ pub fn score_view(view: &gs_core::View, img: &Image, lpips: Option<&Lpips>, mask
     })
 }
 
-/// PSNR of a render against its view's photo: the whole image, or with `masked` the pixels
-/// inside the view's mask (SSIM and LPIPS are left to [`score_view`]).
-fn view_psnr(view: &gs_core::View, img: &Image, masked: bool) -> Result<f64> {
-    if !masked {
-        return Ok(psnr(img, &view.image)?);
+/// PSNR of a render against its view's photo: the whole image, or the pixels inside `mask`
+/// (SSIM and LPIPS are left to [`score_view`]).
+fn view_psnr(view: &gs_core::View, img: &Image, mask: Option<&Image>) -> Result<f64> {
+    match mask {
+        None => Ok(psnr(img, &view.image)?),
+        Some(m) => gs_losses::psnr_masked(img, &view.image, m).map_err(|e| mask_error(view, e)),
     }
-    gs_losses::psnr_masked(img, &view.image, view_mask(view)?).map_err(|e| mask_error(view, e))
 }
 
 /// The view's object mask, or an error naming the view when it has none.
@@ -167,7 +257,7 @@ fn mask_error(view: &gs_core::View, e: gs_losses::LossError) -> TrainError {
 /// The [`Veil`] in front of scene view `view`, if one covers at least [`VEIL_MIN_COVER`] of its
 /// image: the splats within ρ of its camera are rendered alone (their coverage) and the rest
 /// without them (the score they cost). `None` when no other training camera sets ρ.
-pub fn find_veil(model: &TrainedModel<'_>, rasterizer: &mut Rasterizer, view: usize, masked: bool) -> Result<Option<Veil>> {
+pub fn find_veil(model: &TrainedModel<'_>, rasterizer: &mut Rasterizer, view: usize, mask: Option<&Image>) -> Result<Option<Veil>> {
     let v = model.scene.views.get(view).ok_or_else(|| TrainError::InvalidScene(format!("view index {view} out of range")))?;
     let centre = v.camera.center();
     let nearest = model
@@ -207,7 +297,7 @@ pub fn find_veil(model: &TrainedModel<'_>, rasterizer: &mut Rasterizer, view: us
     let color_req = RenderRequest { color: true, alpha: false, ..RenderRequest::default() };
     let mut img = rasterizer.render(&rest, &v.camera, &color_req, model.raster)?.color.expect("requested");
     img.data_mut().iter_mut().for_each(|c| *c = c.clamp(0.0, 1.0));
-    let psnr_without = view_psnr(v, &img, masked)?;
+    let psnr_without = view_psnr(v, &img, mask)?;
     Ok(Some(Veil { radius, splats, cover, psnr_without }))
 }
 
@@ -252,14 +342,14 @@ mod tests {
         }
         let veiled = model_of(&scene, 20);
         let model = |g| TrainedModel { scene: &scene, train: &train, test: &test, raster: &raster, extent: 1.0, gaussians: g };
-        let m = evaluate_images(&model(&veiled), &mut r, &test, None, false).unwrap();
+        let m = evaluate_images(&model(&veiled), &mut r, &test, None, PixelMasks::None).unwrap();
         let v = m.views[0].veil.expect("the veil over view 0 is reported");
         assert!(v.splats >= 20 && v.cover > 0.9, "{v:?}");
         assert!(v.radius > 0.2 && v.radius < 2.0, "{v:?}");
         assert!(m.views[1].veil.is_none(), "view 8 has no veil: {:?}", m.views[1].veil);
         // Without the veil the view is (nearly) the photo; with it, far from it.
         assert!(m.views[0].psnr < 20.0 && v.psnr_without > 40.0, "{} dB, {} dB without the veil", m.views[0].psnr, v.psnr_without);
-        let c = evaluate_images(&model(&clean), &mut r, &test, None, false).unwrap();
+        let c = evaluate_images(&model(&clean), &mut r, &test, None, PixelMasks::None).unwrap();
         assert!(c.views.iter().all(|v| v.veil.is_none()), "{:?}", c.views);
         assert!(v.describe().contains("cover 100 %") || v.describe().contains("cover 9"), "{}", v.describe());
     }

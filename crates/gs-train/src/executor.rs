@@ -170,14 +170,7 @@ impl Trainer<'_> {
 /// The loss values in words, for an error message.
 fn describe(v: &LossValues) -> String {
     let mut s = format!("L1 {}, SSIM {}", v.l1, v.ssim);
-    for (name, x) in [
-        ("edge", v.edge),
-        ("L_nc", v.normal_consistency),
-        ("L_ns", v.normal_smoothing),
-        ("L_p", v.photometric),
-        ("L_f", v.features),
-        ("L_o", v.opacity_entropy),
-    ] {
+    for (name, x) in v.optional_terms() {
         if let Some(x) = x {
             s.push_str(&format!(", {name} {x}"));
         }

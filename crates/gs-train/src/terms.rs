@@ -23,6 +23,25 @@ use gs_mvs::{
 use gs_raster::{OutputGradients, RenderOutput};
 use serde::Serialize;
 
+/// The names of the optional terms in words, in the order of L (docs/method.md §Losses): the one
+/// source for summaries, profiles and error messages.
+pub mod term_name {
+    /// The edge term β2·L1(∇Ĩ, ∇I) of L_I.
+    pub const EDGE: &str = "edge";
+    /// Normal consistency.
+    pub const NORMAL_CONSISTENCY: &str = "L_nc";
+    /// Normal smoothing.
+    pub const NORMAL_SMOOTHING: &str = "L_ns";
+    /// Multi-view photometric alignment.
+    pub const PHOTOMETRIC: &str = "L_p";
+    /// Multi-view feature alignment.
+    pub const FEATURES: &str = "L_f";
+    /// The opacity entropy.
+    pub const OPACITY: &str = "L_o";
+    /// The edge weight of L_nc and L_ns.
+    pub const DELTA: &str = "δ";
+}
+
 /// Loss values of one iteration (unweighted terms; `None` when the term was off).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct LossValues {
@@ -44,6 +63,20 @@ pub struct LossValues {
     pub opacity_entropy: Option<f64>,
     /// The weighted total L.
     pub total: f64,
+}
+
+impl LossValues {
+    /// The optional terms' values by name ([`term_name`]), in the order of L.
+    pub fn optional_terms(&self) -> [(&'static str, Option<f64>); 6] {
+        [
+            (term_name::EDGE, self.edge),
+            (term_name::NORMAL_CONSISTENCY, self.normal_consistency),
+            (term_name::NORMAL_SMOOTHING, self.normal_smoothing),
+            (term_name::PHOTOMETRIC, self.photometric),
+            (term_name::FEATURES, self.features),
+            (term_name::OPACITY, self.opacity_entropy),
+        ]
+    }
 }
 
 impl LossWeights {

@@ -312,7 +312,7 @@ impl<'s> Trainer<'s> {
     /// the whole images, with this trainer's rasterizer.
     pub fn evaluate_images(&mut self, views: &[usize], lpips: Option<&gs_losses::Lpips>) -> Result<crate::ImageMetrics> {
         let (model, rasterizer) = self.model_and_rasterizer();
-        crate::evaluate::evaluate_images(&model, rasterizer, views, lpips, false)
+        crate::evaluate::evaluate_images(&model, rasterizer, views, lpips, crate::PixelMasks::None)
     }
 
     /// The rasterizer settings used for training (and for rendering the result).

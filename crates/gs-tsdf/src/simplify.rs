@@ -181,11 +181,6 @@ pub const SEAM_SHARE_FIRST: f32 = 2.0 / 3.0;
 /// Smallest cell side of [`collapse_in_cells`], in mean edge lengths of the mesh.
 pub const CELL_EDGES: f64 = 32.0;
 
-/// Euclidean distance of two points, f64.
-fn dist(a: [f32; 3], b: [f32; 3]) -> f64 {
-    (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum::<f64>().sqrt()
-}
-
 /// Edge collapses of the triangles `indices` (over `positions`) within `bound`, leaving the
 /// `locked` vertices in place, run cell by cell. meshoptimizer measures a collapse's error with
 /// quadrics in f32 over coordinates normalised to the extent of what it is given; a bound a
@@ -201,7 +196,8 @@ fn dist(a: [f32; 3], b: [f32; 3]) -> f64 {
 fn collapse_in_cells(indices: Vec<u32>, positions: &[[f32; 3]], locked: &[bool], bound: f32) -> Result<(Vec<u32>, f32)> {
     // At least CELL_EDGES typical edges across, so that a coarse mesh under a tight bound is
     // not all seams.
-    let edges: f64 = indices.chunks_exact(3).map(|t| dist(positions[t[0] as usize], positions[t[1] as usize])).sum();
+    let at = |v: u32| gs_core::glam::Vec3::from(positions[v as usize]).as_dvec3();
+    let edges: f64 = indices.chunks_exact(3).map(|t| at(t[0]).distance(at(t[1]))).sum();
     let mean_edge = edges / (indices.len() / 3).max(1) as f64;
     let side = (bound as f64 * CELL_BOUNDS).max(CELL_EDGES * mean_edge).max(f64::MIN_POSITIVE);
     let adapter = meshopt::VertexDataAdapter::new(meshopt::typed_to_bytes(positions), 12, 0)

@@ -25,6 +25,13 @@ pub struct EvalImagesArgs {
     /// eval_images_masked.json.
     #[arg(long)]
     pub masked: bool,
+    /// Score only the pixels whose surface some training view sees, judged from exact depth
+    /// maps in DIR (one per view, named as for `vagsl mesh --depth-dir`, e.g. a synthetic
+    /// scene's `gt/`): where no training view saw the surface, no reconstruction can know its
+    /// colour. PSNR over those pixels, SSIM and LPIPS on black outside them; the share scored
+    /// is printed. Written to eval_images_seen.json.
+    #[arg(long, value_name = "DIR", conflicts_with = "masked")]
+    pub seen_from: Option<PathBuf>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -35,7 +42,8 @@ pub struct EvalImagesArgs {
 
 /// Runs `vagsl eval-images`; writes RUN/eval_images.json.
 pub fn run(args: &EvalImagesArgs) -> Result<()> {
-    let file = format!("eval_images{}{}.json", if args.train { "_train" } else { "" }, if args.masked { "_masked" } else { "" });
+    let pixels = if args.masked { "_masked" } else if args.seen_from.is_some() { "_seen" } else { "" };
+    let file = format!("eval_images{}{pixels}.json", if args.train { "_train" } else { "" });
     // A link, device or folder in the scores' place is refused before the work; a read-only
     // run folder is not (the scores are printed first).
     gs_io::check_output_path(&args.run.join(&file))?;
@@ -44,18 +52,31 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
     let model = run.model();
     let views = if args.train { model.train } else { model.test };
     let mut rasterizer = super::rasterizer(args.backend)?;
-    let metrics = gs_train::evaluate_images(&model, &mut rasterizer, views, lpips.as_ref(), args.masked)?;
+    let seen = match &args.seen_from {
+        Some(dir) => {
+            let mut read = |v: &gs_core::View| gs_io::read_view_depth(dir, &v.name).map_err(|e| gs_train::TrainError::InvalidScene(e.to_string()));
+            Some(gs_train::seen_masks(&model, views, &mut read)?)
+        }
+        None => None,
+    };
+    let masks = match (&seen, args.masked) {
+        (Some(m), _) => gs_train::PixelMasks::Seen(m),
+        (None, true) => gs_train::PixelMasks::Object,
+        (None, false) => gs_train::PixelMasks::None,
+    };
+    let metrics = gs_train::evaluate_images(&model, &mut rasterizer, views, lpips.as_ref(), masks)?;
     // Scores first: a read-only run folder must not cost the numbers just computed.
     if args.json {
         println!("{}", serde_json::to_string_pretty(&metrics)?);
     } else {
         for v in &metrics.views {
             println!(
-                "{:<24} PSNR {:6.2}  SSIM {:.4}{}",
+                "{:<24} PSNR {:6.2}  SSIM {:.4}{}{}",
                 v.name,
                 v.psnr,
                 v.ssim,
-                v.lpips.map_or(String::new(), |l| format!("  LPIPS {l:.4}"))
+                v.lpips.map_or(String::new(), |l| format!("  LPIPS {l:.4}")),
+                v.mask_fraction.map_or(String::new(), |f| format!("  ({:.1} % of the image)", 100.0 * f))
             );
             if let Some(veil) = &v.veil {
                 println!("{:<24} {}", "", veil.describe());
@@ -64,7 +85,7 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
         println!(
             "mean over {} views{}: PSNR {:.2} dB, SSIM {:.4}{}",
             metrics.views.len(),
-            if args.masked { " (inside the masks)" } else { "" },
+            metrics.scored.describe(),
             metrics.psnr,
             metrics.ssim,
             metrics.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))

@@ -93,22 +93,6 @@ pub struct MeshArgs {
     pub max_memory: Option<u64>,
 }
 
-/// The depth map of view `name` in `dir` (see [`MeshArgs::depth_dir`]).
-fn read_depth(dir: &Path, name: &str) -> Result<gs_core::Image> {
-    let stem = Path::new(name).file_stem().map_or(name.to_string(), |s| s.to_string_lossy().into_owned());
-    for cand in [format!("{stem}.exr"), format!("{stem}_depth.exr"), format!("depth_{stem}.npy"), format!("{stem}.npy")] {
-        let p = dir.join(&cand);
-        if p.is_file() {
-            let img = if cand.ends_with(".exr") { gs_io::read_exr(&p)? } else { gs_io::read_npy(&p)? };
-            if img.channels() != 1 {
-                bail!("{}: a depth map has 1 channel, this one has {}", p.display(), img.channels());
-            }
-            return Ok(img);
-        }
-    }
-    bail!("{}: no depth map for view '{name}' (looked for {stem}.exr, {stem}_depth.exr, depth_{stem}.npy, {stem}.npy)", dir.display())
-}
-
 /// `--bounds XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX`.
 fn parse_bounds(s: &str) -> std::result::Result<gs_tsdf::Aabb, String> {
     let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|e| format!("'{s}': {e}"))?;
@@ -190,7 +174,7 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         Some(dir) => {
             let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
             let views: Vec<usize> = (0..scene.views.len()).collect();
-            let mut read = |v: &gs_core::View| read_depth(dir, &v.name).map_err(|e| gs_train::TrainError::InvalidScene(format!("{e:#}")));
+            let mut read = |v: &gs_core::View| gs_io::read_view_depth(dir, &v.name).map_err(|e| gs_train::TrainError::InvalidScene(format!("{e:#}")));
             let (mesh, report) = fuse_mesh(&scene, &views, DepthSource::Given(&mut read), &opts)?;
             (mesh, report, None)
         }

@@ -55,8 +55,8 @@ pub fn run(args: &ViewArgs) -> Result<()> {
             let out = model.render(&mut rasterizer, i, &req)?;
             let mut color = out.color.expect("requested");
             color.data_mut().iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
-            let m = gs_train::score_view(view, &color, lpips.as_ref(), false)?;
-            let veil = gs_train::find_veil(&model, &mut rasterizer, i, false)?;
+            let m = gs_train::score_view(view, &color, lpips.as_ref(), None)?;
+            let veil = gs_train::find_veil(&model, &mut rasterizer, i, None)?;
             if split == "test" {
                 test_psnr.push(m.psnr);
             }

@@ -91,6 +91,20 @@ impl Default for LossSwitches {
 }
 
 impl LossSwitches {
+    /// The geometry terms that run after the warm-up to the last iteration, by name
+    /// ([`term_name`](crate::terms::term_name)).
+    pub fn geometry_terms(&self) -> [(&'static str, bool); 3] {
+        use crate::terms::term_name as n;
+        [(n::EDGE, self.edge), (n::NORMAL_CONSISTENCY, self.normal_consistency), (n::NORMAL_SMOOTHING, self.normal_smoothing)]
+    }
+
+    /// Every switch by name, in the order of L, δ last.
+    pub fn named(&self) -> [(&'static str, bool); 6] {
+        use crate::terms::term_name as n;
+        let [edge, nc, ns] = self.geometry_terms();
+        [edge, nc, ns, (n::PHOTOMETRIC, self.photometric), (n::FEATURES, self.features), (n::DELTA, self.delta)]
+    }
+
     /// Only L_I's L1 + D-SSIM (≈ 3DGS).
     pub fn image_only() -> Self {
         Self { edge: false, normal_consistency: false, normal_smoothing: false, photometric: false, features: false, delta: true }

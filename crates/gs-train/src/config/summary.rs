@@ -2,6 +2,7 @@
 //! terms, and every setting that differs from the preset it started from.
 
 use super::TrainConfig;
+use crate::terms::term_name;
 
 impl TrainConfig {
     /// A one-paragraph description for people (no Rust syntax).
@@ -26,17 +27,7 @@ impl TrainConfig {
         if c2f.levels > 0 && c2f.until > 0 {
             s.push_str(&format!("; coarse-to-fine from 1/{} size to full by {}", 1u32 << c2f.levels, c2f.until));
         }
-        let off: Vec<&str> = [
-            (l.edge, "edge"),
-            (l.normal_consistency, "L_nc"),
-            (l.normal_smoothing, "L_ns"),
-            (l.photometric, "L_p"),
-            (l.features, "L_f"),
-            (l.delta, "δ"),
-        ]
-        .into_iter()
-        .filter_map(|(on, name)| (!on).then_some(name))
-        .collect();
+        let off: Vec<&str> = l.named().into_iter().filter_map(|(name, on)| (!on).then_some(name)).collect();
         if !off.is_empty() {
             s.push_str(&format!("; off: {}", off.join(", ")));
         }
@@ -53,27 +44,28 @@ impl TrainConfig {
     fn phases_after_warmup(&self) -> String {
         let l = &self.losses;
         let n = self.iterations;
-        let geometry: Vec<&str> =
-            [(l.edge, "edge"), (l.normal_consistency, "L_nc"), (l.normal_smoothing, "L_ns"), (self.weights.lambda_o > 0.0, "L_o")]
+        let geometry: Vec<&str> = l
+            .geometry_terms()
             .into_iter()
-            .filter_map(|(on, name)| on.then_some(name))
+            .chain([(term_name::OPACITY, self.weights.lambda_o > 0.0)])
+            .filter_map(|(name, on)| on.then_some(name))
             .collect();
         let p_end = self.photometric_end.min(n);
         let photometric = l.photometric && p_end > self.warmup_end;
         let features = self.has_feature_phase() && p_end < n;
         let mut parts = Vec::new();
         if photometric && p_end == n {
-            parts.push(format!("{} to {n}", [geometry.as_slice(), &["L_p"]].concat().join(" + ")));
+            parts.push(format!("{} to {n}", [geometry.as_slice(), &[term_name::PHOTOMETRIC]].concat().join(" + ")));
         } else {
             if !geometry.is_empty() {
                 parts.push(format!("{} to {n}", geometry.join(" + ")));
             }
             if photometric {
-                parts.push(format!("L_p to {p_end}"));
+                parts.push(format!("{} to {p_end}", term_name::PHOTOMETRIC));
             }
             if features {
-                let with_p = if self.overlap_mv && l.photometric { " + L_p" } else { "" };
-                parts.push(format!("L_f{with_p} from {p_end} to {}", self.features_end.min(n)));
+                let with_p = if self.overlap_mv && l.photometric { format!(" + {}", term_name::PHOTOMETRIC) } else { String::new() };
+                parts.push(format!("{}{with_p} from {p_end} to {}", term_name::FEATURES, self.features_end.min(n)));
             }
         }
         if parts.is_empty() { String::new() } else { format!(", then {}", parts.join(", ")) }
