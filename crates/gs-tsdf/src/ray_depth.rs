@@ -16,21 +16,21 @@ pub(crate) struct RayDepth<'a> {
 }
 
 /// Whether neighbouring depths `a` and `b` lie on one surface, given the depths `before` `a`
-/// and `after` `b` on the same line (0 = none): both valid and either within `band` of each
-/// other or, further apart (a plane seen at a grazing angle), changing at the rate of their
-/// neighbours: each neighbouring step in inverse depth within half of theirs. A depth edge is
-/// a step that its neighbours do not share.
-fn joined(before: f32, a: f32, b: f32, after: f32, band: f32) -> bool {
-    if !(a > 0.0 && b > 0.0) {
+/// and `after` `b` on the same line (each a `(depth, inverse depth)` pair; depth 0 = none):
+/// both valid and either within `band` of each other or, further apart (a plane seen at a
+/// grazing angle), changing at the rate of their neighbours: each neighbouring step in inverse
+/// depth within half of theirs. A depth edge is a step that its neighbours do not share.
+fn joined(before: (f32, f32), a: (f32, f32), b: (f32, f32), after: (f32, f32), band: f32) -> bool {
+    if !(a.0 > 0.0 && b.0 > 0.0) {
         return false;
     }
-    if (b - a).abs() <= band {
+    if (b.0 - a.0).abs() <= band {
         return true;
     }
-    let step = 1.0 / b - 1.0 / a;
+    let step = b.1 - a.1;
     let near = |d: f32| (d - step).abs() <= 0.5 * step.abs();
-    let left = (before > 0.0).then(|| near(1.0 / a - 1.0 / before));
-    let right = (after > 0.0).then(|| near(1.0 / after - 1.0 / b));
+    let left = (before.0 > 0.0).then(|| near(a.1 - before.1));
+    let right = (after.0 > 0.0).then(|| near(after.1 - b.1));
     match (left, right) {
         (None, None) => false,
         (l, r) => l.unwrap_or(true) && r.unwrap_or(true),
@@ -40,8 +40,14 @@ fn joined(before: f32, a: f32, b: f32, after: f32, band: f32) -> bool {
 impl<'a> RayDepth<'a> {
     /// The `w × h` map `depth`; neighbours within `band` (the truncation) always join.
     pub(crate) fn new(depth: &'a [f32], w: usize, h: usize, band: f32) -> Self {
+        let inverse: Vec<f32> = depth.par_iter().map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 }).collect();
         let get = |x: isize, y: isize| {
-            if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h { depth[y as usize * w + x as usize] } else { 0.0 }
+            if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
+                let k = y as usize * w + x as usize;
+                (depth[k], inverse[k])
+            } else {
+                (0.0, 0.0)
+            }
         };
         // Per pixel: (joins its right neighbour, joins its lower neighbour), rows in parallel.
         let joins: Vec<(bool, bool)> = (0..h as isize)
@@ -58,7 +64,6 @@ impl<'a> RayDepth<'a> {
             .into_par_iter()
             .map(|k| k % w + 1 < w && k / w + 1 < h && joins[k].0 && joins[k + w].0 && joins[k].1 && joins[k + 1].1)
             .collect();
-        let inverse = depth.par_iter().map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 }).collect();
         Self { depth, w, h, inverse, cell }
     }
 
@@ -126,10 +131,11 @@ mod tests {
         let r = RayDepth::new(&depth, w, h, 0.05);
         assert_eq!(r.at(1.7, 1.5, w + 1), 1.0);
         assert_eq!(r.at(2.2, 1.5, w + 2), 0.0, "a hole stays a hole");
-        assert!(joined(0.0, 1.0, 1.0, 0.0, 0.0), "equal depths join");
-        assert!(!joined(0.0, 1.0, 0.0, 1.0, 1.0), "a missing depth never joins");
+        let d = |z: f32| if z > 0.0 { (z, 1.0 / z) } else { (0.0, 0.0) };
+        assert!(joined(d(0.0), d(1.0), d(1.0), d(0.0), 0.0), "equal depths join");
+        assert!(!joined(d(0.0), d(1.0), d(0.0), d(1.0), 1.0), "a missing depth never joins");
         // A grazing plane: steps far beyond the band but equal to the neighbours' join.
-        assert!(joined(1.0 / 0.5, 1.0 / 0.4, 1.0 / 0.3, 1.0 / 0.2, 0.01));
-        assert!(!joined(1.0 / 0.51, 1.0 / 0.5, 1.0 / 0.3, 1.0 / 0.29, 0.01), "a step its neighbours do not share");
+        assert!(joined(d(1.0 / 0.5), d(1.0 / 0.4), d(1.0 / 0.3), d(1.0 / 0.2), 0.01));
+        assert!(!joined(d(1.0 / 0.51), d(1.0 / 0.5), d(1.0 / 0.3), d(1.0 / 0.29), 0.01), "a step its neighbours do not share");
     }
 }
