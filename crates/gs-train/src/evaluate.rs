@@ -77,55 +77,40 @@ pub struct ImageMetrics {
     pub ssim: f64,
     /// Mean LPIPS.
     pub lpips: Option<f64>,
-    /// Which pixels were scored.
-    pub scored: Scored,
+    /// Which pixels were scored: `whole`, `object_masks` or `seen` ([`PixelMasks::name`]).
+    pub scored: &'static str,
 }
 
-/// Which pixels of a view [`evaluate_images`] scores. Masked kinds score PSNR over the mask's
-/// pixels, SSIM and LPIPS of render and photo both composited on black outside it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Scored {
-    /// The whole image.
-    Whole,
-    /// The object inside each view's mask (SCENE/masks/<stem>.png): the masked protocol of
-    /// DTU novel-view benchmarks.
-    ObjectMasks,
-    /// The pixels whose surface some training view sees, from exact depth maps
-    /// ([`gs_mvs::seen_mask`]): what any reconstruction from the training views can know.
-    Seen,
-}
-
-impl Scored {
-    /// The pixels in words, for a mean's line: empty for the whole image.
-    pub fn describe(&self) -> &'static str {
-        match self {
-            Scored::Whole => "",
-            Scored::ObjectMasks => " (inside the masks)",
-            Scored::Seen => " (pixels some training view sees)",
-        }
-    }
-}
-
-/// The masks of a masked evaluation: each view's object mask, or one given mask per scored
-/// view (in the order of the views).
+/// Which pixels of each view [`evaluate_images`] scores. Masked kinds score PSNR over the
+/// mask's pixels, SSIM and LPIPS of render and photo both composited on black outside it.
 #[derive(Debug, Clone, Copy)]
 pub enum PixelMasks<'a> {
-    /// Every pixel.
+    /// The whole image.
     None,
-    /// Each view's own object mask.
+    /// The object inside each view's own mask (SCENE/masks/<stem>.png): the masked protocol of
+    /// DTU novel-view benchmarks.
     Object,
-    /// [`Scored::Seen`] masks, one per scored view.
+    /// The pixels whose surface some training view sees ([`seen_masks`]), one mask per scored
+    /// view in the order of the views: what any reconstruction from the training views can know.
     Seen(&'a [Image]),
 }
 
 impl PixelMasks<'_> {
-    /// What these masks score.
-    pub fn scored(&self) -> Scored {
+    /// The kind's name in the scores' JSON (`scored`).
+    pub fn name(&self) -> &'static str {
         match self {
-            PixelMasks::None => Scored::Whole,
-            PixelMasks::Object => Scored::ObjectMasks,
-            PixelMasks::Seen(_) => Scored::Seen,
+            PixelMasks::None => "whole",
+            PixelMasks::Object => "object_masks",
+            PixelMasks::Seen(_) => "seen",
+        }
+    }
+
+    /// The pixels in words, for a mean's line: empty for the whole image.
+    pub fn describe(&self) -> &'static str {
+        match self {
+            PixelMasks::None => "",
+            PixelMasks::Object => " (inside the masks)",
+            PixelMasks::Seen(_) => " (pixels some training view sees)",
         }
     }
 
@@ -172,11 +157,11 @@ pub fn evaluate_images(
         ssim: out.iter().map(|v| v.ssim).sum::<f64>() / k,
         lpips: lpips.map(|_| out.iter().filter_map(|v| v.lpips).sum::<f64>() / k),
         views: out,
-        scored: masks.scored(),
+        scored: masks.name(),
     })
 }
 
-/// [`Scored::Seen`] masks of `views` (indices into the model's scene), in order: a pixel counts
+/// [`PixelMasks::Seen`] masks of `views` (indices into the model's scene), in order: a pixel counts
 /// where its surface, from the exact depth map `depth` returns for its view, is held by the
 /// depth map of some training view ([`gs_mvs::seen_mask`], within
 /// [`gs_mvs::SEEN_DEPTH_TOLERANCE`]). A training view among `views` sees itself. The training
@@ -206,7 +191,7 @@ pub fn seen_masks(
 }
 
 /// Scores one render (colours already clamped to [0, 1]) against its view's photo: PSNR, SSIM
-/// and, with `lpips`, LPIPS-alex; with a `mask` only the pixels inside it (see [`Scored`]).
+/// and, with `lpips`, LPIPS-alex; with a `mask` only the pixels inside it (see [`PixelMasks`]).
 /// [`evaluate_images`] calls this for every view; a caller that keeps its renders (the report
 /// page) calls it directly.
 pub fn score_view(view: &gs_core::View, img: &Image, lpips: Option<&Lpips>, mask: Option<&Image>) -> Result<ViewMetrics> {

@@ -85,7 +85,7 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
         println!(
             "mean over {} views{}: PSNR {:.2} dB, SSIM {:.4}{}",
             metrics.views.len(),
-            metrics.scored.describe(),
+            masks.describe(),
             metrics.psnr,
             metrics.ssim,
             metrics.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
