@@ -3,6 +3,7 @@
 //! a score over the whole image mixes the method's error with the capture's coverage.
 
 use crate::error::{MvsError, Result};
+use crate::geometry::MapView;
 use gs_core::{Camera, Image};
 use rayon::prelude::*;
 
@@ -46,16 +47,7 @@ impl DepthView<'_> {
     }
 
     fn check(&self, what: &str) -> Result<()> {
-        let (w, h) = (self.camera.width as usize, self.camera.height as usize);
-        let d = self.depth;
-        if (d.width(), d.height(), d.channels()) != (w, h, 1) {
-            return Err(MvsError::SizeMismatch {
-                map: format!("{what} depth"),
-                expected: format!("{w}×{h}×1"),
-                got: format!("{}×{}×{}", d.width(), d.height(), d.channels()),
-            });
-        }
-        Ok(())
+        MapView::from(self.depth).expect_size(self.camera, 1, &format!("{what} depth"))
     }
 }
 
@@ -115,7 +107,7 @@ mod tests {
         let e = seen_mask(DepthView { camera: &cams[0], depth: &good }, &[DepthView { camera: &cams[1], depth: &bad }], 0.02)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("witness 0 depth") && e.contains("16×12×1") && e.contains("12×16×1"), "{e}");
+        assert!(e.contains("witness 0 depth") && e.contains("16x12x1") && e.contains("12x16x1"), "{e}");
         let view = DepthView { camera: &cams[0], depth: &good };
         assert!(seen_mask(view, &[], f64::NAN).is_err() && seen_mask(view, &[], 0.0).is_err());
         // No surface in the target: nothing is seen.

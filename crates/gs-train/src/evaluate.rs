@@ -172,13 +172,12 @@ pub fn seen_masks(
     depth: &mut dyn FnMut(&gs_core::View) -> Result<Image>,
 ) -> Result<Vec<Image>> {
     let scene_view = |i: usize| model.scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")));
-    let witness_maps: Vec<Image> = model.train.iter().map(|&t| depth(scene_view(t)?)).collect::<Result<_>>()?;
-    let witnesses: Vec<gs_mvs::DepthView<'_>> = model
+    let witness_maps: Vec<(&gs_core::Camera, Image)> = model
         .train
         .iter()
-        .zip(&witness_maps)
-        .map(|(&t, d)| Ok(gs_mvs::DepthView { camera: &scene_view(t)?.camera, depth: d }))
+        .map(|&t| scene_view(t).and_then(|v| Ok((&v.camera, depth(v)?))))
         .collect::<Result<_>>()?;
+    let witnesses: Vec<gs_mvs::DepthView<'_>> = witness_maps.iter().map(|(camera, d)| gs_mvs::DepthView { camera, depth: d }).collect();
     views
         .iter()
         .map(|&i| {

@@ -54,7 +54,7 @@ pub fn run(args: &EvalImagesArgs) -> Result<()> {
     let mut rasterizer = super::rasterizer(args.backend)?;
     let seen = match &args.seen_from {
         Some(dir) => {
-            let mut read = |v: &gs_core::View| gs_io::read_view_depth(dir, &v.name).map_err(|e| gs_train::TrainError::InvalidScene(e.to_string()));
+            let mut read = |v: &gs_core::View| Ok(gs_io::read_view_depth(dir, &v.name)?);
             Some(gs_train::seen_masks(&model, views, &mut read)?)
         }
         None => None,

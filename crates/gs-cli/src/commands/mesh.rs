@@ -174,7 +174,7 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         Some(dir) => {
             let scene = load_scene(&SceneSource { path: Some(args.run.clone()), resolution_factor: None, width: None, eval: false })?;
             let views: Vec<usize> = (0..scene.views.len()).collect();
-            let mut read = |v: &gs_core::View| gs_io::read_view_depth(dir, &v.name).map_err(|e| gs_train::TrainError::InvalidScene(format!("{e:#}")));
+            let mut read = |v: &gs_core::View| Ok(gs_io::read_view_depth(dir, &v.name)?);
             let (mesh, report) = fuse_mesh(&scene, &views, DepthSource::Given(&mut read), &opts)?;
             (mesh, report, None)
         }
