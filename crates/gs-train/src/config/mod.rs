@@ -410,7 +410,7 @@ impl Default for TrainConfig {
 /// 1,200, residual-bound, and the last quarter of the run settles it; 1,500 gave the same mesh
 /// but 24.13 dB (BENCHMARKS.md, issue #18).
 pub const STANDARD_ITERATIONS: u64 = 1_600;
-/// Iterations of the `fast` preset (with 2 source views instead of 3).
+/// Iterations of the `fast` preset (with 2 source views instead of [`CPU_SOURCE_VIEWS`]).
 pub const FAST_ITERATIONS: u64 = 1_200;
 /// Oldest reused source-view depth of the CPU presets, in iterations (0: every source is
 /// rendered, as in the paper). On synth-bunny at full resolution (BENCHMARKS.md issue #18,
@@ -430,6 +430,18 @@ pub const CPU_SOURCE_DEPTH_MAX_AGE: u64 = 10;
 /// another training seed (3.01 → 2.92×). synth-bunny: Chamfer 0.00694 → 0.00692, 26.36 →
 /// 26.69 dB.
 pub const CPU_LOW_PASS: f32 = 0.1;
+
+/// L_p source views per iteration of the CPU presets (the paper's N is 3). A view whose
+/// concavity only its own ring of cameras sees has 2–3 such sources among its 4–8
+/// candidates, and a random 3 of them often miss it; 5 draws every candidate of most views.
+/// Measured on the nine full-size suite scenes (BENCHMARKS.md §Validation suite, issue #33,
+/// stop 48) with [`CPU_MAX_PIXELS_PER_SOURCE`], which keeps L_p's patches per iteration.
+pub const CPU_SOURCE_VIEWS: usize = 5;
+/// L_p pixel cap per source of the CPU presets: the paper's patches per iteration (3 sources
+/// × [`gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE`]) spread over [`CPU_SOURCE_VIEWS`], so that
+/// five sources cost about what three did (+6 % per L_p iteration on the cup, against +34 %
+/// uncapped).
+pub const CPU_MAX_PIXELS_PER_SOURCE: usize = 3 * gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE / CPU_SOURCE_VIEWS;
 
 /// Fewest iterations between two densification steps of a scaled schedule: a step judges the
 /// gradients accumulated since the last one, and fewer than this many iterations give noisy
@@ -485,7 +497,12 @@ impl TrainConfig {
                 ..base
             },
             Preset::Standard => base.cpu_schedule().scaled(STANDARD_ITERATIONS),
-            Preset::Fast => Self { source_views: 2, ..base.cpu_schedule() }.scaled(FAST_ITERATIONS),
+            Preset::Fast => Self {
+                source_views: 2,
+                max_pixels_per_source: gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE,
+                ..base.cpu_schedule()
+            }
+            .scaled(FAST_ITERATIONS),
         }
     }
 
@@ -496,7 +513,9 @@ impl TrainConfig {
     /// (each one made the model transparent and cost hundreds of iterations of recovery); and
     /// source-view depths reused up to [`CPU_SOURCE_DEPTH_MAX_AGE`] iterations old; and
     /// Mip-Splatting's screen filter ([`CPU_LOW_PASS`] px² with opacity compensation), which
-    /// pulls convex surfaces in less at the silhouettes (docs/method.md §Projection).
+    /// pulls convex surfaces in less at the silhouettes (docs/method.md §Projection); and
+    /// [`CPU_SOURCE_VIEWS`] L_p sources at [`CPU_MAX_PIXELS_PER_SOURCE`] pixels each, which
+    /// reach concavities that few views see (docs/method.md §Schedule).
     /// Phase boundaries scale with [`TrainConfig::scaled`] as before.
     pub fn cpu_schedule(&self) -> Self {
         Self {
@@ -505,6 +524,8 @@ impl TrainConfig {
             source_depth_max_age: CPU_SOURCE_DEPTH_MAX_AGE,
             antialiased: true,
             low_pass: CPU_LOW_PASS,
+            source_views: CPU_SOURCE_VIEWS,
+            max_pixels_per_source: CPU_MAX_PIXELS_PER_SOURCE,
             densify: DensifyConfig { opacity_reset_interval: 0, ..self.densify },
             ..self.clone()
         }
@@ -651,9 +672,11 @@ mod tests {
     #[test]
     fn the_cpu_presets_run_l_p_to_the_end_without_resets() {
         let (s, f) = (TrainConfig::preset(Preset::Standard), TrainConfig::preset(Preset::Fast));
-        for (c, n, sources) in [(&s, STANDARD_ITERATIONS, 3), (&f, FAST_ITERATIONS, 2)] {
+        for (c, n, sources) in [(&s, STANDARD_ITERATIONS, CPU_SOURCE_VIEWS), (&f, FAST_ITERATIONS, 2)] {
             c.validate().unwrap();
             assert_eq!((c.iterations, c.source_views, c.densify.opacity_reset_interval), (n, sources, 0));
+            // No more L_p patches per iteration than the paper's three sources.
+            assert!(c.source_views * c.max_pixels_per_source <= 3 * gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE);
             assert_eq!((c.photometric_end, c.features_end, c.source_depth_max_age), (n, n, CPU_SOURCE_DEPTH_MAX_AGE));
             assert!(!c.has_feature_phase() && c.phase(n).photometric && !c.phase(c.warmup_end).photometric);
             assert!(c.warmup_end > 0 && c.densify.until < n);
@@ -662,7 +685,7 @@ mod tests {
         let long = s.scaled(9000);
         assert_eq!((long.photometric_end, long.features_end, long.densify.opacity_reset_interval), (9000, 9000, 0));
         let dtu = TrainConfig::preset(Preset::Dtu);
-        assert!(dtu.has_feature_phase() && dtu.source_depth_max_age == 0);
+        assert!(dtu.has_feature_phase() && dtu.source_depth_max_age == 0 && dtu.source_views == 3);
         assert!(!TrainConfig { losses: LossSwitches { features: false, ..dtu.losses }, ..dtu }.has_feature_phase());
     }
 
