@@ -431,7 +431,9 @@ pub const CPU_SOURCE_DEPTH_MAX_AGE: u64 = 10;
 /// 26.69 dB.
 pub const CPU_LOW_PASS: f32 = 0.1;
 
-/// L_p source views per iteration of the CPU presets (the paper's N is 3). A view whose
+/// L_p source views per iteration in the paper's presets (N, docs/method.md §Losses).
+pub const PAPER_SOURCE_VIEWS: usize = 3;
+/// L_p source views per iteration of the CPU presets (the paper's N is [`PAPER_SOURCE_VIEWS`]). A view whose
 /// concavity only its own ring of cameras sees has 2–3 such sources among its 4–8
 /// candidates, and a random 3 of them often miss it; 5 draws every candidate of most views.
 /// On the nine full-size suite scenes (docs/suite-full.md, stop 48), with
@@ -440,11 +442,11 @@ pub const CPU_LOW_PASS: f32 = 0.1;
 /// PSNR 27.05 → 27.16 dB and the worst view 19.00 → 19.62 dB, at the same iteration cost
 /// within what the loads could tell.
 pub const CPU_SOURCE_VIEWS: usize = 5;
-/// L_p pixel cap per source of the CPU presets: the paper's patches per iteration (3 sources
-/// × [`gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE`]) spread over [`CPU_SOURCE_VIEWS`], so that
+/// L_p pixel cap per source of the CPU presets: the paper's patches per iteration
+/// ([`PAPER_SOURCE_VIEWS`] × [`gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE`]) spread over [`CPU_SOURCE_VIEWS`], so that
 /// five sources cost about what three did (+6 % per L_p iteration on the cup, against +34 %
 /// uncapped).
-pub const CPU_MAX_PIXELS_PER_SOURCE: usize = 3 * gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE / CPU_SOURCE_VIEWS;
+pub const CPU_MAX_PIXELS_PER_SOURCE: usize = PAPER_SOURCE_VIEWS * gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE / CPU_SOURCE_VIEWS;
 
 /// Fewest iterations between two densification steps of a scaled schedule: a step judges the
 /// gradients accumulated since the last one, and fewer than this many iterations give noisy
@@ -467,7 +469,7 @@ impl TrainConfig {
             weights: LossWeights::default(),
             ns_gate: gs_losses::NsGate::Above,
             ncc: gs_mvs::NccMode::Pgsr,
-            source_views: 3,
+            source_views: PAPER_SOURCE_VIEWS,
             patch_size: 7,
             ncc_scale: 1,
             exposure: false,
@@ -679,7 +681,7 @@ mod tests {
             c.validate().unwrap();
             assert_eq!((c.iterations, c.source_views, c.densify.opacity_reset_interval), (n, sources, 0));
             // No more L_p patches per iteration than the paper's three sources.
-            assert!(c.source_views * c.max_pixels_per_source <= 3 * gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE);
+            assert!(c.source_views * c.max_pixels_per_source <= PAPER_SOURCE_VIEWS * gs_mvs::DEFAULT_MAX_PIXELS_PER_SOURCE);
             assert_eq!((c.photometric_end, c.features_end, c.source_depth_max_age), (n, n, CPU_SOURCE_DEPTH_MAX_AGE));
             assert!(!c.has_feature_phase() && c.phase(n).photometric && !c.phase(c.warmup_end).photometric);
             assert!(c.warmup_end > 0 && c.densify.until < n);
