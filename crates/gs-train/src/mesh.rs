@@ -203,6 +203,10 @@ pub struct MeshReport {
     /// median fused depth / fx (`None` when nothing was fused). A voxel much
     /// finer than this only resolves per-pixel depth noise: the surface comes out speckled.
     pub pixel_footprint: Option<f64>,
+    /// The pieces of a fusion piece by piece ([`crate::fuse_mesh_in_pieces`]); empty for one
+    /// volume. `blocks` then sums the pieces' blocks and `tsdf_bytes` is the largest piece's.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub pieces: Vec<crate::mesh_pieces::PieceReport>,
 }
 
 /// A voxel finer than this fraction of the pixel footprint draws a warning from callers.
@@ -233,7 +237,7 @@ fn median_footprint(depth: &Image, fx: f64) -> Option<f64> {
 }
 
 /// Median of `values` (None when empty).
-fn median(mut values: Vec<f64>) -> Option<f64> {
+pub(crate) fn median(mut values: Vec<f64>) -> Option<f64> {
     if values.is_empty() {
         return None;
     }
@@ -256,22 +260,22 @@ pub enum DepthSource<'a> {
 }
 
 /// One view's depth map ready to fuse, with its rendered colour (`None`: the photograph).
-struct Fetched {
-    view: usize,
-    depth: Image,
-    color: Option<Image>,
+pub(crate) struct Fetched {
+    pub view: usize,
+    pub depth: Image,
+    pub color: Option<Image>,
 }
 
 /// Running totals of the fetching.
 #[derive(Default)]
-struct FetchStats {
-    seconds: f64,
-    below_alpha: u64,
+pub(crate) struct FetchStats {
+    pub seconds: f64,
+    pub below_alpha: u64,
 }
 
 impl DepthSource<'_> {
     /// The depth map (and colour) of view `i` to fuse.
-    fn fetch(&mut self, scene: &Scene, i: usize, opts: &MeshOptions, stats: &mut FetchStats) -> Result<Fetched> {
+    pub(crate) fn fetch(&mut self, scene: &Scene, i: usize, opts: &MeshOptions, stats: &mut FetchStats) -> Result<Fetched> {
         let view = scene.views.get(i).ok_or_else(|| TrainError::InvalidScene(format!("view index {i} out of range")))?;
         let t0 = std::time::Instant::now();
         let fetched = match self {
@@ -305,37 +309,10 @@ impl DepthSource<'_> {
 /// largest, degenerate and unreferenced elements removed) and the simplification. With
 /// [`MeshOptions::consistency`] every view's depth map is held until all are filtered.
 pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, opts: &MeshOptions) -> Result<(TriangleMesh, MeshReport)> {
-    if views.is_empty() {
-        return Err(TrainError::InvalidScene("no views to fuse into a mesh".into()));
-    }
-    if let Some(i) = views.iter().find(|&&i| i >= scene.views.len()) {
-        return Err(TrainError::InvalidScene(format!("view index {i} out of range")));
-    }
     let rendered = matches!(source, DepthSource::Rendered { .. });
     let mut stats = FetchStats::default();
-    // Without a given voxel, the first views' depth maps (kept for the fusion) measure the footprint.
-    let mut held: Vec<Fetched> = Vec::new();
-    if opts.voxel_size.is_none() || opts.max_memory.is_some() {
-        for k in 0..FOOTPRINT_PROBES.min(views.len()) {
-            let i = views[k * views.len() / FOOTPRINT_PROBES.min(views.len())];
-            held.push(source.fetch(scene, i, opts, &mut stats)?);
-        }
-    }
-    let probe_footprint =
-        median(held.iter().filter_map(|f| median_footprint(&f.depth, scene.views[f.view].camera.intrinsics.fx)).collect());
-    let voxel = opts.voxel_size.unwrap_or_else(|| default_voxel(scene, probe_footprint));
-    let depth_trunc = opts.depth_trunc.unwrap_or(3.0 * scene.extent());
-    let mut config = TsdfConfig {
-        voxel_size: voxel,
-        sdf_trunc: opts.sdf_trunc,
-        depth_trunc,
-        max_blocks: opts.max_blocks,
-        max_normal_angle_deg: opts.max_normal_angle_deg,
-        with_color: true,
-        bounds: opts.bounds,
-    };
+    let (mut held, Setup { voxel, depth_trunc, config, probe_footprint }) = prepare(scene, views, &mut source, opts, &mut stats)?;
     if let Some(limit) = opts.max_memory {
-        config.max_blocks = config.max_blocks.min((limit / MemoryEstimate::bytes_per_block(true)).max(1) as usize);
         let kept = opts.consistency.map_or(0, |_| held_bytes(scene, views, rendered));
         check_memory(scene, views.len(), &held, &config, opts.use_masks, (limit, kept), probe_footprint)?;
     }
@@ -367,7 +344,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
                 f
             }
         };
-        footprints.extend(integrate(&mut volume, scene, &f, opts, voxel)?);
+        footprints.extend(integrate(&mut volume, scene, &f, opts, None)?);
     }
     let raw = volume.extract_mesh()?;
     let fuse_seconds = t.elapsed().as_secs_f64() - fetch_s;
@@ -393,8 +370,60 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
         render_seconds: stats.seconds,
         fuse_seconds,
         pixel_footprint: footprint,
+        pieces: Vec::new(),
     };
     Ok((mesh, report))
+}
+
+/// The grid of a fusion: its voxel, depth truncation and TSDF configuration.
+pub(crate) struct Setup {
+    pub voxel: f64,
+    pub depth_trunc: f64,
+    /// With [`MeshOptions::max_memory`], its block cap is lowered to what the limit holds.
+    pub config: TsdfConfig,
+    /// The median pixel footprint of the probed views.
+    pub probe_footprint: Option<f64>,
+}
+
+/// Checks `views`, fetches the probe views that measure the pixel footprint (held for the
+/// fusion; none with a given voxel and no memory limit) and sets up the grid.
+pub(crate) fn prepare(
+    scene: &Scene,
+    views: &[usize],
+    source: &mut DepthSource<'_>,
+    opts: &MeshOptions,
+    stats: &mut FetchStats,
+) -> Result<(Vec<Fetched>, Setup)> {
+    if views.is_empty() {
+        return Err(TrainError::InvalidScene("no views to fuse into a mesh".into()));
+    }
+    if let Some(i) = views.iter().find(|&&i| i >= scene.views.len()) {
+        return Err(TrainError::InvalidScene(format!("view index {i} out of range")));
+    }
+    let mut held: Vec<Fetched> = Vec::new();
+    if opts.voxel_size.is_none() || opts.max_memory.is_some() {
+        for k in 0..FOOTPRINT_PROBES.min(views.len()) {
+            let i = views[k * views.len() / FOOTPRINT_PROBES.min(views.len())];
+            held.push(source.fetch(scene, i, opts, stats)?);
+        }
+    }
+    let probe_footprint =
+        median(held.iter().filter_map(|f| median_footprint(&f.depth, scene.views[f.view].camera.intrinsics.fx)).collect());
+    let voxel = opts.voxel_size.unwrap_or_else(|| default_voxel(scene, probe_footprint));
+    let depth_trunc = opts.depth_trunc.unwrap_or(3.0 * scene.extent());
+    let mut config = TsdfConfig {
+        voxel_size: voxel,
+        sdf_trunc: opts.sdf_trunc,
+        depth_trunc,
+        max_blocks: opts.max_blocks,
+        max_normal_angle_deg: opts.max_normal_angle_deg,
+        with_color: true,
+        bounds: opts.bounds,
+    };
+    if let Some(limit) = opts.max_memory {
+        config.max_blocks = config.max_blocks.min((limit / MemoryEstimate::bytes_per_block(true)).max(1) as usize);
+    }
+    Ok((held, Setup { voxel, depth_trunc, config, probe_footprint }))
 }
 
 /// Bytes of the depth maps (and rendered colours) held for the depth filter.
@@ -415,11 +444,18 @@ fn filter_held(scene: &Scene, held: &mut [Fetched], cfg: ConsistencyConfig) -> R
 }
 
 /// Integrates one fetched view; returns its pixel footprint (median fused depth / fx).
-fn integrate(volume: &mut TsdfVolume, scene: &Scene, f: &Fetched, opts: &MeshOptions, voxel: f64) -> Result<Option<f64>> {
+pub(crate) fn integrate(
+    volume: &mut TsdfVolume,
+    scene: &Scene,
+    f: &Fetched,
+    opts: &MeshOptions,
+    keep: Option<gs_tsdf::BlockFilter<'_>>,
+) -> Result<Option<f64>> {
+    let voxel = volume.config().voxel_size;
     let view = &scene.views[f.view];
     let mask = if opts.use_masks { view.mask.as_ref() } else { None };
     let fused = volume
-        .integrate_view(f.view, &view.camera, &f.depth, Some(f.color.as_ref().unwrap_or(&view.image)), mask)
+        .integrate_view_where(f.view, &view.camera, &f.depth, Some(f.color.as_ref().unwrap_or(&view.image)), mask, keep)
         .map_err(|e| match (e, opts.max_memory) {
             (TsdfError::BlockCapExceeded { needed, .. }, Some(limit)) => TrainError::MemoryLimit(format!(
                 "fusing view '{}' needs {needed} TSDF blocks, about {}, more than the memory limit of {}; \
@@ -438,7 +474,7 @@ fn integrate(volume: &mut TsdfVolume, scene: &Scene, f: &Fetched, opts: &MeshOpt
 /// bounds each vertex by a multiple of the pixel footprint at it ([`gs_tsdf::pixel_footprints`]
 /// over the fused views' `cameras`), never below the `voxel`: the fusion resolves nothing
 /// finer, and surfaces seen only from afar (a far wall) are simplified more than the object.
-fn finish(raw: &TriangleMesh, opts: &MeshOptions, voxel: f64, cameras: &[&Camera]) -> Result<(TriangleMesh, ComponentCleanup, Option<SimplifyApplied>)> {
+pub(crate) fn finish(raw: &TriangleMesh, opts: &MeshOptions, voxel: f64, cameras: &[&Camera]) -> Result<(TriangleMesh, ComponentCleanup, Option<SimplifyApplied>)> {
     let filter = if opts.largest_component_only {
         ComponentFilter::Largest
     } else {

@@ -55,4 +55,4 @@ pub use fusion_memory::{BlockCensus, MemoryEstimate};
 pub use metrics::{Aabb, EvalOptions, EvalReport, PointMetrics, evaluate_meshes, point_metrics, sample_surface};
 pub use simplify::{GradedBounds, SimplifyReport, SimplifyTarget, pixel_footprints, simplify_mesh, simplify_mesh_graded};
 pub use smooth::{Smoothing, smooth_mesh};
-pub use volume::{IntegrateStats, TsdfConfig, TsdfVolume};
+pub use volume::{BlockFilter, IntegrateStats, TsdfConfig, TsdfVolume, block_centre};

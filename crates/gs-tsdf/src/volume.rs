@@ -22,6 +22,15 @@ pub const BLOCK: usize = 8;
 /// Voxels per block.
 pub const BLOCK_VOXELS: usize = BLOCK * BLOCK * BLOCK;
 
+/// Which blocks (by key) a fusion piece holds: [`TsdfVolume::integrate_view_where`].
+pub type BlockFilter<'a> = &'a (dyn Fn([i32; 3]) -> bool + Sync);
+
+/// The world centre of the block with this key at this voxel size (block `k` spans
+/// `[k, k + 1) × 8 × voxel` on each axis).
+pub fn block_centre(key: [i32; 3], voxel_size: f64) -> DVec3 {
+    (DVec3::new(key[0] as f64, key[1] as f64, key[2] as f64) + 0.5) * (BLOCK as f64 * voxel_size)
+}
+
 /// A small, fast, deterministic hasher for integer block keys.
 #[derive(Default, Clone, Copy)]
 pub(crate) struct KeyHasher(u64);
@@ -220,7 +229,7 @@ impl TsdfVolume {
         self.integrate_view(0, camera, depth, color, mask)
     }
 
-    /// [`TsdfVolume::integrate`] with a view index used in error messages.
+    /// [`TsdfVolume::integrate`] with a label for errors.
     pub fn integrate_view(
         &mut self,
         view: usize,
@@ -228,6 +237,23 @@ impl TsdfVolume {
         depth: &Image,
         color: Option<&Image>,
         mask: Option<&Image>,
+    ) -> Result<IntegrateStats> {
+        self.integrate_view_where(view, camera, depth, color, mask, None)
+    }
+
+    /// [`TsdfVolume::integrate`] with a view index used in error messages.
+    /// [`TsdfVolume::integrate_view`] touching only the blocks `keep` accepts (by key, see
+    /// [`block_centre`]): one piece of a fusion split into pieces. A kept block receives exactly
+    /// what it receives in a volume without the filter, so pieces fused from the same views in
+    /// the same order agree voxel for voxel where they overlap.
+    pub fn integrate_view_where(
+        &mut self,
+        view: usize,
+        camera: &Camera,
+        depth: &Image,
+        color: Option<&Image>,
+        mask: Option<&Image>,
+        keep: Option<BlockFilter<'_>>,
     ) -> Result<IntegrateStats> {
         let (w, h) = (camera.width as usize, camera.height as usize);
         let bad = |problem: String| Err(TsdfError::InvalidInput { view, problem });
@@ -259,7 +285,7 @@ impl TsdfVolume {
         if valid_pixels == 0 {
             return Ok(stats);
         }
-        let keys = self.touched_blocks(camera, &filtered)?;
+        let keys = self.touched_blocks(camera, &filtered, keep)?;
         stats.touched_blocks = keys.len();
         // Allocate (keys are sorted, so block order is deterministic).
         let new: Vec<[i32; 3]> = keys.iter().filter(|k| !self.index.contains_key(*k)).copied().collect();
@@ -311,7 +337,7 @@ impl TsdfVolume {
         if filtered.iter().all(|&d| d <= 0.0) {
             return Ok(Vec::new());
         }
-        self.touched_blocks(camera, &filtered)
+        self.touched_blocks(camera, &filtered, None)
     }
 
     /// The depth map after the validity, `depth_trunc`, mask and normal-angle filters
@@ -369,7 +395,7 @@ impl TsdfVolume {
     }
 
     /// Sorted keys of the blocks within `sdf_trunc` (box) of any back-projected sample.
-    fn touched_blocks(&self, camera: &Camera, depth: &[f32]) -> Result<Vec<[i32; 3]>> {
+    fn touched_blocks(&self, camera: &Camera, depth: &[f32], keep: Option<BlockFilter<'_>>) -> Result<Vec<[i32; 3]>> {
         let w = camera.width as usize;
         let block_len = self.config.voxel_size * BLOCK as f64;
         let tr = self.config.truncation();
@@ -422,7 +448,10 @@ impl TsdfVolume {
                     for z in lo[2]..=hi[2] {
                         for y in lo[1]..=hi[1] {
                             for x in lo[0]..=hi[0] {
-                                keys.push([x as i32, y as i32, z as i32]);
+                                let key = [x as i32, y as i32, z as i32];
+                                if keep.is_none_or(|f| f(key)) {
+                                    keys.push(key);
+                                }
                             }
                         }
                     }

@@ -1,0 +1,214 @@
+//! Fusion piece by piece (docs/method.md §TSDF, "Piece by piece"): a scene too large for one
+//! TSDF volume is fused as several, one at a time, and the pieces' surfaces are joined into the
+//! mesh one volume would have made.
+//!
+//! Every point of space belongs to exactly one piece ([`FusionPieces::owner`]). A first pass
+//! renders each view once and notes which pieces its depths touch, and how many TSDF blocks each
+//! piece will hold (so a piece that would not fit is refused before anything is fused). Then
+//! each piece in turn gets its own volume holding only the blocks near its points, fused from
+//! exactly the views that touch those blocks, in the scene's view order. A block therefore holds
+//! the same values in every piece that holds it and in a single volume, so marching cubes makes
+//! the same triangles there; each piece keeps the triangles whose centroids it owns, and
+//! vertices on the seams, computed from the same values, are joined by position. The clean-up
+//! and simplification then run once on the joined mesh, as for one volume. Peak memory is the
+//! largest piece's volume; the cost is one extra render of every view plus one render per
+//! further piece a view touches.
+
+use crate::error::{Result, TrainError};
+use crate::mesh::{DepthSource, FetchStats, MeshOptions, MeshReport, Setup, finish, integrate, length_text, median, prepare};
+use gs_core::glam::DVec3;
+use gs_core::{Camera, Scene, TriangleMesh};
+use gs_tsdf::{MemoryEstimate, TsdfVolume, block_centre, format_bytes, volume::BLOCK};
+use serde::Serialize;
+use std::collections::{HashMap, HashSet};
+
+/// How space is split into the pieces of a fusion (e.g. the blocks of a partitioned capture).
+pub trait FusionPieces: Sync {
+    /// Number of pieces (at least 1).
+    fn count(&self) -> usize;
+    /// The one piece that owns the point `p`: every point of space belongs to exactly one.
+    fn owner(&self, p: DVec3) -> usize;
+    /// Whether `p` may lie within `reach` of a point that `piece` owns: never false when it
+    /// does (true beyond only costs memory).
+    fn near(&self, piece: usize, p: DVec3, reach: f64) -> bool;
+    /// The piece's name for people ("block 03").
+    fn name(&self, piece: usize) -> String;
+}
+
+/// One piece of a fusion piece by piece (`mesh.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PieceReport {
+    /// Its name.
+    pub name: String,
+    /// Views whose depths touch it, fused into its volume.
+    pub views: usize,
+    /// TSDF blocks of its volume.
+    pub blocks: usize,
+    /// Its volume's memory, bytes.
+    pub tsdf_bytes: usize,
+    /// Triangles it kept (their centroids are its own), before the clean-up.
+    pub triangles: usize,
+}
+
+/// [`crate::fuse_mesh`] piece by piece: the same mesh (up to the order of its vertices and
+/// triangles, and so of the simplification's choices) within the memory of the largest piece.
+/// The multi-view depth filter needs every view's depth map at once and is refused here.
+pub fn fuse_mesh_in_pieces(
+    scene: &Scene,
+    views: &[usize],
+    mut source: DepthSource<'_>,
+    opts: &MeshOptions,
+    pieces: &dyn FusionPieces,
+) -> Result<(TriangleMesh, MeshReport)> {
+    if opts.consistency.is_some() {
+        return Err(TrainError::InvalidConfig(
+            "the multi-view depth filter holds every view's depth map at once, so it cannot fuse piece by piece; fuse in one volume, or leave the filter off".into(),
+        ));
+    }
+    if pieces.count() == 0 {
+        return Err(TrainError::InvalidConfig("a fusion piece by piece needs at least one piece".into()));
+    }
+    let rendered = matches!(source, DepthSource::Rendered { .. });
+    let mut stats = FetchStats::default();
+    let (held, Setup { voxel, depth_trunc, config, .. }) = prepare(scene, views, &mut source, opts, &mut stats)?;
+    drop(held);
+    // A piece holds every block within this distance of its points: the blocks that the cubes
+    // of its triangles read (a cube reaches one voxel into the next block).
+    let reach = 3f64.sqrt() * (BLOCK as f64 + 2.0) * voxel;
+    let keep = |piece: usize| move |key: [i32; 3]| pieces.near(piece, block_centre(key, voxel), reach);
+    let (touching, census) = survey(scene, views, &mut source, opts, pieces, &config, &keep, &mut stats)?;
+    if let Some(limit) = opts.max_memory
+        && let Some((k, &blocks)) = census.iter().enumerate().max_by_key(|(_, b)| **b)
+    {
+        let bytes = MemoryEstimate::for_blocks(blocks as u64, true).peak_bytes();
+        if bytes > limit {
+            return Err(TrainError::MemoryLimit(format!(
+                "fusing {} at voxel size {} needs about {} ({blocks} TSDF blocks with marching cubes), more than the memory limit of {}; use a larger --voxel-size or raise --max-memory",
+                pieces.name(k),
+                length_text(voxel),
+                format_bytes(bytes),
+                format_bytes(limit)
+            )));
+        }
+    }
+    let t = std::time::Instant::now();
+    let render_before = stats.seconds;
+    let mut joined = Joined::default();
+    let mut reports = Vec::with_capacity(pieces.count());
+    let mut footprint_of: Vec<Option<f64>> = vec![None; scene.views.len()];
+    for (k, piece_views) in touching.iter().enumerate() {
+        let mut volume = TsdfVolume::new(config.clone())?;
+        let filter = keep(k);
+        for &i in piece_views {
+            let f = source.fetch(scene, i, opts, &mut stats)?;
+            let footprint = integrate(&mut volume, scene, &f, opts, Some(&filter))?;
+            footprint_of[i] = footprint_of[i].or(footprint);
+        }
+        let raw = volume.extract_mesh()?;
+        let triangles = joined.add(&raw, |p| pieces.owner(p) == k);
+        reports.push(PieceReport {
+            name: pieces.name(k),
+            views: piece_views.len(),
+            blocks: volume.block_count(),
+            tsdf_bytes: volume.memory_bytes(),
+            triangles,
+        });
+    }
+    let fuse_seconds = t.elapsed().as_secs_f64() - (stats.seconds - render_before);
+    let cameras: Vec<&Camera> = views.iter().map(|&i| &scene.views[i].camera).collect();
+    let (mesh, components, simplification) = finish(&joined.mesh, opts, voxel, &cameras)?;
+    let report = MeshReport {
+        voxel_size: voxel,
+        sdf_trunc: config.truncation(),
+        depth_trunc,
+        views: views.len(),
+        blocks: reports.iter().map(|r| r.blocks).sum(),
+        tsdf_bytes: reports.iter().map(|r| r.tsdf_bytes).max().unwrap_or(0),
+        vertices: mesh.positions.len(),
+        triangles: mesh.triangles.len(),
+        min_alpha: rendered.then_some(opts.min_alpha),
+        pixels_below_min_alpha: stats.below_alpha,
+        surface_cut: rendered.then_some(opts.surface_cut),
+        depth_filter: None,
+        components,
+        smoothing: opts.smoothing,
+        simplification,
+        render_seconds: stats.seconds,
+        fuse_seconds,
+        pixel_footprint: median(footprint_of.into_iter().flatten().collect()),
+        pieces: reports,
+    };
+    Ok((mesh, report))
+}
+
+/// The first pass: every view's depth map once; for each piece, the views that touch it (in
+/// `views`' order) and the number of TSDF blocks it will hold.
+#[allow(clippy::too_many_arguments)]
+fn survey<F: Fn([i32; 3]) -> bool + Sync>(
+    scene: &Scene,
+    views: &[usize],
+    source: &mut DepthSource<'_>,
+    opts: &MeshOptions,
+    pieces: &dyn FusionPieces,
+    config: &gs_tsdf::TsdfConfig,
+    keep: &impl Fn(usize) -> F,
+    stats: &mut FetchStats,
+) -> Result<(Vec<Vec<usize>>, Vec<usize>)> {
+    // Probing allocates nothing, so it is not held to the memory limit's block cap.
+    let probe = TsdfVolume::new(gs_tsdf::TsdfConfig { max_blocks: opts.max_blocks, ..config.clone() })?;
+    let n = pieces.count();
+    let mut touching = vec![Vec::new(); n];
+    let mut blocks: Vec<HashSet<[i32; 3]>> = vec![HashSet::new(); n];
+    for &i in views {
+        let f = source.fetch(scene, i, opts, stats)?;
+        let view = &scene.views[i];
+        let mask = if opts.use_masks { view.mask.as_ref() } else { None };
+        let keys = probe.probe_blocks(&view.camera, &f.depth, mask).map_err(|e| TrainError::InvalidScene(format!("view '{}': {e}", view.name)))?;
+        for (k, set) in blocks.iter_mut().enumerate() {
+            let filter = keep(k);
+            let len = set.len();
+            set.extend(keys.iter().filter(|&&key| filter(key)));
+            // A view touching only blocks already counted still updates them.
+            if set.len() > len || keys.iter().any(|&key| filter(key)) {
+                touching[k].push(i);
+            }
+        }
+    }
+    Ok((touching, blocks.iter().map(HashSet::len).collect()))
+}
+
+/// The pieces' triangles joined into one mesh, seam vertices shared by position.
+#[derive(Default)]
+struct Joined {
+    mesh: TriangleMesh,
+    index: HashMap<[u32; 3], u32>,
+}
+
+impl Joined {
+    /// Adds the triangles of `raw` whose centroids `own` accepts; returns how many.
+    fn add(&mut self, raw: &TriangleMesh, own: impl Fn(DVec3) -> bool) -> usize {
+        let mut local: HashMap<u32, u32> = HashMap::new();
+        let mut added = 0;
+        for t in &raw.triangles {
+            let p = t.map(|v| DVec3::from(raw.positions[v as usize].map(f64::from)));
+            if !own((p[0] + p[1] + p[2]) / 3.0) {
+                continue;
+            }
+            let tri = t.map(|v| {
+                *local.entry(v).or_insert_with(|| {
+                    let pos = raw.positions[v as usize];
+                    *self.index.entry(pos.map(f32::to_bits)).or_insert_with(|| {
+                        self.mesh.positions.push(pos);
+                        if let Some(c) = &raw.colors {
+                            self.mesh.colors.get_or_insert_with(Vec::new).push(c[v as usize]);
+                        }
+                        (self.mesh.positions.len() - 1) as u32
+                    })
+                })
+            });
+            self.mesh.triangles.push(tri);
+            added += 1;
+        }
+        added
+    }
+}
