@@ -106,6 +106,18 @@ fn partition_train_kill_resume_merge_and_mesh() {
     assert!(psnr > 12.0, "merged run held out at {psnr} dB:\n{log}");
     let (ok, log) = vagsl(&["mesh", m, "--backend", "cpu"]);
     assert!(ok && merged.join("mesh.ply").is_file(), "{log}");
+    assert!(log.contains("fused block by block: 2 blocks"), "{log}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(merged.join("mesh.json")).unwrap()).unwrap();
+    assert_eq!(report["pieces"].as_array().map(Vec::len), Some(2), "{report}");
+    // Block by block, the surface one volume makes (before the order-dependent simplification).
+    let shape = |name: &str, extra: &[&str]| {
+        let out = tmp.path().join(name);
+        let (ok, log) = vagsl(&[&["mesh", m, "--backend", "cpu", "--no-simplify", "-o", out.to_str().unwrap()], extra].concat());
+        assert!(ok, "{log}");
+        gs_testdata::MeshShape::of(&gs_io::read_mesh_ply(&out).unwrap())
+    };
+    let (pieces, whole) = (shape("pieces.ply", &[]), shape("whole.ply", &["--whole"]));
+    assert!(whole.triangles.len() > 1000 && pieces == whole, "{} against {} triangles", pieces.triangles.len(), whole.triangles.len());
     // A second merge does not overwrite the run without --force.
     let (ok, log) = vagsl(&["merge", p, "-o", m]);
     assert!(!ok && log.contains("already holds a vagsl run"), "{log}");

@@ -7,6 +7,7 @@
 //! - [`partition()`]: the plan ([`Plan`]) and the block folders.
 //! - [`runners`]: the block script and the scheduler files.
 //! - [`merge()`]: the checked, cropped union of the blocks' models as a run.
+//! - [`BlockPieces`]: the merged run's blocks as the pieces its mesh is fused in.
 //!
 //! ```no_run
 //! use gs_partition::{BlockCount, PartitionOptions, partition};
@@ -44,6 +45,7 @@ mod capture;
 mod error;
 mod ground;
 mod merge;
+mod mesh_blocks;
 mod partition;
 mod plan;
 mod regions;
@@ -53,6 +55,7 @@ pub use assign::{Members, assign, visible_points};
 pub use error::{PartitionError, Result};
 pub use ground::GroundFrame;
 pub use merge::{BlockSummary, MergeReport, Merged, merge, write_merged};
+pub use mesh_blocks::BlockPieces;
 pub use partition::{BlockCount, ConfigOf, MAX_BLOCKS, MIN_BLOCK_VIEWS, PartitionOptions, block_train_args, partition, REGION_KEY};
 pub use plan::{Block, PLAN_FILE, PLAN_VERSION, Plan};
 pub use regions::{Rect, Region, core_regions, grid_shape, weighted_cuts};

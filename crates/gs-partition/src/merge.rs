@@ -6,7 +6,9 @@
 //! `eval-images` and `view` open it like any other.
 
 use crate::error::{Context, Result, refuse};
+use crate::ground::GroundFrame;
 use crate::plan::{Block, Plan};
+use crate::regions::Region;
 use glam::DVec3;
 use gs_core::{Gaussians, Scene};
 use gs_run::{MadeFrom, RunConfig, SceneFingerprint};
@@ -34,6 +36,9 @@ pub struct BlockSummary {
     pub peak_memory_bytes: Option<u64>,
     /// Its training memory estimate, bytes (the plan's).
     pub estimate_bytes: u64,
+    /// Its core region: the merged model's Gaussians there are this block's, and `vagsl mesh`
+    /// fuses the merged run block by block over these regions.
+    pub core: Region,
 }
 
 /// `OUT/report.json` of a merged run.
@@ -44,6 +49,8 @@ pub struct MergeReport {
     pub made_from: MadeFrom,
     /// The plan folder merged.
     pub plan: PathBuf,
+    /// The ground frame the blocks' core regions are drawn in.
+    pub frame: GroundFrame,
     /// Iterations of the plan's settings for the whole scene (each block trained its share,
     /// listed per block).
     pub iterations: u64,
@@ -150,6 +157,7 @@ pub fn merge(plan_dir: &Path, note: &mut dyn FnMut(String)) -> Result<Merged> {
             train_seconds: report.get("train_seconds").and_then(|v| v.as_f64()).unwrap_or(0.0),
             peak_memory_bytes: report.get("peak_memory_bytes").and_then(|v| v.as_u64()),
             estimate_bytes: block.memory_bytes,
+            core: block.core,
         });
         match &mut merged {
             None => merged = Some(g),
@@ -169,6 +177,7 @@ pub fn merge(plan_dir: &Path, note: &mut dyn FnMut(String)) -> Result<Merged> {
     let report = MergeReport {
         made_from,
         plan: gs_run::run_config::absolute_scene_path(plan_dir),
+        frame: plan.frame,
         iterations: config.train.iterations,
         interrupted: false,
         gaussians: gaussians.len(),

@@ -13,6 +13,7 @@
 //! - **Generated scenes** ([`builtin`]): the built-in procedural scene of gs-synth written as a
 //!   COLMAP scene folder with exact ground truth, cached under `target/`, for tests that need a
 //!   scene on disk but no particular one.
+//! - **Mesh comparison** ([`MeshShape`]): one surface made in different orders compares equal.
 //!
 //! In a test, `if !gs_testdata::needs!("data/fox") { return; }` fills in the test's name;
 //! the function form:
@@ -25,8 +26,10 @@
 //! ```
 
 pub mod builtin;
+pub mod mesh_shape;
 pub mod sched;
 
+pub use mesh_shape::MeshShape;
 pub use sched::{K8sValidator, Slurm};
 
 use std::io::Write;

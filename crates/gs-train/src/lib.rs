@@ -68,7 +68,7 @@ pub use mesh::{
     ComponentCleanup, DEFAULT_COMPONENT_SHARE, DEFAULT_SIMPLIFY_ERROR, DEFAULT_SURFACE_CUT, DepthFilterReport, DepthSource, FINE_VOXEL_FRACTION, MIN_COMPONENT_TRIANGLES,
     MeshOptions, MeshReport, Simplify, SimplifyApplied, default_voxel, extract_mesh, fuse_mesh, length_text,
 };
-pub use mesh_pieces::{FusionPieces, PieceReport, fuse_mesh_in_pieces};
+pub use mesh_pieces::{FusionPieces, PieceReport, extract_mesh_in_pieces, fuse_mesh_in_pieces};
 pub use model::TrainedModel;
 pub use params::Param;
 pub use plan::{RefinePlan, StepPlan, plan_step};

@@ -76,7 +76,10 @@ pub fn fuse_mesh_in_pieces(
     // of its triangles read (a cube reaches one voxel into the next block).
     let reach = 3f64.sqrt() * (BLOCK as f64 + 2.0) * voxel;
     let keep = |piece: usize| move |key: [i32; 3]| pieces.near(piece, block_centre(key, voxel), reach);
+    let probed_below = stats.below_alpha;
     let (touching, census) = survey(scene, views, &mut source, opts, pieces, &config, &keep, &mut stats)?;
+    // The survey fetched every view once; count what its renders dropped, as one volume would.
+    let below_alpha = stats.below_alpha - probed_below;
     if let Some(limit) = opts.max_memory
         && let Some((k, &blocks)) = census.iter().enumerate().max_by_key(|(_, b)| **b)
     {
@@ -127,7 +130,7 @@ pub fn fuse_mesh_in_pieces(
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
         min_alpha: rendered.then_some(opts.min_alpha),
-        pixels_below_min_alpha: stats.below_alpha,
+        pixels_below_min_alpha: below_alpha,
         surface_cut: rendered.then_some(opts.surface_cut),
         depth_filter: None,
         components,
@@ -177,11 +180,14 @@ fn survey<F: Fn([i32; 3]) -> bool + Sync>(
     Ok((touching, blocks.iter().map(HashSet::len).collect()))
 }
 
-/// The pieces' triangles joined into one mesh, seam vertices shared by position.
+/// The pieces' triangles joined into one mesh. A vertex of a piece is joined to an earlier
+/// piece's vertex at the same position (the same grid edge, computed from the same values);
+/// within a piece, vertices stay as marching cubes made them, since distinct vertices of one
+/// volume may coincide (a surface through a voxel centre) without being joined there.
 #[derive(Default)]
 struct Joined {
     mesh: TriangleMesh,
-    index: HashMap<[u32; 3], u32>,
+    earlier: HashMap<[u32; 3], u32>,
 }
 
 impl Joined {
@@ -197,18 +203,33 @@ impl Joined {
             let tri = t.map(|v| {
                 *local.entry(v).or_insert_with(|| {
                     let pos = raw.positions[v as usize];
-                    *self.index.entry(pos.map(f32::to_bits)).or_insert_with(|| {
-                        self.mesh.positions.push(pos);
-                        if let Some(c) = &raw.colors {
-                            self.mesh.colors.get_or_insert_with(Vec::new).push(c[v as usize]);
-                        }
-                        (self.mesh.positions.len() - 1) as u32
-                    })
+                    if let Some(&g) = self.earlier.get(&pos.map(f32::to_bits)) {
+                        return g;
+                    }
+                    self.mesh.positions.push(pos);
+                    if let Some(c) = &raw.colors {
+                        self.mesh.colors.get_or_insert_with(Vec::new).push(c[v as usize]);
+                    }
+                    (self.mesh.positions.len() - 1) as u32
                 })
             });
             self.mesh.triangles.push(tri);
             added += 1;
         }
+        for (&v, &g) in &local {
+            self.earlier.entry(raw.positions[v as usize].map(f32::to_bits)).or_insert(g);
+        }
         added
     }
+}
+
+/// [`crate::extract_mesh`] piece by piece: a trained model's training views' rendered plane
+/// depths fused as `pieces`.
+pub fn extract_mesh_in_pieces(
+    model: &crate::TrainedModel<'_>,
+    rasterizer: &mut gs_raster::Rasterizer,
+    opts: &MeshOptions,
+    pieces: &dyn FusionPieces,
+) -> Result<(TriangleMesh, MeshReport)> {
+    fuse_mesh_in_pieces(model.scene, model.train, DepthSource::Rendered { model, rasterizer }, opts, pieces)
 }

@@ -3,7 +3,8 @@
 //! vertices and the same triangles, in less memory.
 
 use gs_core::glam::DVec3;
-use gs_core::{Image, Scene, TriangleMesh, View};
+use gs_core::{Image, Scene, View};
+use gs_testdata::MeshShape;
 use gs_train::{DepthSource, FusionPieces, MeshOptions, Simplify, fuse_mesh, fuse_mesh_in_pieces};
 use gs_tsdf::analytic_depth::{Primitive, orbit_cameras, render_depth};
 
@@ -52,26 +53,6 @@ fn world() -> (Scene, Vec<Primitive>) {
     (Scene { views, ..Scene::default() }, shapes)
 }
 
-/// Vertex positions (bits, sorted, unique) and triangles as sorted position triples.
-fn shape(mesh: &TriangleMesh) -> (Vec<[u32; 3]>, Vec<[[u32; 3]; 3]>) {
-    let bits = |v: u32| mesh.positions[v as usize].map(f32::to_bits);
-    let mut vertices: Vec<[u32; 3]> = mesh.positions.iter().map(|p| p.map(f32::to_bits)).collect();
-    vertices.sort_unstable();
-    vertices.dedup();
-    let mut triangles: Vec<[[u32; 3]; 3]> = mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            // The same triangle with the same winding, from its smallest vertex.
-            let p = t.map(bits);
-            let r = (0..3).min_by_key(|&k| p[k]).unwrap();
-            [p[r], p[(r + 1) % 3], p[(r + 2) % 3]]
-        })
-        .collect();
-    triangles.sort_unstable();
-    (vertices, triangles)
-}
-
 #[test]
 fn pieces_join_into_the_mesh_of_one_volume() {
     let (scene, shapes) = world();
@@ -92,11 +73,10 @@ fn pieces_join_into_the_mesh_of_one_volume() {
     let kept: usize = report.pieces.iter().map(|p| p.triangles).sum();
     assert_eq!(kept - report.components.result.triangles_removed, whole.triangles.len(), "{report:?}");
     assert_eq!(joined.triangles.len(), whole.triangles.len());
-    let (wv, wt) = shape(&whole);
-    let (jv, jt) = shape(&joined);
-    assert_eq!(jv.len(), wv.len(), "vertices");
-    assert!(jv == wv, "the joined mesh's vertices differ from one volume's");
-    assert!(jt == wt, "the joined mesh's triangles differ from one volume's");
+    let (w, j) = (MeshShape::of(&whole), MeshShape::of(&joined));
+    assert_eq!(j.vertices.len(), w.vertices.len(), "vertices");
+    assert!(j.vertices == w.vertices, "the joined mesh's vertices differ from one volume's");
+    assert!(j.triangles == w.triangles, "the joined mesh's triangles differ from one volume's");
     // Shared seam vertices are one vertex, as in one volume's mesh.
     assert_eq!(joined.positions.len(), whole.positions.len());
     assert_eq!(report.pixel_footprint, whole_report.pixel_footprint);

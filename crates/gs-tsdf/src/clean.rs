@@ -90,12 +90,15 @@ pub fn triangle_components(mesh: &TriangleMesh) -> Result<(Vec<u32>, usize)> {
     mesh.validate()?;
     let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
     for t in &mesh.triangles {
-        let a = find(&mut parent, t[0]);
+        let mut a = find(&mut parent, t[0]);
         for &v in &t[1..] {
             let b = find(&mut parent, v);
             if a != b {
                 let (lo, hi) = if a < b { (a, b) } else { (b, a) };
                 parent[hi as usize] = lo;
+                // The union's root: joining the third vertex to the old `a`, no longer a root,
+                // would cut `a`'s tree off from `b`'s.
+                a = lo;
             }
         }
     }
@@ -274,5 +277,18 @@ mod tests {
         assert_eq!(cull_by_masks(&m, &[(&cam, &full)]).unwrap().triangles.len(), 4);
         let wrong = Image::filled(5, 10, 1, 1.0).unwrap();
         assert!(cull_by_masks(&m, &[(&cam, &wrong)]).is_err());
+    }
+
+    #[test]
+    fn a_triangle_joining_three_components_joins_them_all() {
+        // [3, 0, 1] joins {2, 3, 4} (root 2) to {0} and then to {1}; a union that kept using 2
+        // after it stopped being a root cut {0} off again, and [0, 5, 6] became a second component.
+        let mesh = TriangleMesh {
+            positions: (0..7).map(|i| [i as f32, (i * i) as f32, 0.0]).collect(),
+            triangles: vec![[2, 3, 4], [3, 0, 1], [0, 5, 6]],
+            colors: None,
+        };
+        let (labels, count) = triangle_components(&mesh).unwrap();
+        assert_eq!((labels, count), (vec![0, 0, 0], 1));
     }
 }

@@ -3,7 +3,7 @@
 use gs_run::run_config::{SceneSource, load_scene};
 use gs_run::{OpenRun, write_json};
 use anyhow::{Result, bail};
-use gs_train::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, Simplify, extract_mesh, fuse_mesh};
+use gs_train::{DepthSource, FINE_VOXEL_FRACTION, MeshOptions, Simplify, extract_mesh, extract_mesh_in_pieces, fuse_mesh};
 use std::path::{Path, PathBuf};
 
 /// Options of `vagsl mesh`.
@@ -19,6 +19,10 @@ pub struct MeshArgs {
     /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
     #[arg(long, default_value = "auto")]
     pub backend: gs_raster::Backend,
+    /// Fuse a merged run (`vagsl merge`) in one TSDF volume instead of block by block (block
+    /// by block, the volume of the largest block is the memory needed; the mesh is the same).
+    #[arg(long, conflicts_with = "depth_dir")]
+    pub whole: bool,
     /// Fuse these depth maps instead of rendering a run: one per view of the scene, named
     /// `<stem>.exr`, `<stem>_depth.exr`, `depth_<stem>.npy` or `<stem>.npy` (camera z, 0 = none).
     #[arg(long)]
@@ -181,7 +185,14 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         None => {
             let run = OpenRun::open(&args.run, args.scene.as_deref())?;
             let mut rasterizer = super::rasterizer(args.backend)?;
-            let (mesh, report) = extract_mesh(&run.model(), &mut rasterizer, &opts)?;
+            let blocks = if args.whole { None } else { gs_partition::BlockPieces::of_merged_run(&args.run)? };
+            let (mesh, report) = match &blocks {
+                Some(_) if args.depth_filter => {
+                    bail!("--depth-filter holds every view's depth map at once, so a merged run is then fused whole: add --whole")
+                }
+                Some(pieces) => extract_mesh_in_pieces(&run.model(), &mut rasterizer, &opts, pieces)?,
+                None => extract_mesh(&run.model(), &mut rasterizer, &opts)?,
+            };
             (mesh, report, Some(run.made_from))
         }
     };
@@ -210,6 +221,15 @@ pub fn run(args: &MeshArgs) -> Result<()> {
         report.fuse_seconds,
         path.display()
     );
+    if let Some(largest) = report.pieces.iter().max_by_key(|p| p.tsdf_bytes) {
+        println!(
+            "  fused block by block: {} blocks, the largest volume {} ({}, {} views); --whole fuses at once",
+            report.pieces.len(),
+            gs_tsdf::format_bytes(largest.tsdf_bytes as u64),
+            largest.name,
+            largest.views
+        );
+    }
     println!("{}", cleanup_line(&report));
     if let Some(footprint) = report.pixel_footprint
         && report.voxel_size < FINE_VOXEL_FRACTION * footprint
