@@ -150,25 +150,46 @@ fn the_kubernetes_manifest_is_a_valid_indexed_job() {
     k8s.check(&plan.join("k8s-job.yaml")).unwrap_or_else(|e| panic!("{e}\n{yaml}"));
 }
 
-/// On a real scheduler: the plan's job array trains both blocks (`sbatch --wait`), then the
-/// merge and the mesh run on the merged run.
+/// On a real scheduler: the plan's job array trains both blocks (`sbatch --wait`); block 01's
+/// training is killed (SIGTERM, as a node's OOM killer or an admin would) and its task is
+/// requeued by the script and resumes from the checkpoint the kill left; then the merge and the
+/// mesh run on the merged run.
 #[test]
 fn slurm_trains_the_blocks_of_a_plan() {
     let Some(slurm) = gs_testdata::slurm!() else { return };
     let tmp = tempfile::tempdir().unwrap();
     let plan = tmp.path().join("plan");
     let p = plan.to_str().unwrap();
-    let (ok, log) = vagsl(&["partition", scene().to_str().unwrap(), "-o", p, "--blocks", "2", "--eval", "--", "--iterations", "200", "--backend", "cpu"]);
+    let (ok, log) = vagsl(&["partition", scene().to_str().unwrap(), "-o", p, "--blocks", "2", "--eval", "--", "--iterations", "300", "--backend", "cpu"]);
     assert!(ok, "{log}");
-    let out = slurm.command("sbatch").current_dir(&plan).args(["--wait", "--parsable"]).arg(plan.join("slurm.sbatch")).output().unwrap();
-    let logs: String = (0..2).map(|i| std::fs::read_to_string(plan.join(format!("logs/block-{i}.log"))).unwrap_or_default()).collect();
+    let sbatch =
+        slurm.command("sbatch").current_dir(&plan).args(["--wait", "--parsable"]).arg(plan.join("slurm.sbatch")).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let block_log = |i: usize| std::fs::read_to_string(plan.join(format!("logs/block-{i}.log"))).unwrap_or_default();
+    let started = std::time::Instant::now();
+    while !block_log(1).contains("Gaussian budget") {
+        assert!(started.elapsed().as_secs() < 300, "block 01 did not start training in 5 minutes:\n{}", block_log(1));
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let run = plan.join("runs/01");
+    let pids = Command::new("pgrep").args(["-f", &format!("train .*{}", run.display())]).output().unwrap();
+    let pids: Vec<i32> = String::from_utf8_lossy(&pids.stdout).split_whitespace().filter_map(|s| s.parse().ok()).collect();
+    assert!(!pids.is_empty(), "no training process of block 01 found:\n{}", block_log(1));
+    for pid in pids {
+        // SAFETY: kill(2) on a process of this test's own block job.
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+    }
+    let out = sbatch.wait_with_output().unwrap();
+    let logs = block_log(0) + &block_log(1);
     assert!(out.status.success(), "sbatch: {}\n{}\n{logs}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     assert!(logs.contains("block 00: training") && logs.contains("block 01: training"), "{logs}");
+    let second = block_log(1);
+    assert!(second.contains("requeued (restart 0") && second.contains("block 01: resuming from"), "{second}");
     let merged = tmp.path().join("merged");
     let (ok, log) = vagsl(&["merge", p, "-o", merged.to_str().unwrap()]);
     assert!(ok && log.contains("from 2 blocks"), "{log}");
     let (ok, log) = vagsl(&["mesh", merged.to_str().unwrap(), "--backend", "cpu"]);
-    assert!(ok, "{log}");
+    assert!(ok && log.contains("fused block by block"), "{log}");
 }
 
 /// The street scene (`vagsl synth --street`) is larger than one block: partitioned into 4
