@@ -38,7 +38,7 @@ fn full_pipeline_beats_image_only_and_approaches_the_gt_depth_floor() {
     let voxel = extent / 512.0;
     let mut vol = TsdfVolume::new(TsdfConfig { depth_trunc: 3.0 * extent, with_color: false, ..TsdfConfig::with_voxel_size(voxel) }).unwrap();
     for &i in &train {
-        vol.integrate_view(i, &scene.views[i].camera, &built.gt_depth[i], None, None).unwrap();
+        vol.integrate_view(i, &scene.views[i].camera, &built.gt_depth[i], None, None, None).unwrap();
     }
     let floor = score(&vol.extract_mesh().unwrap(), gt);
 

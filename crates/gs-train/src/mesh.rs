@@ -455,7 +455,7 @@ pub(crate) fn integrate(
     let view = &scene.views[f.view];
     let mask = if opts.use_masks { view.mask.as_ref() } else { None };
     let fused = volume
-        .integrate_view_where(f.view, &view.camera, &f.depth, Some(f.color.as_ref().unwrap_or(&view.image)), mask, keep)
+        .integrate_view(f.view, &view.camera, &f.depth, Some(f.color.as_ref().unwrap_or(&view.image)), mask, keep)
         .map_err(|e| match (e, opts.max_memory) {
             (TsdfError::BlockCapExceeded { needed, .. }, Some(limit)) => TrainError::MemoryLimit(format!(
                 "fusing view '{}' needs {needed} TSDF blocks, about {}, more than the memory limit of {}; \

@@ -22,7 +22,7 @@ fn bench(c: &mut Criterion) {
     let fuse = || {
         let mut v = TsdfVolume::new(config.clone()).unwrap();
         for (i, (cam, d)) in cams.iter().zip(&depths).enumerate() {
-            v.integrate_view(i, cam, d, None, None).unwrap();
+            v.integrate_view(i, cam, d, None, None, None).unwrap();
         }
         v
     };

@@ -16,7 +16,7 @@ fn main() {
     let t0 = std::time::Instant::now();
     let mut vol = TsdfVolume::new(cfg).unwrap();
     for (i, (cam, depth)) in views.iter().enumerate() {
-        vol.integrate_view(i, cam, depth, None, None).unwrap();
+        vol.integrate_view(i, cam, depth, None, None, None).unwrap();
     }
     let t1 = std::time::Instant::now();
     let mesh = vol.extract_mesh_with(&ExtractOptions { min_weight: 0.0, max_tsdf_jump: jump }).unwrap();

@@ -226,27 +226,15 @@ impl TsdfVolume {
         color: Option<&Image>,
         mask: Option<&Image>,
     ) -> Result<IntegrateStats> {
-        self.integrate_view(0, camera, depth, color, mask)
+        self.integrate_view(0, camera, depth, color, mask, None)
     }
 
-    /// [`TsdfVolume::integrate`] with a label for errors.
+    /// [`TsdfVolume::integrate`] with a label for errors (`view`), touching only the blocks
+    /// `keep` accepts (by key, see [`block_centre`]; `None`: all) — one piece of a fusion split
+    /// into pieces. A kept block receives exactly what it receives in a volume without the
+    /// filter, so pieces fused from the same views in the same order agree voxel for voxel
+    /// where they overlap.
     pub fn integrate_view(
-        &mut self,
-        view: usize,
-        camera: &Camera,
-        depth: &Image,
-        color: Option<&Image>,
-        mask: Option<&Image>,
-    ) -> Result<IntegrateStats> {
-        self.integrate_view_where(view, camera, depth, color, mask, None)
-    }
-
-    /// [`TsdfVolume::integrate`] with a view index used in error messages.
-    /// [`TsdfVolume::integrate_view`] touching only the blocks `keep` accepts (by key, see
-    /// [`block_centre`]): one piece of a fusion split into pieces. A kept block receives exactly
-    /// what it receives in a volume without the filter, so pieces fused from the same views in
-    /// the same order agree voxel for voxel where they overlap.
-    pub fn integrate_view_where(
         &mut self,
         view: usize,
         camera: &Camera,

@@ -18,7 +18,7 @@ fn bunny_gt_depth_at_voxel_0008_matches_open3d() {
     let t0 = std::time::Instant::now();
     let mut vol = TsdfVolume::new(cfg).unwrap();
     for (i, (cam, depth)) in views.iter().enumerate() {
-        vol.integrate_view(i, cam, depth, None, None).unwrap();
+        vol.integrate_view(i, cam, depth, None, None, None).unwrap();
     }
     let t1 = std::time::Instant::now();
     let mesh = vol.extract_mesh().unwrap();

@@ -13,7 +13,7 @@ fn fuse(views: &[(Camera, Image)], voxel: f64, bounds: Option<Aabb>) -> Triangle
     let cfg = TsdfConfig { depth_trunc: 20.0, with_color: false, bounds, ..TsdfConfig::with_voxel_size(voxel) };
     let mut vol = TsdfVolume::new(cfg).unwrap();
     for (i, (cam, depth)) in views.iter().enumerate() {
-        vol.integrate_view(i, cam, depth, None, None).unwrap();
+        vol.integrate_view(i, cam, depth, None, None, None).unwrap();
     }
     vol.extract_mesh().unwrap()
 }
