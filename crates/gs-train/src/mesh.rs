@@ -260,10 +260,18 @@ pub enum DepthSource<'a> {
 }
 
 /// One view's depth map ready to fuse, with its rendered colour (`None`: the photograph).
+#[derive(Clone)]
 pub(crate) struct Fetched {
     pub view: usize,
     pub depth: Image,
     pub color: Option<Image>,
+}
+
+impl Fetched {
+    /// Bytes of its depth map and colour.
+    pub fn bytes(&self) -> u64 {
+        ((self.depth.data().len() + self.color.as_ref().map_or(0, |c| c.data().len())) * 4) as u64
+    }
 }
 
 /// Running totals of the fetching.

@@ -11,11 +11,12 @@
 //! the same triangles there; each piece keeps the triangles whose centroids it owns, and
 //! vertices on the seams, computed from the same values, are joined by position. The clean-up
 //! and simplification then run once on the joined mesh, as for one volume. Peak memory is the
-//! largest piece's volume; the cost is one extra render of every view plus one render per
-//! further piece a view touches.
+//! largest piece's volume. The survey keeps the depth maps it rendered while they fit in a
+//! quarter of the memory limit (and beside the largest piece); a view whose map was not kept is
+//! rendered again for each piece it touches.
 
 use crate::error::{Result, TrainError};
-use crate::mesh::{DepthSource, FetchStats, MeshOptions, MeshReport, Setup, finish, integrate, length_text, median, prepare};
+use crate::mesh::{DepthSource, FetchStats, Fetched, MeshOptions, MeshReport, Setup, finish, integrate, length_text, median, prepare};
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Scene, TriangleMesh};
 use gs_tsdf::{MemoryEstimate, TsdfVolume, block_centre, format_bytes, volume::BLOCK};
@@ -77,13 +78,17 @@ pub fn fuse_mesh_in_pieces(
     let reach = 3f64.sqrt() * (BLOCK as f64 + 2.0) * voxel;
     let keep = |piece: usize| move |key: [i32; 3]| pieces.near(piece, block_centre(key, voxel), reach);
     let probed_below = stats.below_alpha;
-    let (touching, census) = survey(scene, views, &mut source, opts, pieces, &config, &keep, &mut stats)?;
+    let Survey { touching, census, mut kept, kept_bytes } = survey(scene, views, &mut source, opts, pieces, &config, &keep, &mut stats)?;
     // The survey fetched every view once; count what its renders dropped, as one volume would.
     let below_alpha = stats.below_alpha - probed_below;
     if let Some(limit) = opts.max_memory
         && let Some((k, &blocks)) = census.iter().enumerate().max_by_key(|(_, b)| **b)
     {
         let bytes = MemoryEstimate::for_blocks(blocks as u64, true).peak_bytes();
+        if bytes.saturating_add(kept_bytes) > limit {
+            // The largest piece fits only without the kept depth maps: render them again.
+            kept.iter_mut().for_each(|f| *f = None);
+        }
         if bytes > limit {
             return Err(TrainError::MemoryLimit(format!(
                 "fusing {} at voxel size {} needs about {} ({blocks} TSDF blocks with marching cubes), more than the memory limit of {}; use a larger --voxel-size or raise --max-memory",
@@ -99,11 +104,19 @@ pub fn fuse_mesh_in_pieces(
     let mut joined = Joined::default();
     let mut reports = Vec::with_capacity(pieces.count());
     let mut footprint_of: Vec<Option<f64>> = vec![None; scene.views.len()];
+    let mut last_piece = vec![0; scene.views.len()];
+    for (k, piece_views) in touching.iter().enumerate() {
+        piece_views.iter().for_each(|&i| last_piece[i] = k);
+    }
     for (k, piece_views) in touching.iter().enumerate() {
         let mut volume = TsdfVolume::new(config.clone())?;
         let filter = keep(k);
         for &i in piece_views {
-            let f = source.fetch(scene, i, opts, &mut stats)?;
+            let f = match &kept[i] {
+                Some(_) if last_piece[i] == k => kept[i].take().expect("kept"),
+                Some(f) => f.clone(),
+                None => source.fetch(scene, i, opts, &mut stats)?,
+            };
             let footprint = integrate(&mut volume, scene, &f, opts, Some(&filter))?;
             footprint_of[i] = footprint_of[i].or(footprint);
         }
@@ -156,12 +169,14 @@ fn survey<F: Fn([i32; 3]) -> bool + Sync>(
     config: &gs_tsdf::TsdfConfig,
     keep: &impl Fn(usize) -> F,
     stats: &mut FetchStats,
-) -> Result<(Vec<Vec<usize>>, Vec<usize>)> {
+) -> Result<Survey> {
     // Probing allocates nothing, so it is not held to the memory limit's block cap.
     let probe = TsdfVolume::new(gs_tsdf::TsdfConfig { max_blocks: opts.max_blocks, ..config.clone() })?;
     let n = pieces.count();
     let mut touching = vec![Vec::new(); n];
     let mut blocks: Vec<HashSet<[i32; 3]>> = vec![HashSet::new(); n];
+    let mut kept: Vec<Option<Fetched>> = (0..scene.views.len()).map(|_| None).collect();
+    let (budget, mut kept_bytes) = (opts.max_memory.map_or(0, |limit| limit / KEPT_SHARE), 0u64);
     for &i in views {
         let f = source.fetch(scene, i, opts, stats)?;
         let view = &scene.views[i];
@@ -176,9 +191,27 @@ fn survey<F: Fn([i32; 3]) -> bool + Sync>(
                 touching[k].push(i);
             }
         }
+        let bytes = f.bytes();
+        if kept_bytes + bytes <= budget {
+            kept_bytes += bytes;
+            kept[i] = Some(f);
+        }
     }
-    Ok((touching, blocks.iter().map(HashSet::len).collect()))
+    Ok(Survey { touching, census: blocks.iter().map(HashSet::len).collect(), kept, kept_bytes })
 }
+
+/// What the first pass found: per piece, the views touching it and its block count; and the
+/// depth maps kept for the second pass (by view), within a [`KEPT_SHARE`] of the memory limit.
+struct Survey {
+    touching: Vec<Vec<usize>>,
+    census: Vec<usize>,
+    kept: Vec<Option<Fetched>>,
+    kept_bytes: u64,
+}
+
+/// The survey keeps depth maps for the pieces in up to 1/`KEPT_SHARE` of the memory limit (none
+/// without a limit), so a view is rendered again only where they would not fit.
+const KEPT_SHARE: u64 = 4;
 
 /// The pieces' triangles joined into one mesh. A vertex of a piece is joined to an earlier
 /// piece's vertex at the same position (the same grid edge, computed from the same values);

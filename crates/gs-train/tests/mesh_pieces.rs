@@ -62,6 +62,16 @@ fn pieces_join_into_the_mesh_of_one_volume() {
     let (whole, whole_report) = fuse_mesh(&scene, &views, DepthSource::Given(&mut read), &opts).unwrap();
     let slabs = Slabs { normal: DVec3::new(1.0, 0.13, -0.21).normalize(), cuts: vec![-0.41, 0.57] };
     let (joined, report) = fuse_mesh_in_pieces(&scene, &views, DepthSource::Given(&mut read), &opts, &slabs).unwrap();
+    // With a memory limit the survey's depth maps are kept for the pieces instead of read again.
+    let mut reads = 0;
+    let mut counted = |v: &View| {
+        reads += 1;
+        Ok(render_depth(&v.camera, &shapes))
+    };
+    let limited = MeshOptions { max_memory: Some(4 << 30), ..opts.clone() };
+    let (kept, _) = fuse_mesh_in_pieces(&scene, &views, DepthSource::Given(&mut counted), &limited, &slabs).unwrap();
+    assert_eq!(reads, views.len() + gs_train::mesh::FOOTPRINT_PROBES.min(views.len()), "each view read once, plus the probes");
+    assert!(MeshShape::of(&kept) == MeshShape::of(&joined));
 
     assert!(whole.triangles.len() > 5_000, "{} triangles", whole.triangles.len());
     assert_eq!(report.pieces.len(), 3);
