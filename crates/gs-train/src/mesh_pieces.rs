@@ -71,16 +71,14 @@ pub fn fuse_mesh_in_pieces(
     }
     let rendered = matches!(source, DepthSource::Rendered { .. });
     let mut stats = FetchStats::default();
-    let (held, Setup { voxel, depth_trunc, config, .. }) = prepare(scene, views, &mut source, opts, &mut stats)?;
-    drop(held);
+    let (probed, Setup { voxel, depth_trunc, config, .. }) = prepare(scene, views, &mut source, opts, &mut stats)?;
     // A piece holds every block within this distance of its points: the blocks that the cubes
     // of its triangles read (a cube reaches one voxel into the next block).
     let reach = 3f64.sqrt() * (BLOCK as f64 + 2.0) * voxel;
     let keep = |piece: usize| move |key: [i32; 3]| pieces.near(piece, block_centre(key, voxel), reach);
-    let probed_below = stats.below_alpha;
-    let Survey { touching, census, mut kept, kept_bytes } = survey(scene, views, &mut source, opts, pieces, &config, &keep, &mut stats)?;
-    // The survey fetched every view once; count what its renders dropped, as one volume would.
-    let below_alpha = stats.below_alpha - probed_below;
+    let Survey { touching, census, mut kept, kept_bytes } = survey(scene, views, probed, &mut source, opts, pieces, &config, &keep, &mut stats)?;
+    // Every view was fetched once so far; count what those renders dropped, as one volume would.
+    let below_alpha = stats.below_alpha;
     if let Some(limit) = opts.max_memory
         && let Some((k, &blocks)) = census.iter().enumerate().max_by_key(|(_, b)| **b)
     {
@@ -157,12 +155,13 @@ pub fn fuse_mesh_in_pieces(
     Ok((mesh, report))
 }
 
-/// The first pass: every view's depth map once; for each piece, the views that touch it (in
-/// `views`' order) and the number of TSDF blocks it will hold.
+/// The first pass: every view's depth map once (the `probed` ones as already fetched); for each
+/// piece, the views that touch it (in `views`' order) and the number of TSDF blocks it will hold.
 #[allow(clippy::too_many_arguments)]
 fn survey<F: Fn([i32; 3]) -> bool + Sync>(
     scene: &Scene,
     views: &[usize],
+    mut probed: Vec<Fetched>,
     source: &mut DepthSource<'_>,
     opts: &MeshOptions,
     pieces: &dyn FusionPieces,
@@ -178,16 +177,19 @@ fn survey<F: Fn([i32; 3]) -> bool + Sync>(
     let mut kept: Vec<Option<Fetched>> = (0..scene.views.len()).map(|_| None).collect();
     let (budget, mut kept_bytes) = (opts.max_memory.map_or(0, |limit| limit / KEPT_SHARE), 0u64);
     for &i in views {
-        let f = source.fetch(scene, i, opts, stats)?;
+        let f = match probed.iter().position(|f| f.view == i) {
+            Some(k) => probed.swap_remove(k),
+            None => source.fetch(scene, i, opts, stats)?,
+        };
         let view = &scene.views[i];
         let mask = if opts.use_masks { view.mask.as_ref() } else { None };
         let keys = probe.probe_blocks(&view.camera, &f.depth, mask).map_err(|e| TrainError::InvalidScene(format!("view '{}': {e}", view.name)))?;
         for (k, set) in blocks.iter_mut().enumerate() {
             let filter = keep(k);
-            let len = set.len();
-            set.extend(keys.iter().filter(|&&key| filter(key)));
             // A view touching only blocks already counted still updates them.
-            if set.len() > len || keys.iter().any(|&key| filter(key)) {
+            let mut touches = false;
+            set.extend(keys.iter().filter(|&&key| filter(key)).inspect(|_| touches = true));
+            if touches {
                 touching[k].push(i);
             }
         }

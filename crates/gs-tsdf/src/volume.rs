@@ -22,7 +22,7 @@ pub const BLOCK: usize = 8;
 /// Voxels per block.
 pub const BLOCK_VOXELS: usize = BLOCK * BLOCK * BLOCK;
 
-/// Which blocks (by key) a fusion piece holds: [`TsdfVolume::integrate_view_where`].
+/// Which blocks (by key) a fusion piece holds: [`TsdfVolume::integrate_view`].
 pub type BlockFilter<'a> = &'a (dyn Fn([i32; 3]) -> bool + Sync);
 
 /// The world centre of the block with this key at this voxel size (block `k` spans
