@@ -1,4 +1,5 @@
-//! Forward + backward of every loss at 800×600 (and the metrics), CPU, rayon default threads.
+//! Forward + backward of every loss at 800×600 (and the metrics), CPU, rayon default threads;
+//! with the `wgpu` feature and an adapter, also the device twins of L_I and L_nc / L_ns.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use gs_core::{Image, Intrinsics, Rng};
@@ -113,6 +114,19 @@ fn bench(c: &mut Criterion) {
             )
         })
     });
+    // The device twins (behind the `wgpu` feature, on the default adapter when there is one;
+    // each call uploads its inputs and reads its outputs back, as training calls them today).
+    #[cfg(feature = "wgpu")]
+    if let Ok(ctx) = gs_gpu::GpuContext::new(&gs_gpu::GpuOptions::default()) {
+        let mut normal = gs_losses::NormalGpu::new(&ctx).unwrap();
+        g.bench_function("normal_losses_L_nc_L_ns_fwd_bwd_wgpu", |b| {
+            b.iter(|| black_box(normal.normal_losses(&z, &n, None, &guide, &k, &NormalLossConfig::default()).unwrap()))
+        });
+        let mut ssim = gs_losses::SsimGpu::new(&ctx).unwrap();
+        g.bench_function("image_loss_L_I_fwd_bwd_wgpu", |b| {
+            b.iter(|| black_box(ssim.image_loss(&rendered, &gt, Some(&guide), &ImageLossConfig::default()).unwrap()))
+        });
+    }
     g.bench_function("psnr", |b| {
         b.iter(|| black_box(psnr(&rendered, &gt).unwrap()))
     });

@@ -46,6 +46,8 @@ pub mod lpips;
 pub mod metrics;
 pub mod normal;
 pub mod normal_loss;
+#[cfg(feature = "wgpu")]
+pub mod normal_gpu;
 pub mod opacity;
 pub mod ssim;
 #[cfg(feature = "wgpu")]
@@ -60,5 +62,7 @@ pub use metrics::{masked_on_black, psnr, psnr_masked, ssim_metric, ssim_metric_w
 pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, normal_losses};
 pub use opacity::opacity_entropy;
 pub use ssim::SsimRegion;
+#[cfg(feature = "wgpu")]
+pub use normal_gpu::NormalGpu;
 #[cfg(feature = "wgpu")]
 pub use ssim_gpu::SsimGpu;

@@ -15,13 +15,22 @@ use rayon::prelude::*;
 /// The ε of the normalisation n / max(‖n‖, ε).
 pub const NORMALIZE_EPS: f64 = 1e-12;
 
+/// x of the ray K⁻¹(i + 0.5, j + 0.5, 1) through column i's pixel centres (in f64; the device
+/// twin uploads these and [`ray_y`]'s as f32, as [`ray`] rounds them).
+#[inline]
+pub(crate) fn ray_x(k: &Intrinsics, i: usize) -> f64 {
+    (i as f64 + 0.5 - k.cx) / k.fx
+}
+
+/// y of the ray through row j's pixel centres.
+#[inline]
+pub(crate) fn ray_y(k: &Intrinsics, j: usize) -> f64 {
+    (j as f64 + 0.5 - k.cy) / k.fy
+}
+
 #[inline]
 fn ray<T: Real>(k: &Intrinsics, i: usize, j: usize) -> [T; 3] {
-    [
-        T::from_f64((i as f64 + 0.5 - k.cx) / k.fx),
-        T::from_f64((j as f64 + 0.5 - k.cy) / k.fy),
-        T::ONE,
-    ]
+    [T::from_f64(ray_x(k, i)), T::from_f64(ray_y(k, j)), T::ONE]
 }
 
 #[inline]

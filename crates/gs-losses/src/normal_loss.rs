@@ -53,16 +53,11 @@ pub fn normal_consistency<T: Real>(
     if n == 0 {
         return 0.0;
     }
-    const CH: usize = 4096;
-    let sum = ordered_sum(n.div_ceil(CH), |b| {
-        (b * CH..((b + 1) * CH).min(n))
-            .map(|p| {
-                let d = (nhat[3 * p] - ntilde[3 * p]).abs()
-                    + (nhat[3 * p + 1] - ntilde[3 * p + 1]).abs()
-                    + (nhat[3 * p + 2] - ntilde[3 * p + 2]).abs();
-                (delta[p] * d).to_f64()
-            })
-            .sum()
+    let sum = consistency_sum(n, |p| {
+        let d = (nhat[3 * p] - ntilde[3 * p]).abs()
+            + (nhat[3 * p + 1] - ntilde[3 * p + 1]).abs()
+            + (nhat[3 * p + 2] - ntilde[3 * p + 2]).abs();
+        (delta[p] * d).to_f64()
     });
     let s = T::from_f64(weight / n as f64);
     if let Some(g) = grad_nhat {
@@ -76,6 +71,18 @@ pub fn normal_consistency<T: Real>(
             .for_each(|(i, gi)| *gi -= s * delta[i / 3] * (nhat[i] - ntilde[i]).sign0());
     }
     sum / n as f64
+}
+
+/// The fixed-order sum of L_nc's per-pixel values `value(p)` over `n` pixels: in chunks of 4096
+/// pixels, the chunks in order (the device twin sums its per-pixel values the same way).
+pub(crate) fn consistency_sum(n: usize, value: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
+    const CH: usize = 4096;
+    ordered_sum(n.div_ceil(CH), |b| (b * CH..((b + 1) * CH).min(n)).map(&value).sum())
+}
+
+/// The fixed-order sum of L_ns's per-row values and active-pair counts: the rows in order.
+pub(crate) fn smoothing_sum(rows: Vec<(f64, usize)>) -> (f64, usize) {
+    (rows.iter().map(|r| r.0).sum(), rows.iter().map(|r| r.1).sum())
 }
 
 #[inline]
@@ -144,8 +151,7 @@ pub fn normal_smoothing<T: Real>(
             (s, cnt)
         })
         .collect();
-    let total: f64 = rows.iter().map(|r| r.0).sum();
-    let count: usize = rows.iter().map(|r| r.1).sum();
+    let (total, count) = smoothing_sum(rows);
     let hw = (w * h) as f64;
     if let Some(g) = grad_nhat {
         let s = T::from_f64(weight / hw);
@@ -260,6 +266,59 @@ pub fn normal_losses(
     intrinsics: &Intrinsics,
     cfg: &NormalLossConfig,
 ) -> Result<NormalLossOutput> {
+    check_inputs(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?;
+    let (w, h) = (plane_depth.width(), plane_depth.height());
+    let z = plane_depth.data();
+    let a = alpha.map(|a| a.data());
+    let nt = rendered_normal.data();
+    let delta = guide.delta.data();
+    let nhat = depth_normal(z, w, h, intrinsics, a);
+    let mut g_nhat = vec![0.0f32; w * h * 3];
+    let mut g_nt = vec![0.0f32; w * h * 3];
+    let l_nc = normal_consistency(
+        &nhat,
+        nt,
+        delta,
+        cfg.lambda_nc as f64,
+        Some(&mut g_nhat),
+        Some(&mut g_nt),
+    );
+    let (l_ns, active) = normal_smoothing(
+        &nhat,
+        nt,
+        delta,
+        w,
+        h,
+        cfg.tau as f64,
+        cfg.gate,
+        cfg.pairs,
+        cfg.lambda_ns as f64,
+        Some(&mut g_nhat),
+    );
+    let mut g_z = vec![0.0f32; w * h];
+    depth_normal_backward(z, w, h, intrinsics, a, &g_nhat, &mut g_z);
+    Ok(NormalLossOutput {
+        l_nc,
+        l_ns,
+        ns_active_pairs: active,
+        total: cfg.lambda_nc as f64 * l_nc + cfg.lambda_ns as f64 * l_ns,
+        depth_normal: Image::from_vec(w, h, 3, nhat)?,
+        grad_plane_depth: Image::from_vec(w, h, 1, g_z)?,
+        grad_normal: Image::from_vec(w, h, 3, g_nt)?,
+    })
+}
+
+/// The checks of [`normal_losses`]' inputs (shared with the device twin): channel counts, one
+/// size for every image, finite non-negative weights and τ, finite intrinsics with positive
+/// focal lengths.
+pub(crate) fn check_inputs(
+    plane_depth: &Image,
+    rendered_normal: &Image,
+    alpha: Option<&Image>,
+    guide: &EdgeGuide,
+    intrinsics: &Intrinsics,
+    cfg: &NormalLossConfig,
+) -> Result<()> {
     let (w, h) = (plane_depth.width(), plane_depth.height());
     if plane_depth.channels() != 1 {
         return Err(LossError::Channels(format!(
@@ -314,42 +373,5 @@ pub fn normal_losses(
             return Err(LossError::InvalidParameter(format!("intrinsics {x} = {k}")));
         }
     }
-    let z = plane_depth.data();
-    let a = alpha.map(|a| a.data());
-    let nt = rendered_normal.data();
-    let delta = guide.delta.data();
-    let nhat = depth_normal(z, w, h, intrinsics, a);
-    let mut g_nhat = vec![0.0f32; w * h * 3];
-    let mut g_nt = vec![0.0f32; w * h * 3];
-    let l_nc = normal_consistency(
-        &nhat,
-        nt,
-        delta,
-        cfg.lambda_nc as f64,
-        Some(&mut g_nhat),
-        Some(&mut g_nt),
-    );
-    let (l_ns, active) = normal_smoothing(
-        &nhat,
-        nt,
-        delta,
-        w,
-        h,
-        cfg.tau as f64,
-        cfg.gate,
-        cfg.pairs,
-        cfg.lambda_ns as f64,
-        Some(&mut g_nhat),
-    );
-    let mut g_z = vec![0.0f32; w * h];
-    depth_normal_backward(z, w, h, intrinsics, a, &g_nhat, &mut g_z);
-    Ok(NormalLossOutput {
-        l_nc,
-        l_ns,
-        ns_active_pairs: active,
-        total: cfg.lambda_nc as f64 * l_nc + cfg.lambda_ns as f64 * l_ns,
-        depth_normal: Image::from_vec(w, h, 3, nhat)?,
-        grad_plane_depth: Image::from_vec(w, h, 1, g_z)?,
-        grad_normal: Image::from_vec(w, h, 3, g_nt)?,
-    })
+    Ok(())
 }

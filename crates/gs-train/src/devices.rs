@@ -1,6 +1,7 @@
 //! The loss terms' device executors, passed to the terms explicitly through
 //! [`crate::terms::TermInputs`] (docs/architecture.md §GPU): L_p's patches
-//! ([`gs_mvs::PhotometricGpu`]) and D-SSIM ([`gs_losses::SsimGpu`]), on the wgpu rasterizer's
+//! ([`gs_mvs::PhotometricGpu`]), D-SSIM ([`gs_losses::SsimGpu`]) and L_nc with L_ns
+//! ([`gs_losses::NormalGpu`]), on the wgpu rasterizer's
 //! own device (one context, cloned). Without the `wgpu` feature there are none and the CPU
 //! reference evaluates every term.
 
@@ -13,6 +14,9 @@ pub struct LossDevices {
     /// D-SSIM of L_I.
     #[cfg(feature = "wgpu")]
     pub ssim: Option<std::cell::RefCell<gs_losses::SsimGpu>>,
+    /// L_nc and L_ns.
+    #[cfg(feature = "wgpu")]
+    pub normal: Option<std::cell::RefCell<gs_losses::NormalGpu>>,
     /// The adapter they run on, in words.
     adapter: Option<String>,
 }
@@ -28,7 +32,8 @@ impl LossDevices {
                 false => None,
             };
             let ssim = Some(gs_losses::SsimGpu::new(ctx).map_err(|e| format!("D-SSIM: {e}"))?.into());
-            return Ok(Self { photometric, ssim, adapter: Some(ctx.description()) });
+            let normal = Some(gs_losses::NormalGpu::new(ctx).map_err(|e| format!("L_nc and L_ns: {e}"))?.into());
+            return Ok(Self { photometric, ssim, normal, adapter: Some(ctx.description()) });
         }
         let _ = (rasterizer, uses_photometric);
         Ok(Self::default())
@@ -50,6 +55,24 @@ impl LossDevices {
         gs_losses::image_loss(rendered, gt, guide, cfg)
     }
 
+    /// L_nc and L_ns of a rendered view: on the device when there is an executor for them, else
+    /// [`gs_losses::normal_losses`] (the reference).
+    pub fn normal_losses(
+        &self,
+        plane_depth: &gs_core::Image,
+        rendered_normal: &gs_core::Image,
+        alpha: Option<&gs_core::Image>,
+        guide: &gs_losses::EdgeGuide,
+        intrinsics: &gs_core::Intrinsics,
+        cfg: &gs_losses::NormalLossConfig,
+    ) -> gs_losses::Result<gs_losses::NormalLossOutput> {
+        #[cfg(feature = "wgpu")]
+        if let Some(d) = &self.normal {
+            return d.borrow_mut().normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg);
+        }
+        gs_losses::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)
+    }
+
     /// L_p of `reference` over `sources`: the patches on the device when there is an executor
     /// for them, else [`gs_mvs::photometric_loss`] (the reference).
     pub fn photometric_loss(
@@ -65,22 +88,27 @@ impl LossDevices {
         gs_mvs::photometric_loss(reference, sources, config)
     }
 
-    /// Where each term runs, in words: `"L_p and D-SSIM on wgpu (ADAPTER); the rest on the
-    /// CPU"`, or that every term runs on the CPU.
+    /// Where each term runs, in words: `"L_p, D-SSIM and L_nc/L_ns on wgpu (ADAPTER); the other
+    /// terms on the CPU"`, or that every term runs on the CPU.
     pub fn describe(&self) -> String {
         #[allow(unused_mut)]
-        let mut on: Vec<&str> = Vec::new();
+        let mut on: Vec<String> = Vec::new();
         #[cfg(feature = "wgpu")]
         {
+            use crate::terms::term_name::{NORMAL_CONSISTENCY, NORMAL_SMOOTHING, PHOTOMETRIC};
             if self.photometric.is_some() {
-                on.push(crate::terms::term_name::PHOTOMETRIC);
+                on.push(PHOTOMETRIC.into());
             }
             if self.ssim.is_some() {
-                on.push("D-SSIM");
+                on.push("D-SSIM".into());
+            }
+            if self.normal.is_some() {
+                on.push(format!("{NORMAL_CONSISTENCY}/{NORMAL_SMOOTHING}"));
             }
         }
-        match (&self.adapter, on.is_empty()) {
-            (Some(a), false) => format!("{} on wgpu ({a}); the other terms on the CPU", on.join(" and ")),
+        match (&self.adapter, on.split_last()) {
+            (Some(a), Some((last, []))) => format!("{last} on wgpu ({a}); the other terms on the CPU"),
+            (Some(a), Some((last, first))) => format!("{} and {last} on wgpu ({a}); the other terms on the CPU", first.join(", ")),
             _ => format!("every loss term on the CPU ({} threads)", rayon::current_num_threads()),
         }
     }

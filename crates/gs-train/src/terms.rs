@@ -16,7 +16,7 @@ use crate::profile::Part;
 use crate::devices::LossDevices;
 use gs_core::{Camera, Gaussians, Image};
 use gs_features::FeatureMap;
-use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, normal_losses, opacity_entropy};
+use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, opacity_entropy};
 use gs_mvs::{
     FeatureReference, FeatureSource, PhotometricConfig, PhotometricReference, PhotometricSource, feature_loss,
 };
@@ -241,7 +241,7 @@ impl LossTerm for NormalTerms {
             ..self.config
         };
         let r = x.render;
-        let nl = normal_losses(
+        let nl = x.devices.normal_losses(
             channel(&r.plane_depth, "plane depth")?,
             channel(&r.normal, "normal")?,
             r.alpha.as_ref(),

@@ -1,0 +1,256 @@
+// L_nc and L_ns on the device, the twin of `normal_loss::normal_losses` (docs/method.md §L_nc,
+// §L_ns): four passes of one thread per pixel. Each pass does the reference's arithmetic in
+// the reference's order, so that the host can sum the per-pixel values as the reference does.
+//
+// Generated before this file: `struct NormalFrame` (binding 0) and the storage bindings
+// `inputs` (z, then Ñ, δ and, when `has_alpha`, A), `rays` (x of each column's ray, then y of
+// each row's), `nhat` (N̂), `values` (per pixel: δ·‖N̂ − Ñ‖₁, the right and the down pair's
+// δ_k·ReLU(‖N̂_k − N̂_p‖₁ − τ²) where the pair is active, the number of active pairs),
+// `gnhat` (∂/∂N̂), `gnt` (∂/∂Ñ), `gab` (∂/∂dx and ∂/∂dy per pixel), `gz` (∂/∂z).
+
+@group(0) @binding(0) var<uniform> frame: NormalFrame;
+
+fn sign0(v: f32) -> f32 {
+    return select(0.0, 1.0, v > 0.0) - select(0.0, 1.0, v < 0.0);
+}
+
+fn sign3(v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(sign0(v.x), sign0(v.y), sign0(v.z));
+}
+
+// The reference's cross product, written out (the builtin may round differently).
+fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+
+fn l1(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let d = abs(b - a);
+    return d.x + d.y + d.z;
+}
+
+fn point(i: u32, j: u32) -> vec3<f32> {
+    let d = inputs[j * frame.width + i];
+    return vec3<f32>(rays[i] * d, rays[frame.width + j] * d, d);
+}
+
+fn ntilde(p: u32) -> vec3<f32> {
+    let o = frame.n + 3u * p;
+    return vec3<f32>(inputs[o], inputs[o + 1u], inputs[o + 2u]);
+}
+
+fn nh(p: u32) -> vec3<f32> {
+    return vec3<f32>(nhat[3u * p], nhat[3u * p + 1u], nhat[3u * p + 2u]);
+}
+
+fn delta(p: u32) -> f32 {
+    return inputs[4u * frame.n + p];
+}
+
+fn alpha(p: u32) -> f32 {
+    if (frame.has_alpha != 0u) {
+        return inputs[5u * frame.n + p];
+    }
+    return 1.0;
+}
+
+fn inside(i: u32, j: u32) -> bool {
+    return i >= 1u && j >= 1u && i + 1u < frame.width && j + 1u < frame.height;
+}
+
+fn on_border(i: u32, j: u32) -> bool {
+    return i == 0u || j == 0u || i + 1u == frame.width || j + 1u == frame.height;
+}
+
+// The raw cross product of the two central differences at an interior pixel.
+fn raw_normal(i: u32, j: u32) -> vec3<f32> {
+    return cross3(point(i + 1u, j) - point(i - 1u, j), point(i, j - 1u) - point(i, j + 1u));
+}
+
+fn len3(n: vec3<f32>) -> f32 {
+    return sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+}
+
+// Pass 1: N̂ = A · normalise(cross(dx, dy)) inside, 0 on the border.
+@compute @workgroup_size(256)
+fn depth_normals(ids: Ids) {
+    let p = thread_1d(ids);
+    if (p >= frame.n) {
+        return;
+    }
+    let i = p % frame.width;
+    let j = p / frame.width;
+    var out = vec3<f32>(0.0);
+    if (inside(i, j)) {
+        let n = raw_normal(i, j);
+        out = n * (alpha(p) / max(len3(n), frame.eps));
+    }
+    nhat[3u * p] = out.x;
+    nhat[3u * p + 1u] = out.y;
+    nhat[3u * p + 2u] = out.z;
+}
+
+// Whether the L_ns pair (p, k) counts: the pair rule and the gate on ‖Ñ_k − Ñ_p‖₁.
+fn pair_on(i: u32, j: u32, ki: u32, kj: u32) -> bool {
+    if (frame.interior != 0u && (on_border(i, j) || on_border(ki, kj))) {
+        return false;
+    }
+    let dt = l1(ntilde(j * frame.width + i), ntilde(kj * frame.width + ki));
+    if (frame.gate == 0u) {
+        return dt > frame.tau;
+    }
+    return dt < frame.tau;
+}
+
+// ReLU(‖N̂_k − N̂_p‖₁ − τ²) of pair (p, k), or a negative value when it is zero.
+fn excess(i: u32, j: u32, ki: u32, kj: u32) -> f32 {
+    return l1(nh(j * frame.width + i), nh(kj * frame.width + ki)) - frame.tau2;
+}
+
+// The gradient coefficient of pair (p, k): s·δ_k where it is active and positive.
+fn coef(i: u32, j: u32, ki: u32, kj: u32) -> f32 {
+    if (!pair_on(i, j, ki, kj) || !(excess(i, j, ki, kj) > 0.0)) {
+        return 0.0;
+    }
+    return frame.s_ns * delta(kj * frame.width + ki);
+}
+
+// Pass 2: the per-pixel values of both terms, ∂/∂Ñ of L_nc and ∂/∂N̂ of both.
+@compute @workgroup_size(256)
+fn normal_terms(ids: Ids) {
+    let p = thread_1d(ids);
+    if (p >= frame.n) {
+        return;
+    }
+    let w = frame.width;
+    let i = p % w;
+    let j = p / w;
+    let np = nh(p);
+    let diff = np - ntilde(p);
+    let d = abs(diff);
+    let dp = delta(p);
+    values[4u * p] = dp * (d.x + d.y + d.z);
+    var count = 0.0;
+    var pair = vec2<f32>(0.0);
+    if (i + 1u < w && pair_on(i, j, i + 1u, j)) {
+        count += 1.0;
+        let r = excess(i, j, i + 1u, j);
+        if (r > 0.0) {
+            pair.x = delta(p + 1u) * r;
+        }
+    }
+    if (j + 1u < frame.height && pair_on(i, j, i, j + 1u)) {
+        count += 1.0;
+        let r = excess(i, j, i, j + 1u);
+        if (r > 0.0) {
+            pair.y = delta(p + w) * r;
+        }
+    }
+    values[4u * p + 1u] = pair.x;
+    values[4u * p + 2u] = pair.y;
+    values[4u * p + 3u] = count;
+    let gnc = frame.s_nc * dp * sign3(diff);
+    gnt[3u * p] = -gnc.x;
+    gnt[3u * p + 1u] = -gnc.y;
+    gnt[3u * p + 2u] = -gnc.z;
+    // L_ns: p as the first pixel of (p, right) and (p, down), then as the neighbour of
+    // (left, p) and (up, p), in the reference's order.
+    var acc = vec3<f32>(0.0);
+    if (i + 1u < w) {
+        let c = coef(i, j, i + 1u, j);
+        if (c != 0.0) {
+            acc += (-c) * sign3(nh(p + 1u) - np);
+        }
+    }
+    if (j + 1u < frame.height) {
+        let c = coef(i, j, i, j + 1u);
+        if (c != 0.0) {
+            acc += (-c) * sign3(nh(p + w) - np);
+        }
+    }
+    if (i >= 1u) {
+        let c = coef(i - 1u, j, i, j);
+        if (c != 0.0) {
+            acc += c * sign3(np - nh(p - 1u));
+        }
+    }
+    if (j >= 1u) {
+        let c = coef(i, j - 1u, i, j);
+        if (c != 0.0) {
+            acc += c * sign3(np - nh(p - w));
+        }
+    }
+    let g = gnc + acc;
+    gnhat[3u * p] = g.x;
+    gnhat[3u * p + 1u] = g.y;
+    gnhat[3u * p + 2u] = g.z;
+}
+
+// Pass 3: ∂/∂dx and ∂/∂dy of each interior pixel's normal (zero where ∂/∂N̂ is zero).
+@compute @workgroup_size(256)
+fn normal_chain(ids: Ids) {
+    let p = thread_1d(ids);
+    if (p >= frame.n) {
+        return;
+    }
+    let i = p % frame.width;
+    let j = p / frame.width;
+    let g = vec3<f32>(gnhat[3u * p], gnhat[3u * p + 1u], gnhat[3u * p + 2u]);
+    var da = vec3<f32>(0.0);
+    var db = vec3<f32>(0.0);
+    if (inside(i, j) && !(g.x == 0.0 && g.y == 0.0 && g.z == 0.0)) {
+        let a = alpha(p);
+        let dx = point(i + 1u, j) - point(i - 1u, j);
+        let dy = point(i, j - 1u) - point(i, j + 1u);
+        let n = cross3(dx, dy);
+        let len = len3(n);
+        var gn: vec3<f32>;
+        if (len > frame.eps) {
+            let inv = 1.0 / len;
+            let u = n * inv;
+            let ug = u.x * g.x + u.y * g.y + u.z * g.z;
+            gn = (g - u * ug) * (a * inv);
+        } else {
+            gn = g * (a / frame.eps);
+        }
+        da = cross3(dy, gn);
+        db = cross3(gn, dx);
+    }
+    for (var c = 0u; c < 3u; c++) {
+        gab[6u * p + c] = da[c];
+        gab[6u * p + 3u + c] = db[c];
+    }
+}
+
+fn ga(p: u32) -> vec3<f32> {
+    return vec3<f32>(gab[6u * p], gab[6u * p + 1u], gab[6u * p + 2u]);
+}
+
+fn gb(p: u32) -> vec3<f32> {
+    return vec3<f32>(gab[6u * p + 3u], gab[6u * p + 4u], gab[6u * p + 5u]);
+}
+
+// Pass 4: ∂/∂z, each pixel's share of its neighbours' differences along its ray.
+@compute @workgroup_size(256)
+fn depth_gradient(ids: Ids) {
+    let p = thread_1d(ids);
+    if (p >= frame.n) {
+        return;
+    }
+    let w = frame.width;
+    let i = p % w;
+    let j = p / w;
+    var s = vec3<f32>(0.0);
+    if (i >= 1u) {
+        s += ga(p - 1u);
+    }
+    if (i + 1u < w) {
+        s -= ga(p + 1u);
+    }
+    if (j + 1u < frame.height) {
+        s += gb(p + w);
+    }
+    if (j >= 1u) {
+        s -= gb(p - w);
+    }
+    gz[p] = s.x * rays[i] + s.y * rays[w + j] + s.z;
+}
