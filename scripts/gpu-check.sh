@@ -3,7 +3,7 @@
 # put in .gpu/ (the GPU machine reaches no registry and builds nothing). In order of value:
 #   1. the machine: GPU name, memory, driver; the wgpu adapter;
 #   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests and
-#      the loss kernels' tests: gs-mvs photometric_gpu (L_p), gs-losses ssim_gpu (D-SSIM) and
+#      the loss kernels' tests: gs-mvs photometric_gpu (L_p), gs-losses image_gpu (L_I) and
 #      normal_gpu (L_nc / L_ns));
 #   3. the rasterizer bench at 1920×1080 with 100k and 1M Gaussians, wgpu and 16 CPU threads;
 #   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
@@ -69,9 +69,9 @@ if [ -f "$OUT/parity.log" ]; then
   note ""; note "## wgpu parity: $r ($(grep -E '^test result' "$OUT/parity.log" | tail -1))"
 fi
 
-# The loss kernels against their CPU twins (gs-mvs photometric_gpu, gs-losses ssim_gpu and
+# The loss kernels against their CPU twins (gs-mvs photometric_gpu, gs-losses image_gpu and
 # normal_gpu).
-for t in lp ssim normal; do
+for t in lp image normal; do
   step ${t}_parity 30 env CI=true "$B/$t-parity" --test-threads 1 --nocapture; r=$?
   if [ -f "$OUT/${t}_parity.log" ]; then
     if [ $r = 0 ]; then r=passed; else r=FAILED; fi

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Packs what scripts/gpu-check.sh needs on a GPU machine that reaches no registry: stripped
 # release binaries (vagsl, the rasterizer bench, the wgpu parity tests of the rasterizer, L_p,
-# D-SSIM and L_nc/L_ns), the synth-bunny scene without its GT depth maps, and the Vulkan
+# L_I and L_nc/L_ns), the synth-bunny scene without its GT depth maps, and the Vulkan
 # loader's Debian packages. Run it here, in the repository root; it fills the ignored folders .gpu/ and .gl/, which travel with `carry`.
 #
 #   scripts/gpu-pack.sh [--baseline PATH_TO_OLD_VAGSL] [--baseline-bench OLD_RASTER_BENCH NAME]
@@ -37,13 +37,13 @@ print(p[-1])'; }
 raster=$(exe bench --bench raster --no-run)
 parity=$(exe test --release --test wgpu_parity --no-run)
 lp_parity=$(exe test --release --test photometric_gpu --no-run)
-ssim_parity=$(exe test --release --test ssim_gpu --no-run)
+image_parity=$(exe test --release --test image_gpu --no-run)
 normal_parity=$(exe test --release --test normal_gpu --no-run)
 strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
 strip -o .gpu/bin/lp-parity "$lp_parity"
-strip -o .gpu/bin/ssim-parity "$ssim_parity"
+strip -o .gpu/bin/image-parity "$image_parity"
 strip -o .gpu/bin/normal-parity "$normal_parity"
 [ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
 if [ -n "$bench_base" ]; then

@@ -40,7 +40,7 @@ fn builtin_scene_end_to_end() {
     assert!(report["gaussians"].as_u64().unwrap() > 0);
     // Where the terms ran (`auto`: the CPU here, wgpu on a hardware GPU) and where the time went.
     let on = report["loss_terms_on"].as_str().unwrap();
-    assert!(on.starts_with("every loss term on the CPU") || on.starts_with("L_p, D-SSIM and L_nc/L_ns on wgpu"), "{on}");
+    assert!(on.starts_with("every loss term on the CPU") || on.starts_with("L_p, L_I and L_nc/L_ns on wgpu"), "{on}");
     let prof = report["time_by_part"].as_object().unwrap();
     let iterations: u64 = prof.values().map(|p| p["iterations"].as_u64().unwrap()).sum();
     assert_eq!(iterations, 40, "{prof:?}");

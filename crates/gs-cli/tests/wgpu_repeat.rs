@@ -1,6 +1,6 @@
 #![cfg(feature = "wgpu")]
 //! Two `--backend wgpu` runs with one seed write the same bytes: the wgpu backward sums every
-//! gradient in a fixed order (no float atomics), and the device's D-SSIM, L_p and L_nc/L_ns
+//! gradient in a fixed order (no float atomics), and the device's L_I, L_p and L_nc/L_ns
 //! kernels leave their sums to the host, so a GPU run repeats like a CPU run.
 //!
 //! Kept small for lavapipe (software Vulkan on the CPU, seconds per iteration): the built-in
@@ -44,7 +44,7 @@ fn two_wgpu_runs_with_one_seed_write_the_same_model() {
     // The loss kernels ran on the device in these runs, and L_p and the normal terms ran at all.
     let report: serde_json::Value = serde_json::from_slice(&read(&a.join("report.json"))).unwrap();
     let on = report["loss_terms_on"].as_str().unwrap();
-    assert!(on.starts_with("L_p, D-SSIM and L_nc/L_ns on wgpu"), "{on}");
+    assert!(on.starts_with("L_p, L_I and L_nc/L_ns on wgpu"), "{on}");
     let lp_phase = &report["time_by_part"]["photometric"]["ms_per_iteration"];
     assert!(lp_phase["photometric"].as_f64().unwrap() > 0.0, "{report}");
     assert!(lp_phase["normal_losses"].as_f64().unwrap() > 0.0, "{report}");

@@ -122,9 +122,9 @@ fn bench(c: &mut Criterion) {
         g.bench_function("normal_losses_L_nc_L_ns_fwd_bwd_wgpu", |b| {
             b.iter(|| black_box(normal.normal_losses(&z, &n, None, &guide, &k, &NormalLossConfig::default()).unwrap()))
         });
-        let mut ssim = gs_losses::SsimGpu::new(&ctx).unwrap();
+        let mut image = gs_losses::ImageLossGpu::new(&ctx).unwrap();
         g.bench_function("image_loss_L_I_fwd_bwd_wgpu", |b| {
-            b.iter(|| black_box(ssim.image_loss(&rendered, &gt, Some(&guide), &ImageLossConfig::default()).unwrap()))
+            b.iter(|| black_box(image.image_loss(&rendered, &gt, Some(&guide), &ImageLossConfig::default()).unwrap()))
         });
     }
     g.bench_function("psnr", |b| {

@@ -80,23 +80,41 @@ pub fn image_loss(
     guide: Option<&EdgeGuide>,
     cfg: &ImageLossConfig,
 ) -> Result<ImageLossOutput> {
-    image_loss_with(rendered, gt, guide, cfg, &mut |a, b, dims, weight, grad| {
-        ssim_backward(a, b, dims, SsimRegion::Full, weight, grad)
-    })
+    let guide = check_inputs(rendered, gt, guide, cfg)?;
+    let dims = Dims::of(rendered);
+    let (a, b) = (rendered.data(), gt.data());
+    let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
+    let mut grad = vec![0.0f32; dims.len()];
+    let l1v = l1(a, b);
+    l1_backward(a, b, 1.0 - b1, &mut grad);
+    let s = ssim_backward(a, b, dims, SsimRegion::Full, -b1, &mut grad)?;
+    let edge = guide.map(|guide| {
+        let gr = image_gradient(a, dims);
+        let mut up = vec![0.0f32; dims.pixels()];
+        let e = edge_l1(&gr.map, guide.gradient.data(), b2, Some(&mut up));
+        image_gradient_backward(a, dims, &gr, &up, &mut grad);
+        e
+    });
+    ImageLossOutput::assemble(cfg, l1v, s, edge, Image::from_vec(dims.width, dims.height, dims.channels, grad)?)
 }
 
-/// The SSIM executor of [`image_loss_with`]: `(a, b, dims, weight, grad_a)` → mean SSIM over
-/// the whole image, adding `weight · ∂SSIM/∂a` to `grad_a` (as [`ssim_backward`]).
-pub(crate) type SsimExecutor<'a> = dyn FnMut(&[f32], &[f32], Dims, f64, &mut [f32]) -> Result<f64> + 'a;
+impl ImageLossOutput {
+    /// The output of the three terms' values and the summed gradient, with L_I's total.
+    pub(crate) fn assemble(cfg: &ImageLossConfig, l1: f64, ssim: f64, edge: Option<f64>, grad_rendered: Image) -> Result<Self> {
+        let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
+        let total = (1.0 - b1) * l1 + b1 * (1.0 - ssim) + edge.map_or(0.0, |e| b2 * e);
+        Ok(Self { l1, ssim, edge, total, grad_rendered })
+    }
+}
 
-/// [`image_loss`] with the SSIM term evaluated by `ssim` (the CPU reference or a device twin).
-pub(crate) fn image_loss_with(
+/// The checks of [`image_loss`]' inputs (shared with the device twin): one size, weights in
+/// range, and an edge guide of the image's size when the edge term is on, which is returned.
+pub(crate) fn check_inputs<'g>(
     rendered: &Image,
     gt: &Image,
-    guide: Option<&EdgeGuide>,
+    guide: Option<&'g EdgeGuide>,
     cfg: &ImageLossConfig,
-    ssim: &mut SsimExecutor<'_>,
-) -> Result<ImageLossOutput> {
+) -> Result<Option<&'g EdgeGuide>> {
     let dims = Dims::of(rendered);
     if Dims::of(gt) != dims {
         return Err(LossError::ShapeMismatch(format!(
@@ -122,42 +140,22 @@ pub(crate) fn image_loss_with(
             cfg.beta1
         )));
     }
-    let (a, b) = (rendered.data(), gt.data());
-    let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
-    let mut grad = vec![0.0f32; dims.len()];
-    let l1v = l1(a, b);
-    l1_backward(a, b, 1.0 - b1, &mut grad);
-    let s = ssim(a, b, dims, -b1, &mut grad)?;
-    let mut total = (1.0 - b1) * l1v + b1 * (1.0 - s);
-    let edge = if cfg.edge {
-        let guide = guide.ok_or_else(|| {
-            LossError::InvalidParameter(
-                "the edge term is on but no EdgeGuide of the ground truth was given".into(),
-            )
-        })?;
-        if guide.gradient.width() != dims.width || guide.gradient.height() != dims.height {
-            return Err(LossError::ShapeMismatch(format!(
-                "edge guide is {}×{}, image {}×{}",
-                guide.gradient.width(),
-                guide.gradient.height(),
-                dims.width,
-                dims.height
-            )));
-        }
-        let gr = image_gradient(a, dims);
-        let mut up = vec![0.0f32; dims.pixels()];
-        let e = edge_l1(&gr.map, guide.gradient.data(), b2, Some(&mut up));
-        image_gradient_backward(a, dims, &gr, &up, &mut grad);
-        total += b2 * e;
-        Some(e)
-    } else {
-        None
-    };
-    Ok(ImageLossOutput {
-        l1: l1v,
-        ssim: s,
-        edge,
-        total,
-        grad_rendered: Image::from_vec(dims.width, dims.height, dims.channels, grad)?,
-    })
+    if !cfg.edge {
+        return Ok(None);
+    }
+    let guide = guide.ok_or_else(|| {
+        LossError::InvalidParameter(
+            "the edge term is on but no EdgeGuide of the ground truth was given".into(),
+        )
+    })?;
+    if guide.gradient.width() != dims.width || guide.gradient.height() != dims.height {
+        return Err(LossError::ShapeMismatch(format!(
+            "edge guide is {}×{}, image {}×{}",
+            guide.gradient.width(),
+            guide.gradient.height(),
+            dims.width,
+            dims.height
+        )));
+    }
+    Ok(Some(guide))
 }

@@ -40,6 +40,8 @@
 pub mod dims;
 pub mod error;
 pub mod gradient;
+#[cfg(feature = "wgpu")]
+pub mod image_gpu;
 pub mod image_loss;
 pub mod l1;
 pub mod lpips;
@@ -50,8 +52,7 @@ pub mod normal_loss;
 pub mod normal_gpu;
 pub mod opacity;
 pub mod ssim;
-#[cfg(feature = "wgpu")]
-pub mod ssim_gpu;
+
 
 pub use dims::Dims;
 pub use error::{LossError, Result};
@@ -63,6 +64,7 @@ pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, norma
 pub use opacity::opacity_entropy;
 pub use ssim::SsimRegion;
 #[cfg(feature = "wgpu")]
-pub use normal_gpu::NormalGpu;
+pub use image_gpu::ImageLossGpu;
 #[cfg(feature = "wgpu")]
-pub use ssim_gpu::SsimGpu;
+pub use normal_gpu::NormalGpu;
+

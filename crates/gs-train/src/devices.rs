@@ -1,6 +1,7 @@
 //! The loss terms' device executors, passed to the terms explicitly through
 //! [`crate::terms::TermInputs`] (docs/architecture.md §GPU): L_p's patches
-//! ([`gs_mvs::PhotometricGpu`]), D-SSIM ([`gs_losses::SsimGpu`]) and L_nc with L_ns
+//! ([`gs_mvs::PhotometricGpu`]), L_I ([`gs_losses::ImageLossGpu`]: L1, D-SSIM and the edge
+//! term) and L_nc with L_ns
 //! ([`gs_losses::NormalGpu`]), on the wgpu rasterizer's
 //! own device (one context, cloned). Without the `wgpu` feature there are none and the CPU
 //! reference evaluates every term.
@@ -11,9 +12,9 @@ pub struct LossDevices {
     /// L_p's patches.
     #[cfg(feature = "wgpu")]
     pub photometric: Option<std::cell::RefCell<gs_mvs::PhotometricGpu>>,
-    /// D-SSIM of L_I.
+    /// L_I (L1, D-SSIM and the edge term).
     #[cfg(feature = "wgpu")]
-    pub ssim: Option<std::cell::RefCell<gs_losses::SsimGpu>>,
+    pub image: Option<std::cell::RefCell<gs_losses::ImageLossGpu>>,
     /// L_nc and L_ns.
     #[cfg(feature = "wgpu")]
     pub normal: Option<std::cell::RefCell<gs_losses::NormalGpu>>,
@@ -31,16 +32,16 @@ impl LossDevices {
                 true => Some(gs_mvs::PhotometricGpu::new(ctx).map_err(|e| format!("L_p: {e}"))?.into()),
                 false => None,
             };
-            let ssim = Some(gs_losses::SsimGpu::new(ctx).map_err(|e| format!("D-SSIM: {e}"))?.into());
+            let image = Some(gs_losses::ImageLossGpu::new(ctx).map_err(|e| format!("L_I: {e}"))?.into());
             let normal = Some(gs_losses::NormalGpu::new(ctx).map_err(|e| format!("L_nc and L_ns: {e}"))?.into());
-            return Ok(Self { photometric, ssim, normal, adapter: Some(ctx.description()) });
+            return Ok(Self { photometric, image, normal, adapter: Some(ctx.description()) });
         }
         let _ = (rasterizer, uses_photometric);
         Ok(Self::default())
     }
 
-    /// L_I of `rendered` against `gt`: D-SSIM on the device when there is an executor for it,
-    /// else [`gs_losses::image_loss`] (the reference).
+    /// L_I of `rendered` against `gt`: on the device when there is an executor for it, else
+    /// [`gs_losses::image_loss`] (the reference).
     pub fn image_loss(
         &self,
         rendered: &gs_core::Image,
@@ -49,7 +50,7 @@ impl LossDevices {
         cfg: &gs_losses::ImageLossConfig,
     ) -> gs_losses::Result<gs_losses::ImageLossOutput> {
         #[cfg(feature = "wgpu")]
-        if let Some(d) = &self.ssim {
+        if let Some(d) = &self.image {
             return d.borrow_mut().image_loss(rendered, gt, guide, cfg);
         }
         gs_losses::image_loss(rendered, gt, guide, cfg)
@@ -88,7 +89,7 @@ impl LossDevices {
         gs_mvs::photometric_loss(reference, sources, config)
     }
 
-    /// Where each term runs, in words: `"L_p, D-SSIM and L_nc/L_ns on wgpu (ADAPTER); the other
+    /// Where each term runs, in words: `"L_p, L_I and L_nc/L_ns on wgpu (ADAPTER); the other
     /// terms on the CPU"`, or that every term runs on the CPU.
     pub fn describe(&self) -> String {
         #[allow(unused_mut)]
@@ -99,8 +100,8 @@ impl LossDevices {
             if self.photometric.is_some() {
                 on.push(PHOTOMETRIC.into());
             }
-            if self.ssim.is_some() {
-                on.push("D-SSIM".into());
+            if self.image.is_some() {
+                on.push("L_I".into());
             }
             if self.normal.is_some() {
                 on.push(format!("{NORMAL_CONSISTENCY}/{NORMAL_SMOOTHING}"));

@@ -1,23 +1,25 @@
 #![cfg(feature = "wgpu")]
-//! Parity of D-SSIM on the device ([`SsimGpu`]) with the CPU reference
+//! Parity of L_I on the device ([`ImageLossGpu`]) with the CPU reference
 //! ([`gs_losses::ssim::ssim_backward`] and [`image_loss`]), both in f32: random and smooth
-//! images, 1 and 3 channels, sizes below, at and above the 11-tap window. Without a wgpu
-//! adapter the tests print one SKIPPED line (a failure under `CI=true`).
+//! images, 1 and 3 channels, sizes below, at and above the 11-tap window, with and without the
+//! edge term. Without a wgpu adapter the tests print one SKIPPED line (a failure under
+//! `CI=true`).
 //!
 //! Tolerances (f32 on both sides; the device may fuse a·b + c, the host does not): the mean
-//! SSIM within 1e-6 absolute, the gradient within 3e-4 relative L2 error (lavapipe: at most
-//! 4.7e-5 at 200×150×3).
+//! SSIM within 1e-6 absolute, L1 exact (|a − b| rounds the same everywhere), the edge term
+//! within 1e-6 relative (a device may round 1/x differently), the gradient within 3e-4
+//! relative L2 error (lavapipe: at most 4.7e-5 at 200×150×3).
 
 use gs_core::{Image, Rng};
 use gs_gpu::{GpuContext, GpuOptions};
 use gs_losses::ssim::ssim_backward;
-use gs_losses::{Dims, EdgeGuide, ImageLossConfig, SsimGpu, SsimRegion, image_loss};
+use gs_losses::{Dims, EdgeGuide, ImageLossConfig, ImageLossGpu, SsimRegion, image_loss};
 
-fn gpu() -> Option<SsimGpu> {
+fn gpu() -> Option<ImageLossGpu> {
     match GpuContext::new(&GpuOptions::default()) {
         Ok(c) => {
             eprintln!("wgpu adapter: {}", c.description());
-            Some(SsimGpu::new(&c).expect("the SSIM kernels on an adapter that exists"))
+            Some(ImageLossGpu::new(&c).expect("the L_I kernels on an adapter that exists"))
         }
         Err(e) => {
             gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
@@ -63,20 +65,48 @@ fn device_ssim_and_gradient_match_the_cpu_reference() {
 }
 
 #[test]
-fn device_image_loss_matches_with_the_edge_term() {
+fn device_image_loss_matches_with_and_without_the_edge_term() {
     let Some(mut g) = gpu() else { return };
-    let (w, h) = (80, 60);
-    let (a, b) = pair(w, h, 3, 5);
+    for (w, h, c) in [(80, 60, 3), (200, 150, 3), (37, 23, 1), (3, 3, 3), (2, 7, 3), (1, 1, 1)] {
+        let (a, b) = pair(w, h, c, (w + h) as u64);
+        let (rendered, gt) = (Image::from_vec(w, h, c, a).unwrap(), Image::from_vec(w, h, c, b).unwrap());
+        let guide = EdgeGuide::from_gt(&gt).unwrap();
+        for edge in [true, false] {
+            let cfg = ImageLossConfig { edge, ..Default::default() };
+            let what = format!("{w}x{h}x{c} edge {edge}");
+            let cpu = image_loss(&rendered, &gt, Some(&guide), &cfg).unwrap();
+            let dev = g.image_loss(&rendered, &gt, Some(&guide), &cfg).unwrap();
+            let e = relative_l2(cpu.grad_rendered.data(), dev.grad_rendered.data());
+            eprintln!(
+                "{what}: L1 {:.7e} / {:.7e}, SSIM {:.7} / {:.7}, edge {:?} / {:?}, gradient relative L2 {e:.2e}",
+                cpu.l1, dev.l1, cpu.ssim, dev.ssim, cpu.edge, dev.edge
+            );
+            assert_eq!(cpu.l1, dev.l1, "{what}: L1");
+            assert_eq!(cpu.edge.is_some(), dev.edge.is_some(), "{what}: edge term on");
+            if let (Some(x), Some(y)) = (cpu.edge, dev.edge) {
+                assert!((x - y).abs() <= 1e-6 * x.abs().max(1e-12), "{what}: edge {x} vs {y}");
+            }
+            assert!((cpu.ssim - dev.ssim).abs() < 1e-6 && (cpu.total - dev.total).abs() < 1e-6, "{what}: SSIM or total");
+            assert!(e < 3e-4, "{what}: ∂L_I/∂Ĩ relative L2 error {e:e}");
+            // One input, one result.
+            let again = g.image_loss(&rendered, &gt, Some(&guide), &cfg).unwrap();
+            assert_eq!((again.total, again.grad_rendered.data()), (dev.total, dev.grad_rendered.data()), "{what}: repeat");
+        }
+    }
+    // The edge term's own gradient: L_I at β1 = 0 is L1 plus the edge term, with no SSIM noise
+    // in the comparison.
+    let (w, h) = (64, 48);
+    let (a, b) = pair(w, h, 3, 9);
     let (rendered, gt) = (Image::from_vec(w, h, 3, a).unwrap(), Image::from_vec(w, h, 3, b).unwrap());
     let guide = EdgeGuide::from_gt(&gt).unwrap();
-    let cfg = ImageLossConfig::default();
+    let cfg = ImageLossConfig { beta1: 0.0, beta2: 1.0, edge: true };
     let cpu = image_loss(&rendered, &gt, Some(&guide), &cfg).unwrap();
     let dev = g.image_loss(&rendered, &gt, Some(&guide), &cfg).unwrap();
-    assert_eq!((cpu.l1, cpu.edge), (dev.l1, dev.edge), "L1 and the edge term run on the host in both");
-    assert!((cpu.ssim - dev.ssim).abs() < 1e-6 && (cpu.total - dev.total).abs() < 1e-6);
     let e = relative_l2(cpu.grad_rendered.data(), dev.grad_rendered.data());
-    assert!(e < 3e-4, "∂L_I/∂Ĩ relative L2 error {e:e}");
-    // Mismatched sizes are refused as on the CPU.
+    assert!(e < 1e-6, "L1 + edge gradient relative L2 error {e:e}");
+    // Mismatched sizes and a missing guide are refused as on the CPU.
     let small = Image::from_vec(4, 4, 3, vec![0.5; 48]).unwrap();
     assert!(g.image_loss(&small, &gt, None, &ImageLossConfig { edge: false, ..cfg }).is_err());
+    let msg = g.image_loss(&rendered, &gt, None, &cfg).unwrap_err().to_string();
+    assert!(msg.contains("EdgeGuide"), "{msg}");
 }

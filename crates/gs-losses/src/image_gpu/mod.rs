@@ -1,0 +1,259 @@
+//! L_I on the device (behind the `wgpu` feature), the twin of [`crate::image_loss`]: L1, D-SSIM
+//! and the edge term in one set of WGSL passes (`image.wgsl`) that writes ∂L_I/∂Ĩ and each
+//! value's or pixel's terms; the host sums those in the reference's fixed orders, so one input
+//! gives one result on one device. [`ImageLossGpu::ssim_backward`] is D-SSIM alone, the twin of
+//! [`crate::ssim::ssim_backward`] over the whole image. Tolerances: `tests/image_gpu.rs`
+//! (docs/method.md §L_I, docs/architecture.md §GPU).
+
+use crate::dims::{Dims, ordered_sum};
+use crate::error::{LossError, Result};
+use crate::gradient::GRAD_NORM_EPS;
+use crate::image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, check_inputs};
+use crate::l1::chunked_mean;
+use crate::ssim::{SSIM_C1, SSIM_C2, gaussian_window_1d};
+use gs_core::Image;
+use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, WgslStruct};
+
+gs_gpu::wgsl_struct! {
+    /// Constants of one evaluation (binding 0; WGSL `struct ImageFrame`).
+    pub(crate) struct ImageFrame as "ImageFrame" {
+        width: u32,
+        height: u32,
+        channels: u32,
+        /// Values per image (width · height · channels).
+        n: u32,
+        /// Pixels (width · height).
+        pixels: u32,
+        /// SSIM's weight per value: its weight / n.
+        wp: f32,
+        /// L1's weight per value: (1 − β1) / n.
+        w_l1: f32,
+        /// The edge term's weight per pixel: β2 / pixels.
+        w_edge: f32,
+        c1: f32,
+        c2: f32,
+        /// 1 / channels.
+        inv_c: f32,
+        /// 1 when the edge passes ran (the edge term is on and the image has an interior).
+        edge: u32,
+        /// Workgroups of the range pass.
+        groups: u32,
+        /// The ε of ∇Ĩ's min–max normalisation.
+        grad_eps: f32,
+        pad0: u32,
+        pad1: u32,
+        /// The 11 window taps (the last lane of g2 unused).
+        g0: [f32; 4],
+        g1: [f32; 4],
+        g2: [f32; 4],
+    }
+}
+
+/// The kernels' storage bindings, by name (slot order; one table for every pass).
+const BINDINGS: [Binding<'static>; 7] = [
+    Binding::read("images", "array<f32>"),
+    Binding::write("moments", "array<f32>"),
+    Binding::write("partials", "array<f32>"),
+    Binding::write("blurred", "array<f32>"),
+    Binding::write("values", "array<f32>"),
+    Binding::write("grad", "array<f32>"),
+    Binding::write("edge", "array<f32>"),
+];
+
+/// The passes in order; the four `edge_*` ones run only with the edge term.
+const PASSES: [&str; 8] = ["blur_rows", "ssim_values", "blur_partials", "edge_raw", "edge_range_groups", "edge_range", "edge_terms", "loss_gradient"];
+
+/// Most workgroups of the range pass (each strides over the image).
+const RANGE_GROUPS: usize = 256;
+
+/// The kernels' whole WGSL source.
+pub fn image_kernel_source() -> String {
+    gs_gpu::kernel_source(&[&ImageFrame::wgsl_decl(), include_str!("image.wgsl")], &BINDINGS)
+}
+
+/// The device executor of L_I: its context (shared), buffers and kernels.
+pub struct ImageLossGpu {
+    ctx: GpuContext,
+    pool: BufferPool,
+    disp: Dispatcher,
+    kernels: Vec<Kernel>,
+    bufs: [BufId; 7],
+    /// The readback of the values and the gradient (pooled: a mappable buffer per call is
+    /// costly to create).
+    staging: BufId,
+}
+
+impl std::fmt::Debug for ImageLossGpu {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "ImageLossGpu({})", self.ctx.description())
+    }
+}
+
+fn gpu_error(e: gs_gpu::GpuError) -> LossError {
+    LossError::Device(e.to_string())
+}
+
+/// What one evaluation read back: the three terms' means and ∂/∂a.
+struct Terms {
+    ssim: f64,
+    l1: f64,
+    edge: Option<f64>,
+    grad: Vec<f32>,
+}
+
+impl ImageLossGpu {
+    /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernels compiled.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let ctx = ctx.clone();
+        let decl = ImageFrame::wgsl_decl();
+        let kernels = PASSES
+            .iter()
+            .map(|entry| Kernel::new(&ctx, entry, &[&decl, include_str!("image.wgsl")], &BINDINGS).map_err(gpu_error))
+            .collect::<Result<Vec<_>>>()?;
+        let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
+        let bufs = BINDINGS.map(|b| pool.add_storage(b.name));
+        let staging = pool.add_staging("image loss readback");
+        let disp = Dispatcher::new(&ctx, std::mem::size_of::<ImageFrame>() as u64);
+        Ok(Self { ctx, pool, disp, kernels, bufs, staging })
+    }
+
+    /// Whether images of `dims` fit this device's storage bindings (else the reference runs).
+    fn fits(&self, dims: Dims) -> bool {
+        let n = dims.len() as u64;
+        n > 0 && 4 * 5 * n <= self.ctx.max_storage_binding() && n <= u32::MAX as u64 / 5
+    }
+
+    /// [`crate::ssim::ssim_backward`] over the whole image ([`crate::SsimRegion::Full`]):
+    /// returns the mean SSIM and adds `weight · ∂SSIM/∂a` to `grad_a`.
+    pub fn ssim_backward(&mut self, a: &[f32], b: &[f32], dims: Dims, weight: f64, grad_a: &mut [f32]) -> Result<f64> {
+        let n = dims.len();
+        if a.len() != n || b.len() != n || grad_a.len() != n {
+            return Err(LossError::ShapeMismatch(format!(
+                "SSIM of {}×{}×{} needs {n} values per buffer, got {}, {} and {}",
+                dims.width,
+                dims.height,
+                dims.channels,
+                a.len(),
+                b.len(),
+                grad_a.len()
+            )));
+        }
+        if n == 0 {
+            return Err(LossError::InvalidParameter("SSIM of an empty image".into()));
+        }
+        if !self.fits(dims) {
+            return crate::ssim::ssim_backward(a, b, dims, crate::SsimRegion::Full, weight, grad_a);
+        }
+        let t = self.run(a, b, None, dims, weight, 0.0, 0.0)?;
+        for (g, d) in grad_a.iter_mut().zip(&t.grad) {
+            *g += d;
+        }
+        Ok(t.ssim)
+    }
+
+    /// [`crate::image_loss`] on the device: the same inputs, checks and output.
+    pub fn image_loss(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
+        let guide = check_inputs(rendered, gt, guide, cfg)?;
+        let dims = Dims::of(rendered);
+        if !self.fits(dims) {
+            return crate::image_loss(rendered, gt, guide, cfg);
+        }
+        let b1 = cfg.beta1 as f64;
+        let t = self.run(rendered.data(), gt.data(), guide.map(|g| g.gradient.data()), dims, -b1, 1.0 - b1, cfg.beta2 as f64)?;
+        ImageLossOutput::assemble(cfg, t.l1, t.ssim, t.edge, Image::from_vec(dims.width, dims.height, dims.channels, t.grad)?)
+    }
+
+    /// One evaluation: SSIM at `w_ssim`, L1 at `w_l1` and, when `gt_gradient` (∇I) is given, the
+    /// edge term at `w_edge`; their means and the summed gradient.
+    #[allow(clippy::too_many_arguments)]
+    fn run(&mut self, a: &[f32], b: &[f32], gt_gradient: Option<&[f32]>, dims: Dims, w_ssim: f64, w_l1: f64, w_edge: f64) -> Result<Terms> {
+        let (n, pixels) = (dims.len(), dims.pixels());
+        let interior = dims.width >= 3 && dims.height >= 3;
+        let groups = pixels.div_ceil(256).clamp(1, RANGE_GROUPS);
+        let g = gaussian_window_1d().map(|v| v as f32);
+        let frame = ImageFrame {
+            width: dims.width as u32,
+            height: dims.height as u32,
+            channels: dims.channels as u32,
+            n: n as u32,
+            pixels: pixels as u32,
+            wp: (w_ssim / n as f64) as f32,
+            w_l1: (w_l1 / n as f64) as f32,
+            w_edge: (w_edge / pixels as f64) as f32,
+            c1: SSIM_C1 as f32,
+            c2: SSIM_C2 as f32,
+            inv_c: (1.0 / dims.channels as f64) as f32,
+            edge: (gt_gradient.is_some() && interior) as u32,
+            groups: groups as u32,
+            grad_eps: GRAD_NORM_EPS as f32,
+            pad0: 0,
+            pad1: 0,
+            g0: [g[0], g[1], g[2], g[3]],
+            g1: [g[4], g[5], g[6], g[7]],
+            g2: [g[8], g[9], g[10], 0.0],
+        };
+        let bytes = 4 * n as u64;
+        let pixel_bytes = 4 * pixels as u64;
+        // Values read back: SSIM and |a − b| per value, then |∇Ĩ − ∇I| per pixel; the gradient.
+        let read = 2 * bytes + pixel_bytes;
+        self.pool.begin_frame();
+        let sizes = [2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, read, bytes, 4 * pixel_bytes + 8 * (1 + groups as u64)];
+        for (id, size) in self.bufs.iter().zip(sizes) {
+            self.pool.ensure(*id, size);
+        }
+        self.pool.ensure(self.staging, read + bytes);
+        let [images, _, _, _, values, grad, _] = self.bufs;
+        let q = self.ctx.queue();
+        q.write_buffer(self.pool.buffer(images), 0, bytemuck::cast_slice(a));
+        q.write_buffer(self.pool.buffer(images), bytes, bytemuck::cast_slice(b));
+        if let Some(gg) = gt_gradient {
+            q.write_buffer(self.pool.buffer(images), 2 * bytes, bytemuck::cast_slice(gg));
+        }
+        self.disp.write_frame(&frame);
+        let p = &self.pool;
+        let binds = self.bufs.map(|id| p.whole(id));
+        let mut enc = self.disp.encoder();
+        self.ctx.push_error_scopes();
+        for (k, entry) in self.kernels.iter().zip(PASSES) {
+            let per_pixel = PassUniform { n: pixels as u32, ..Default::default() };
+            match entry {
+                "edge_raw" | "edge_terms" if gt_gradient.is_some() => self.disp.dispatch_1d(&mut enc, k, &binds, per_pixel),
+                "edge_range_groups" if frame.edge == 1 => self.disp.dispatch(&mut enc, k, &binds, per_pixel, (groups as u32, 1)),
+                "edge_range" if frame.edge == 1 => self.disp.dispatch(&mut enc, k, &binds, per_pixel, (1, 1)),
+                e if e.starts_with("edge") => Ok(()),
+                _ => self.disp.dispatch_1d(&mut enc, k, &binds, PassUniform { n: n as u32, ..Default::default() }),
+            }
+            .map_err(gpu_error)?;
+        }
+        let staging = p.buffer(self.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(values), 0, staging, 0, read);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, staging, read, bytes);
+        self.disp.submit(enc);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        let row = dims.width * dims.channels;
+        self.ctx
+            .read_mapped(staging, read + bytes, |m| {
+                let all = bytemuck::cast_slice::<u8, f32>(m);
+                let (ssim, rest) = all.split_at(n);
+                let (l1, rest) = rest.split_at(n);
+                let (edge, grad) = rest.split_at(pixels);
+                Terms {
+                    // The references' sums: SSIM by rows in f64, the rows in order; L1 and the
+                    // edge term in chunks (`l1::l1`).
+                    ssim: ordered_sum(dims.height, |y| ssim[y * row..(y + 1) * row].iter().map(|&v| v as f64).sum()) / n as f64,
+                    l1: chunked_mean(n, |i| l1[i] as f64),
+                    edge: gt_gradient.map(|_| chunked_mean(pixels, |p| edge[p] as f64)),
+                    grad: grad.to_vec(),
+                }
+            })
+            .map_err(gpu_error)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn frame_matches_its_wgsl_layout() {
+        gs_gpu::check_layout::<super::ImageFrame>(&super::image_kernel_source()).unwrap();
+    }
+}
