@@ -37,6 +37,8 @@
 //! assert_eq!(out.depth_normal.pixel(5, 5), &[0.0, 0.0, -1.0]);
 //! ```
 
+#[cfg(feature = "wgpu")]
+mod device;
 pub mod dims;
 pub mod error;
 pub mod gradient;

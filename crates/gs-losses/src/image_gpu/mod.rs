@@ -5,6 +5,7 @@
 //! [`crate::ssim::ssim_backward`] over the whole image. Tolerances: `tests/image_gpu.rs`
 //! (docs/method.md §L_I, docs/architecture.md §GPU).
 
+use crate::device::{LossKernels, gpu_error};
 use crate::dims::{Dims, ordered_sum};
 use crate::error::{LossError, Result};
 use crate::gradient::GRAD_NORM_EPS;
@@ -12,7 +13,7 @@ use crate::image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, check_input
 use crate::l1::chunked_mean;
 use crate::ssim::{SSIM_C1, SSIM_C2, gaussian_window_1d};
 use gs_core::Image;
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, WgslStruct};
+use gs_gpu::{Binding, GpuContext, PassUniform, WgslStruct};
 
 gs_gpu::wgsl_struct! {
     /// Constants of one evaluation (binding 0; WGSL `struct ImageFrame`).
@@ -73,24 +74,13 @@ pub fn image_kernel_source() -> String {
 
 /// The device executor of L_I: its context (shared), buffers and kernels.
 pub struct ImageLossGpu {
-    ctx: GpuContext,
-    pool: BufferPool,
-    disp: Dispatcher,
-    kernels: Vec<Kernel>,
-    bufs: [BufId; 7],
-    /// The readback of the values and the gradient (pooled: a mappable buffer per call is
-    /// costly to create).
-    staging: BufId,
+    k: LossKernels<7>,
 }
 
 impl std::fmt::Debug for ImageLossGpu {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "ImageLossGpu({})", self.ctx.description())
+        write!(f, "ImageLossGpu({})", self.k.ctx.description())
     }
-}
-
-fn gpu_error(e: gs_gpu::GpuError) -> LossError {
-    LossError::Device(e.to_string())
 }
 
 /// What one evaluation read back: the three terms' means and ∂/∂a.
@@ -104,23 +94,14 @@ struct Terms {
 impl ImageLossGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernels compiled.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let ctx = ctx.clone();
-        let decl = ImageFrame::wgsl_decl();
-        let kernels = PASSES
-            .iter()
-            .map(|entry| Kernel::new(&ctx, entry, &[&decl, include_str!("image.wgsl")], &BINDINGS).map_err(gpu_error))
-            .collect::<Result<Vec<_>>>()?;
-        let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
-        let bufs = BINDINGS.map(|b| pool.add_storage(b.name));
-        let staging = pool.add_staging("image loss readback");
-        let disp = Dispatcher::new(&ctx, std::mem::size_of::<ImageFrame>() as u64);
-        Ok(Self { ctx, pool, disp, kernels, bufs, staging })
+        let frame = (ImageFrame::wgsl_decl(), std::mem::size_of::<ImageFrame>());
+        Ok(Self { k: LossKernels::new(ctx, &frame.0, frame.1, include_str!("image.wgsl"), &BINDINGS, &PASSES)? })
     }
 
     /// Whether images of `dims` fit this device's storage bindings (else the reference runs).
     fn fits(&self, dims: Dims) -> bool {
         let n = dims.len() as u64;
-        n > 0 && 4 * 5 * n <= self.ctx.max_storage_binding() && n <= u32::MAX as u64 / 5
+        n > 0 && 4 * 5 * n <= self.k.ctx.max_storage_binding() && n <= u32::MAX as u64 / 5
     }
 
     /// [`crate::ssim::ssim_backward`] over the whole image ([`crate::SsimRegion::Full`]):
@@ -196,42 +177,38 @@ impl ImageLossGpu {
         let pixel_bytes = 4 * pixels as u64;
         // Values read back: SSIM and |a − b| per value, then |∇Ĩ − ∇I| per pixel; the gradient.
         let read = 2 * bytes + pixel_bytes;
-        self.pool.begin_frame();
-        let sizes = [2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, read, bytes, 4 * pixel_bytes + 8 * (1 + groups as u64)];
-        for (id, size) in self.bufs.iter().zip(sizes) {
-            self.pool.ensure(*id, size);
-        }
-        self.pool.ensure(self.staging, read + bytes);
-        let [images, _, _, _, values, grad, _] = self.bufs;
-        let q = self.ctx.queue();
-        q.write_buffer(self.pool.buffer(images), 0, bytemuck::cast_slice(a));
-        q.write_buffer(self.pool.buffer(images), bytes, bytemuck::cast_slice(b));
+        let k = &mut self.k;
+        k.begin([2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, read, bytes, 4 * pixel_bytes + 8 * (1 + groups as u64)], read + bytes);
+        let [images, _, _, _, values, grad, _] = k.bufs;
+        let q = k.ctx.queue();
+        q.write_buffer(k.pool.buffer(images), 0, bytemuck::cast_slice(a));
+        q.write_buffer(k.pool.buffer(images), bytes, bytemuck::cast_slice(b));
         if let Some(gg) = gt_gradient {
-            q.write_buffer(self.pool.buffer(images), 2 * bytes, bytemuck::cast_slice(gg));
+            q.write_buffer(k.pool.buffer(images), 2 * bytes, bytemuck::cast_slice(gg));
         }
-        self.disp.write_frame(&frame);
-        let p = &self.pool;
-        let binds = self.bufs.map(|id| p.whole(id));
-        let mut enc = self.disp.encoder();
-        self.ctx.push_error_scopes();
-        for (k, entry) in self.kernels.iter().zip(PASSES) {
+        k.disp.write_frame(&frame);
+        let p = &k.pool;
+        let binds = k.bufs.map(|id| p.whole(id));
+        let mut enc = k.disp.encoder();
+        k.ctx.push_error_scopes();
+        for (kernel, entry) in k.kernels.iter().zip(PASSES) {
             let per_pixel = PassUniform { n: pixels as u32, ..Default::default() };
             match entry {
-                "edge_raw" | "edge_terms" if gt_gradient.is_some() => self.disp.dispatch_1d(&mut enc, k, &binds, per_pixel),
-                "edge_range_groups" if frame.edge == 1 => self.disp.dispatch(&mut enc, k, &binds, per_pixel, (groups as u32, 1)),
-                "edge_range" if frame.edge == 1 => self.disp.dispatch(&mut enc, k, &binds, per_pixel, (1, 1)),
+                "edge_raw" | "edge_terms" if gt_gradient.is_some() => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_pixel),
+                "edge_range_groups" if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (groups as u32, 1)),
+                "edge_range" if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (1, 1)),
                 e if e.starts_with("edge") => Ok(()),
-                _ => self.disp.dispatch_1d(&mut enc, k, &binds, PassUniform { n: n as u32, ..Default::default() }),
+                _ => k.disp.dispatch_1d(&mut enc, kernel, &binds, PassUniform { n: n as u32, ..Default::default() }),
             }
             .map_err(gpu_error)?;
         }
-        let staging = p.buffer(self.staging);
+        let staging = p.buffer(k.staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(values), 0, staging, 0, read);
         enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, staging, read, bytes);
-        self.disp.submit(enc);
-        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        k.disp.submit(enc);
+        k.ctx.pop_error_scopes().map_err(gpu_error)?;
         let row = dims.width * dims.channels;
-        self.ctx
+        k.ctx
             .read_mapped(staging, read + bytes, |m| {
                 let all = bytemuck::cast_slice::<u8, f32>(m);
                 let (ssim, rest) = all.split_at(n);

@@ -5,12 +5,13 @@
 //! device. Tolerances: `tests/normal_gpu.rs` (docs/method.md §L_nc, §L_ns; docs/architecture.md
 //! §GPU).
 
-use crate::error::{LossError, Result};
+use crate::device::{LossKernels, gpu_error};
+use crate::error::Result;
 use crate::image_loss::EdgeGuide;
 use crate::normal::{NORMALIZE_EPS, ray_x, ray_y};
 use crate::normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, check_inputs, consistency_sum, smoothing_sum};
 use gs_core::{Image, Intrinsics};
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, WgslStruct};
+use gs_gpu::{Binding, GpuContext, PassUniform, WgslStruct};
 
 gs_gpu::wgsl_struct! {
     /// Constants of one evaluation (binding 0; WGSL `struct NormalFrame`).
@@ -60,39 +61,20 @@ pub fn normal_kernel_source() -> String {
 
 /// The device executor of L_nc and L_ns: its context (shared), buffers and four kernels.
 pub struct NormalGpu {
-    ctx: GpuContext,
-    pool: BufferPool,
-    disp: Dispatcher,
-    kernels: Vec<Kernel>,
-    bufs: [BufId; 8],
-    /// The readback of N̂, the values, ∂/∂Ñ and ∂/∂z (pooled).
-    staging: BufId,
+    k: LossKernels<8>,
 }
 
 impl std::fmt::Debug for NormalGpu {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "NormalGpu({})", self.ctx.description())
+        write!(f, "NormalGpu({})", self.k.ctx.description())
     }
-}
-
-fn gpu_error(e: gs_gpu::GpuError) -> LossError {
-    LossError::Device(e.to_string())
 }
 
 impl NormalGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernels compiled.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let ctx = ctx.clone();
-        let decl = NormalFrame::wgsl_decl();
-        let kernels = PASSES
-            .iter()
-            .map(|entry| Kernel::new(&ctx, entry, &[&decl, include_str!("normal.wgsl")], &BINDINGS).map_err(gpu_error))
-            .collect::<Result<Vec<_>>>()?;
-        let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
-        let bufs = BINDINGS.map(|b| pool.add_storage(b.name));
-        let staging = pool.add_staging("normal readback");
-        let disp = Dispatcher::new(&ctx, std::mem::size_of::<NormalFrame>() as u64);
-        Ok(Self { ctx, pool, disp, kernels, bufs, staging })
+        let frame = (NormalFrame::wgsl_decl(), std::mem::size_of::<NormalFrame>());
+        Ok(Self { k: LossKernels::new(ctx, &frame.0, frame.1, include_str!("normal.wgsl"), &BINDINGS, &PASSES)? })
     }
 
     /// [`crate::normal_losses`] on the device: the same inputs, checks and output. Views larger
@@ -110,7 +92,7 @@ impl NormalGpu {
         let (w, h) = (plane_depth.width(), plane_depth.height());
         let n = w * h;
         let bytes = 4 * n as u64;
-        if n == 0 || 6 * bytes > self.ctx.max_storage_binding() || n > u32::MAX as usize / 6 {
+        if n == 0 || 6 * bytes > self.k.ctx.max_storage_binding() || n > u32::MAX as usize / 6 {
             return crate::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg);
         }
         let frame = NormalFrame {
@@ -128,40 +110,37 @@ impl NormalGpu {
             pad: 0,
         };
         let rays: Vec<f32> = (0..w).map(|i| ray_x(intrinsics, i) as f32).chain((0..h).map(|j| ray_y(intrinsics, j) as f32)).collect();
-        self.pool.begin_frame();
-        // Each binding's size: planes of one value per pixel, and the rays.
-        let sizes = [6 * bytes, 4 * rays.len() as u64, 3 * bytes, 4 * bytes, 3 * bytes, 3 * bytes, 6 * bytes, bytes];
-        for (id, size) in self.bufs.iter().zip(sizes) {
-            self.pool.ensure(*id, size);
-        }
-        let [inputs, ray_buf, nhat, values, _, gnt, _, gz] = self.bufs;
+        // Each binding's size: planes of one value per pixel, and the rays; the readback: N̂, the
+        // values, ∂/∂Ñ and ∂/∂z.
         const READ: u64 = 3 + 4 + 3 + 1;
-        self.pool.ensure(self.staging, READ * bytes);
-        let q = self.ctx.queue();
+        let k = &mut self.k;
+        k.begin([6 * bytes, 4 * rays.len() as u64, 3 * bytes, 4 * bytes, 3 * bytes, 3 * bytes, 6 * bytes, bytes], READ * bytes);
+        let [inputs, ray_buf, nhat, values, _, gnt, _, gz] = k.bufs;
+        let q = k.ctx.queue();
         let planes: [&[f32]; 4] = [plane_depth.data(), rendered_normal.data(), guide.delta.data(), alpha.map_or(&[], |a| a.data())];
         let mut at = 0;
         for plane in planes {
-            q.write_buffer(self.pool.buffer(inputs), at, bytemuck::cast_slice(plane));
+            q.write_buffer(k.pool.buffer(inputs), at, bytemuck::cast_slice(plane));
             at += 4 * plane.len() as u64;
         }
-        q.write_buffer(self.pool.buffer(ray_buf), 0, bytemuck::cast_slice(&rays));
-        self.disp.write_frame(&frame);
-        let p = &self.pool;
-        let binds = self.bufs.map(|id| p.whole(id));
-        let mut enc = self.disp.encoder();
-        self.ctx.push_error_scopes();
-        for k in &self.kernels {
-            self.disp.dispatch_1d(&mut enc, k, &binds, PassUniform { n: n as u32, ..Default::default() }).map_err(gpu_error)?;
+        q.write_buffer(k.pool.buffer(ray_buf), 0, bytemuck::cast_slice(&rays));
+        k.disp.write_frame(&frame);
+        let p = &k.pool;
+        let binds = k.bufs.map(|id| p.whole(id));
+        let mut enc = k.disp.encoder();
+        k.ctx.push_error_scopes();
+        for kernel in &k.kernels {
+            k.disp.dispatch_1d(&mut enc, kernel, &binds, PassUniform { n: n as u32, ..Default::default() }).map_err(gpu_error)?;
         }
-        let staging = p.buffer(self.staging);
+        let staging = p.buffer(k.staging);
         let mut at = 0;
         for (id, planes) in [(nhat, 3), (values, 4), (gnt, 3), (gz, 1)] {
             enc.encoder.copy_buffer_to_buffer(p.buffer(id), 0, staging, at, planes * bytes);
             at += planes * bytes;
         }
-        self.disp.submit(enc);
-        self.ctx.pop_error_scopes().map_err(gpu_error)?;
-        let (nhat, values, g_nt, g_z) = self
+        k.disp.submit(enc);
+        k.ctx.pop_error_scopes().map_err(gpu_error)?;
+        let (nhat, values, g_nt, g_z) = k
             .ctx
             .read_mapped(staging, READ * bytes, |m| {
                 let all = bytemuck::cast_slice::<u8, f32>(m);
