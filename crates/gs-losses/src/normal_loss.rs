@@ -297,15 +297,30 @@ pub fn normal_losses(
     );
     let mut g_z = vec![0.0f32; w * h];
     depth_normal_backward(z, w, h, intrinsics, a, &g_nhat, &mut g_z);
-    Ok(NormalLossOutput {
-        l_nc,
-        l_ns,
-        ns_active_pairs: active,
-        total: cfg.lambda_nc as f64 * l_nc + cfg.lambda_ns as f64 * l_ns,
-        depth_normal: Image::from_vec(w, h, 3, nhat)?,
-        grad_plane_depth: Image::from_vec(w, h, 1, g_z)?,
-        grad_normal: Image::from_vec(w, h, 3, g_nt)?,
-    })
+    NormalLossOutput::assemble(cfg, (w, h), (l_nc, l_ns, active), nhat, g_z, g_nt)
+}
+
+impl NormalLossOutput {
+    /// The output of a `size` view from the terms' values (L_nc, L_ns, active pairs), N̂ and
+    /// the two gradients, with the weighted total.
+    pub(crate) fn assemble(
+        cfg: &NormalLossConfig,
+        (w, h): (usize, usize),
+        (l_nc, l_ns, active): (f64, f64, usize),
+        nhat: Vec<f32>,
+        grad_z: Vec<f32>,
+        grad_normal: Vec<f32>,
+    ) -> Result<Self> {
+        Ok(Self {
+            l_nc,
+            l_ns,
+            ns_active_pairs: active,
+            total: cfg.lambda_nc as f64 * l_nc + cfg.lambda_ns as f64 * l_ns,
+            depth_normal: Image::from_vec(w, h, 3, nhat)?,
+            grad_plane_depth: Image::from_vec(w, h, 1, grad_z)?,
+            grad_normal: Image::from_vec(w, h, 3, grad_normal)?,
+        })
+    }
 }
 
 /// The checks of [`normal_losses`]' inputs (shared with the device twin): channel counts, one

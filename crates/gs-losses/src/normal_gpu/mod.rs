@@ -161,15 +161,7 @@ impl NormalGpu {
             .collect();
         let (ns_sum, active) = smoothing_sum(rows);
         let l_ns = ns_sum / n as f64;
-        Ok(NormalLossOutput {
-            l_nc,
-            l_ns,
-            ns_active_pairs: active,
-            total: cfg.lambda_nc as f64 * l_nc + cfg.lambda_ns as f64 * l_ns,
-            depth_normal: Image::from_vec(w, h, 3, nhat)?,
-            grad_plane_depth: Image::from_vec(w, h, 1, g_z)?,
-            grad_normal: Image::from_vec(w, h, 3, g_nt)?,
-        })
+        NormalLossOutput::assemble(cfg, (w, h), (l_nc, l_ns, active), nhat, g_z, g_nt)
     }
 }
 
