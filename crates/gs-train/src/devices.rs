@@ -1,9 +1,8 @@
 //! The loss terms' device executors, passed to the terms explicitly through
 //! [`crate::terms::TermInputs`] (docs/architecture.md §GPU): L_p's patches
 //! ([`gs_mvs::PhotometricGpu`]), L_I ([`gs_losses::ImageLossGpu`]: L1, D-SSIM and the edge
-//! term) and L_nc with L_ns
-//! ([`gs_losses::NormalGpu`]), on the wgpu rasterizer's
-//! own device (one context, cloned). Without the `wgpu` feature there are none and the CPU
+//! term) and L_nc with L_ns ([`gs_losses::NormalGpu`]), on the wgpu rasterizer's own device
+//! (one context, cloned). Without the `wgpu` feature there are none and the CPU
 //! reference evaluates every term.
 
 /// The device executors of one run (each `None` where its term runs on the CPU).
