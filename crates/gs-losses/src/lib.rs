@@ -2,7 +2,7 @@
 //!
 //! Every loss is a forward/backward pair over `gs_core::Image` buffers (row-major `[H][W][C]` f32):
 //!
-//! - [`image_loss`]: L_I = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L1(∇Ĩ, ∇I) and ∂L_I/∂Ĩ
+//! - [`image_loss()`]: L_I = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L1(∇Ĩ, ∇I) and ∂L_I/∂Ĩ
 //!   (docs/method.md §L_I; SSIM with the 3DGS 11×11 Gaussian window, zero-padded statistics).
 //! - [`normal_losses`]: L_nc (§L_nc) and L_ns (§L_ns) from the plane depth z and the rendered
 //!   normal Ñ, with ∂/∂z and ∂/∂Ñ (the caller chains ∂/∂z into Ñ and D).
@@ -10,6 +10,10 @@
 //!   (a parameter-space term: it reads the model, not a render).
 //! - [`EdgeGuide`]: ∇I and δ = (1 − ∇I)² of a ground-truth image, computed once per view.
 //! - Metrics: [`psnr`], [`ssim_metric`], [`Lpips`] (AlexNet, v0.1, bundled f16 weights).
+//!
+//! - With the `wgpu` feature: [`ImageLossGpu`] and [`NormalGpu`], the device twins of
+//!   [`image_loss()`] and [`normal_losses`] (same inputs, checks and outputs; per-value terms
+//!   summed on the host in the reference's order; docs/architecture.md §GPU).
 //!
 //! The kernels behind them ([`l1`], [`ssim`], [`gradient`], [`normal`], [`normal_loss`]) are
 //! generic over f32/f64 ([`Real`]) so that gradients are checked in f64 against finite

@@ -1,4 +1,4 @@
-//! L_I on the device (behind the `wgpu` feature), the twin of [`crate::image_loss`]: L1, D-SSIM
+//! L_I on the device (behind the `wgpu` feature), the twin of [`crate::image_loss()`]: L1, D-SSIM
 //! and the edge term in one set of WGSL passes (`image.wgsl`) that writes ∂L_I/∂Ĩ and each
 //! value's or pixel's terms; the host sums those in the reference's fixed orders, so one input
 //! gives one result on one device. [`ImageLossGpu::ssim_backward`] is D-SSIM alone, the twin of
@@ -132,7 +132,7 @@ impl ImageLossGpu {
         Ok(t.ssim)
     }
 
-    /// [`crate::image_loss`] on the device: the same inputs, checks and output.
+    /// [`crate::image_loss()`] on the device: the same inputs, checks and output.
     pub fn image_loss(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
         let guide = check_inputs(rendered, gt, guide, cfg)?;
         let dims = Dims::of(rendered);
