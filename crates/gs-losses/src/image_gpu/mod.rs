@@ -61,8 +61,30 @@ const BINDINGS: [Binding<'static>; 7] = [
     Binding::write("edge", "array<f32>"),
 ];
 
-/// The passes in order; the four `edge_*` ones run only with the edge term.
-const PASSES: [&str; 8] = ["blur_rows", "ssim_values", "blur_partials", "edge_raw", "edge_range_groups", "edge_range", "edge_terms", "loss_gradient"];
+/// How a pass is dispatched.
+#[derive(Clone, Copy)]
+enum Grid {
+    /// One thread per value.
+    Values,
+    /// One thread per pixel, with the edge term.
+    EdgePixels,
+    /// [`RANGE_GROUPS`] workgroups at most, with the edge term on an image with an interior.
+    RangeGroups,
+    /// One workgroup, as `RangeGroups`.
+    RangeTotal,
+}
+
+/// The passes in order, with their grids.
+const PASSES: [(&str, Grid); 8] = [
+    ("blur_rows", Grid::Values),
+    ("ssim_values", Grid::Values),
+    ("blur_partials", Grid::Values),
+    ("edge_raw", Grid::EdgePixels),
+    ("edge_range_groups", Grid::RangeGroups),
+    ("edge_range", Grid::RangeTotal),
+    ("edge_terms", Grid::EdgePixels),
+    ("loss_gradient", Grid::Values),
+];
 
 /// Most workgroups of the range pass (each strides over the image).
 const RANGE_GROUPS: usize = 256;
@@ -95,7 +117,7 @@ impl ImageLossGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernels compiled.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let frame = (ImageFrame::wgsl_decl(), std::mem::size_of::<ImageFrame>());
-        Ok(Self { k: LossKernels::new(ctx, &frame.0, frame.1, include_str!("image.wgsl"), &BINDINGS, &PASSES)? })
+        Ok(Self { k: LossKernels::new(ctx, &frame.0, frame.1, include_str!("image.wgsl"), &BINDINGS, &PASSES.map(|p| p.0))? })
     }
 
     /// Whether images of `dims` fit this device's storage bindings (else the reference runs).
@@ -191,14 +213,15 @@ impl ImageLossGpu {
         let binds = k.bufs.map(|id| p.whole(id));
         let mut enc = k.disp.encoder();
         k.ctx.push_error_scopes();
-        for (kernel, entry) in k.kernels.iter().zip(PASSES) {
-            let per_pixel = PassUniform { n: pixels as u32, ..Default::default() };
-            match entry {
-                "edge_raw" | "edge_terms" if gt_gradient.is_some() => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_pixel),
-                "edge_range_groups" if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (groups as u32, 1)),
-                "edge_range" if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (1, 1)),
-                e if e.starts_with("edge") => Ok(()),
-                _ => k.disp.dispatch_1d(&mut enc, kernel, &binds, PassUniform { n: n as u32, ..Default::default() }),
+        let per_value = PassUniform { n: n as u32, ..Default::default() };
+        let per_pixel = PassUniform { n: pixels as u32, ..Default::default() };
+        for (kernel, (_, grid)) in k.kernels.iter().zip(PASSES) {
+            match grid {
+                Grid::Values => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_value),
+                Grid::EdgePixels if gt_gradient.is_some() => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_pixel),
+                Grid::RangeGroups if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (groups as u32, 1)),
+                Grid::RangeTotal if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (1, 1)),
+                _ => Ok(()),
             }
             .map_err(gpu_error)?;
         }

@@ -101,17 +101,23 @@ fn pair_on(i: u32, j: u32, ki: u32, kj: u32) -> bool {
     return dt < frame.tau;
 }
 
-// ReLU(‖N̂_k − N̂_p‖₁ − τ²) of pair (p, k), or a negative value when it is zero.
-fn excess(i: u32, j: u32, ki: u32, kj: u32) -> f32 {
-    return l1(nh(j * frame.width + i), nh(kj * frame.width + ki)) - frame.tau2;
+// The L_ns pair (p, k): whether it counts, and its hinge ‖N̂_k − N̂_p‖₁ − τ².
+struct Pair {
+    on: bool,
+    r: f32,
 }
 
-// The gradient coefficient of pair (p, k): s·δ_k where it is active and positive.
-fn coef(i: u32, j: u32, ki: u32, kj: u32) -> f32 {
-    if (!pair_on(i, j, ki, kj) || !(excess(i, j, ki, kj) > 0.0)) {
+fn pair(i: u32, j: u32, ki: u32, kj: u32) -> Pair {
+    return Pair(pair_on(i, j, ki, kj), l1(nh(j * frame.width + i), nh(kj * frame.width + ki)) - frame.tau2);
+}
+
+// The gradient coefficient of a pair whose second pixel is k: s·δ_k where it is active and
+// its hinge positive.
+fn coef(pr: Pair, k: u32) -> f32 {
+    if (!pr.on || !(pr.r > 0.0)) {
         return 0.0;
     }
-    return frame.s_ns * delta(kj * frame.width + ki);
+    return frame.s_ns * delta(k);
 }
 
 // Pass 2: the per-pixel values of both terms, ∂/∂Ñ of L_nc and ∂/∂N̂ of both.
@@ -129,24 +135,31 @@ fn normal_terms(ids: Ids) {
     let d = abs(diff);
     let dp = delta(p);
     values[4u * p] = dp * (d.x + d.y + d.z);
+    // The pairs (p, right) and (p, down), each evaluated once for its value and its gradient.
+    var right = Pair(false, 0.0);
+    if (i + 1u < w) {
+        right = pair(i, j, i + 1u, j);
+    }
+    var down = Pair(false, 0.0);
+    if (j + 1u < frame.height) {
+        down = pair(i, j, i, j + 1u);
+    }
     var count = 0.0;
-    var pair = vec2<f32>(0.0);
-    if (i + 1u < w && pair_on(i, j, i + 1u, j)) {
+    var ns = vec2<f32>(0.0);
+    if (right.on) {
         count += 1.0;
-        let r = excess(i, j, i + 1u, j);
-        if (r > 0.0) {
-            pair.x = delta(p + 1u) * r;
+        if (right.r > 0.0) {
+            ns.x = delta(p + 1u) * right.r;
         }
     }
-    if (j + 1u < frame.height && pair_on(i, j, i, j + 1u)) {
+    if (down.on) {
         count += 1.0;
-        let r = excess(i, j, i, j + 1u);
-        if (r > 0.0) {
-            pair.y = delta(p + w) * r;
+        if (down.r > 0.0) {
+            ns.y = delta(p + w) * down.r;
         }
     }
-    values[4u * p + 1u] = pair.x;
-    values[4u * p + 2u] = pair.y;
+    values[4u * p + 1u] = ns.x;
+    values[4u * p + 2u] = ns.y;
     values[4u * p + 3u] = count;
     let gnc = frame.s_nc * dp * sign3(diff);
     gnt[3u * p] = -gnc.x;
@@ -155,26 +168,22 @@ fn normal_terms(ids: Ids) {
     // L_ns: p as the first pixel of (p, right) and (p, down), then as the neighbour of
     // (left, p) and (up, p), in the reference's order.
     var acc = vec3<f32>(0.0);
-    if (i + 1u < w) {
-        let c = coef(i, j, i + 1u, j);
-        if (c != 0.0) {
-            acc += (-c) * sign3(nh(p + 1u) - np);
-        }
+    let c_right = coef(right, p + 1u);
+    if (c_right != 0.0) {
+        acc += (-c_right) * sign3(nh(p + 1u) - np);
     }
-    if (j + 1u < frame.height) {
-        let c = coef(i, j, i, j + 1u);
-        if (c != 0.0) {
-            acc += (-c) * sign3(nh(p + w) - np);
-        }
+    let c_down = coef(down, p + w);
+    if (c_down != 0.0) {
+        acc += (-c_down) * sign3(nh(p + w) - np);
     }
     if (i >= 1u) {
-        let c = coef(i - 1u, j, i, j);
+        let c = coef(pair(i - 1u, j, i, j), p);
         if (c != 0.0) {
             acc += c * sign3(np - nh(p - 1u));
         }
     }
     if (j >= 1u) {
-        let c = coef(i, j - 1u, i, j);
+        let c = coef(pair(i, j - 1u, i, j), p);
         if (c != 0.0) {
             acc += c * sign3(np - nh(p - w));
         }
