@@ -1,23 +1,110 @@
-//! The reference executor of a [`StepPlan`]: render the view on the trainer's rasterizer
-//! (CPU or wgpu), evaluate the plan's loss terms on the CPU through the [`LossTerm`] contract,
-//! back-propagate through exposure and rasterizer, take the Adam step. This is the numerical
-//! reference for any executor that runs the terms elsewhere (a GPU executor implements the same
-//! plan and must match it).
+//! Executors of a [`StepPlan`] (docs/method.md §Schedule). The [`StepExecutor`] contract takes
+//! the run's fixed inputs ([`RunInputs`]) and the training state ([`TrainState`]) explicitly, so
+//! an executor holds only what is its own: its rasterizer, per-view caches and loss-term devices.
+//!
+//! [`ReferenceExecutor`] renders the view on its rasterizer (CPU or wgpu), evaluates the plan's
+//! loss terms through the [`crate::LossTerm`] contract (on the CPU, or on the rasterizer's device
+//! where [`LossDevices`] has a kernel), back-propagates through exposure and rasterizer and takes
+//! the Adam step; density control follows in [`crate::refine`]. With the CPU rasterizer it is the
+//! numerical reference that any other executor of the same plan must match.
 
-use crate::caches::{downscaled_camera, photo};
+use crate::budget::Budget;
+use crate::caches::{ViewCaches, downscaled_camera, photo};
+use crate::config::TrainConfig;
+use crate::devices::LossDevices;
 use crate::error::{Result, TrainError};
 use crate::params::{Param, adam_step, set_lr};
 use crate::plan::StepPlan;
-use crate::profile::{Clock, Part};
+use crate::profile::{Clock, Part, StepProfile};
+use crate::refine::RefineReport;
 use crate::terms::{GradientBuffers, LossValues, SourceInputs, TermInputs};
-use crate::trainer::Trainer;
-use gs_core::Image;
-use gs_raster::RenderRequest;
+use crate::trainer::TrainState;
+use gs_core::{Image, Scene};
+use gs_raster::{RasterConfig, Rasterizer, RenderRequest};
 
-impl Trainer<'_> {
+/// What an executor reads of the run and never changes: the configuration, the scene and its
+/// training split, the scene extent, the rasterizer settings and the Gaussian budget.
+#[derive(Clone, Copy)]
+pub struct RunInputs<'a> {
+    /// The run's configuration.
+    pub config: &'a TrainConfig,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// The training views (indices into `scene.views`); a plan's slots index this list.
+    pub train_views: &'a [usize],
+    /// Scene extent r of the training cameras.
+    pub extent: f64,
+    /// Rasterizer settings used for training.
+    pub raster: &'a RasterConfig,
+    /// The scene's Gaussian budget.
+    pub budget: &'a Budget,
+}
+
+/// Carries out a [`StepPlan`] on a [`TrainState`] that the caller owns and passes in.
+pub trait StepExecutor {
+    /// Render, loss terms, backward and Adam (no density control); returns the loss values and
+    /// accumulates the densification statistics when the plan says so. Time goes to `profile`.
+    fn execute(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, profile: &mut StepProfile) -> Result<LossValues>;
+
+    /// The density control that `plan` schedules after its step ([`crate::refine`]).
+    fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport>;
+}
+
+/// The reference executor: a rasterizer, the per-view caches and the loss terms' device kernels
+/// (none on the CPU rasterizer).
+pub struct ReferenceExecutor {
+    /// Renders and back-propagates (CPU or wgpu).
+    pub(crate) rasterizer: Rasterizer,
+    /// Edge guides, grey images, feature maps and downscaled photos per training view.
+    pub(crate) caches: ViewCaches,
+    /// The loss terms' device executors, when the rasterizer runs on wgpu.
+    devices: LossDevices,
+    /// Why the terms run on the CPU although the rasterizer runs on wgpu, if they do.
+    devices_error: Option<String>,
+}
+
+impl ReferenceExecutor {
+    /// An executor on `rasterizer` for `views` training views; the loss terms go to its device
+    /// when it has one (L_p's kernel only when `photometric`).
+    pub fn new(rasterizer: Rasterizer, views: usize, photometric: bool) -> Self {
+        let (devices, devices_error) = match LossDevices::for_rasterizer(&rasterizer, photometric) {
+            Ok(d) => (d, None),
+            Err(e) => (LossDevices::default(), Some(e)),
+        };
+        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error }
+    }
+
+    /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches.
+    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, photometric: bool) {
+        let Self { rasterizer, devices, devices_error, .. } = Self::new(rasterizer, 0, photometric);
+        (self.rasterizer, self.devices, self.devices_error) = (rasterizer, devices, devices_error);
+    }
+
+    /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device
+    /// could not take them).
+    pub fn describe(&self) -> String {
+        let on = self.devices.describe();
+        match &self.devices_error {
+            Some(e) => format!("{on}: the device kernels failed to build ({e})"),
+            None => on,
+        }
+    }
+
+    /// The rasterizer.
+    pub fn rasterizer(&self) -> &Rasterizer {
+        &self.rasterizer
+    }
+
+    /// Bytes held by the per-view caches.
+    pub fn cache_bytes(&self) -> usize {
+        self.caches.bytes()
+    }
+}
+
+impl ReferenceExecutor {
     /// Fills the per-view caches that `plan` needs (edge guide, grey images, feature maps).
-    fn prepare_caches(&mut self, plan: &StepPlan) -> Result<()> {
-        let (scene, views, cfg) = (self.scene, &self.train_views, &self.config);
+    fn prepare_caches(&mut self, run: &RunInputs<'_>, plan: &StepPlan) -> Result<()> {
+        let (scene, views, cfg) = (run.scene, run.train_views, run.config);
         if plan.needs_guide() {
             self.caches.guide(plan.slot, photo(scene, views, plan.slot), cfg.losses.delta)?;
         }
@@ -38,12 +125,12 @@ impl Trainer<'_> {
 
     /// Renders the plane depth of training slot `slot` without gradients (a source view), at
     /// 1/`source_depth_downscale` of its size and upsampled back when that is above 1.
-    fn source_plane_depth(&mut self, slot: usize) -> Result<Image> {
+    fn source_plane_depth(&mut self, run: &RunInputs<'_>, gaussians: &gs_core::Gaussians, slot: usize) -> Result<Image> {
         let req = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
-        let camera = &self.scene.views[self.train_views[slot]].camera;
-        let s = self.config.source_depth_downscale;
+        let camera = &run.scene.views[run.train_views[slot]].camera;
+        let s = run.config.source_depth_downscale;
         let rendered_at = downscaled_camera(camera, s)?;
-        let out = self.rasterizer.render(&self.state.gaussians, &rendered_at, &req, &self.raster)?;
+        let out = self.rasterizer.render(gaussians, &rendered_at, &req, run.raster)?;
         let depth = out.plane_depth.expect("requested");
         if s > 1 {
             return crate::source_depths::upsample_depth(&depth, camera.width as usize, camera.height as usize);
@@ -53,14 +140,14 @@ impl Trainer<'_> {
 
     /// Renders the plan's source depths that the memo cannot serve ([`crate::source_depths`]):
     /// with reuse on they go into the memo, else they are returned in source order.
-    fn render_source_depths(&mut self, plan: &StepPlan) -> Result<Vec<Image>> {
-        let (it, max_age) = (plan.iteration, self.config.source_depth_max_age);
+    fn render_source_depths(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<Vec<Image>> {
+        let (it, max_age) = (plan.iteration, run.config.source_depth_max_age);
         let mut rendered = Vec::new();
         for &s in &plan.sources {
-            if self.state.source_depths.fresh(s, it, max_age).is_none() {
-                let d = self.source_plane_depth(s)?;
+            if state.source_depths.fresh(s, it, max_age).is_none() {
+                let d = self.source_plane_depth(run, &state.gaussians, s)?;
                 if max_age > 0 {
-                    self.state.source_depths.store(s, it, d);
+                    state.source_depths.store(s, it, d);
                 } else {
                     rendered.push(d);
                 }
@@ -68,37 +155,37 @@ impl Trainer<'_> {
         }
         Ok(rendered)
     }
+}
 
-    /// Carries out `plan` (render, loss terms, backward, Adam; no density control) and returns
-    /// the loss values. Accumulates the densification statistics when the plan says so.
-    pub fn execute(&mut self, plan: &StepPlan) -> Result<LossValues> {
+impl StepExecutor for ReferenceExecutor {
+    fn execute(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, profile: &mut StepProfile) -> Result<LossValues> {
         let it = plan.iteration;
-        let phase = crate::checkpoint::Elapsed::phase_of(&self.config, it);
+        let phase = crate::checkpoint::Elapsed::phase_of(run.config, it);
         let mut clock = Clock::start();
-        set_lr(&mut self.state.adam, Param::Means, plan.lr_means)?;
-        self.prepare_caches(plan)?;
-        let small = downscaled_camera(&self.scene.views[plan.view].camera, plan.scale)?;
-        let camera = if plan.scale > 1 { &small } else { &self.scene.views[plan.view].camera };
+        set_lr(&mut state.adam, Param::Means, plan.lr_means)?;
+        self.prepare_caches(run, plan)?;
+        let small = downscaled_camera(&run.scene.views[plan.view].camera, plan.scale)?;
+        let camera = if plan.scale > 1 { &small } else { &run.scene.views[plan.view].camera };
         if plan.scale > 1 {
-            self.caches.ensure_scaled(plan.slot, &self.scene.views[plan.view].image, plan.scale, camera)?;
+            self.caches.ensure_scaled(plan.slot, &run.scene.views[plan.view].image, plan.scale, camera)?;
         }
-        self.profile.add(phase, Part::Caches, clock.lap());
+        profile.add(phase, Part::Caches, clock.lap());
         // The sources' depths before the reference's render: a device rasterizer keeps only its
         // last render's state, which the backward below reuses (rendering them after it would
         // cost the backward one more render to rebuild that state). Renders are pure, so the
         // order changes no value.
-        let max_age = self.config.source_depth_max_age;
-        let rendered_depths = self.render_source_depths(plan)?;
-        self.profile.add(phase, Part::SourceDepths, clock.lap());
-        let out = self.rasterizer.render(&self.state.gaussians, camera, &plan.render, &self.raster)?;
+        let max_age = run.config.source_depth_max_age;
+        let rendered_depths = self.render_source_depths(run, state, plan)?;
+        profile.add(phase, Part::SourceDepths, clock.lap());
+        let out = self.rasterizer.render(&state.gaussians, camera, &plan.render, run.raster)?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
-        let corrected = match &self.state.exposure {
+        let corrected = match &state.exposure {
             Some(e) => Some(crate::exposure::apply(rendered, &e.params[plan.slot])?),
             None => None,
         };
-        self.profile.add(phase, Part::Render, clock.lap());
-        let memo = &self.state.source_depths;
+        profile.add(phase, Part::Render, clock.lap());
+        let memo = &state.source_depths;
         let depths: Vec<&Image> = match max_age {
             0 => rendered_depths.iter().collect(),
             _ => plan.sources.iter().map(|&s| memo.fresh(s, it, max_age).expect("stored above")).collect(),
@@ -108,16 +195,16 @@ impl Trainer<'_> {
             .iter()
             .zip(depths)
             .map(|(&s, d)| SourceInputs {
-                camera: &self.scene.views[self.train_views[s]].camera,
+                camera: &run.scene.views[run.train_views[s]].camera,
                 plane_depth: d,
                 grey: self.caches.grey(s),
                 features: self.caches.features(s),
             })
             .collect();
         let inputs = TermInputs {
-            gaussians: &self.state.gaussians,
+            gaussians: &state.gaussians,
             camera,
-            photo: self.caches.scaled(plan.slot, plan.scale).unwrap_or(&self.scene.views[plan.view].image),
+            photo: self.caches.scaled(plan.slot, plan.scale).unwrap_or(&run.scene.views[plan.view].image),
             render: &out,
             color: corrected.as_ref().unwrap_or(rendered),
             guide: self.caches.guide_of(plan.slot),
@@ -128,9 +215,9 @@ impl Trainer<'_> {
         };
         let mut values = LossValues::default();
         let mut grads = GradientBuffers::default();
-        for term in plan.terms(&self.config) {
+        for term in plan.terms(run.config) {
             term.evaluate(&inputs, &plan.weights, &mut grads, &mut values)?;
-            self.profile.add(phase, term.part(), clock.lap());
+            profile.add(phase, term.part(), clock.lap());
         }
         values.total = plan.weights.total(&values);
         if !values.total.is_finite() {
@@ -138,32 +225,36 @@ impl Trainer<'_> {
         }
         drop(sources);
         let grad_color = grads.color.take().expect("L_I always runs");
-        let grad_color = match &mut self.state.exposure {
+        let grad_color = match &mut state.exposure {
             Some(e) => {
                 let (gc, ge) = crate::exposure::backward(rendered, &e.params[plan.slot], &grad_color)?;
-                e.step(plan.slot, &ge, it, self.config.iterations)?;
+                e.step(plan.slot, &ge, it, run.config.iterations)?;
                 gc
             }
             None => grad_color,
         };
-        let mut g = self.rasterizer.backward(&self.state.gaussians, camera, &self.raster, &out, &grads.as_output(Some(&grad_color)))?;
+        let mut g = self.rasterizer.backward(&state.gaussians, camera, run.raster, &out, &grads.as_output(Some(&grad_color)))?;
         if let Some(go) = &grads.opacity_logits {
             g.opacity_logits.iter_mut().zip(go).for_each(|(a, b)| *a += b);
         }
-        self.profile.add(phase, Part::Backward, clock.lap());
+        profile.add(phase, Part::Backward, clock.lap());
         if plan.refine.accumulate {
-            self.state.stats.accumulate(&out.radii, &g, plan.scale as f32);
+            state.stats.accumulate(&out.radii, &g, plan.scale as f32);
         }
-        adam_step(&mut self.state.adam, &mut self.state.gaussians, &g, it)?;
-        self.profile.add(phase, Part::Optimizer, clock.lap());
+        adam_step(&mut state.adam, &mut state.gaussians, &g, it)?;
+        profile.add(phase, Part::Optimizer, clock.lap());
         // The reference's plane depth serves later iterations as this view's source depth.
         if max_age > 0
             && plan.scale == 1
             && let Some(depth) = out.plane_depth
         {
-            self.state.source_depths.store(plan.slot, it, depth);
+            state.source_depths.store(plan.slot, it, depth);
         }
         Ok(values)
+    }
+
+    fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
+        crate::refine::refine(&mut self.rasterizer, run, state, plan)
     }
 }
 

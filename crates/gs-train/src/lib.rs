@@ -6,10 +6,12 @@
 //! 1. [`plan`]: a pure [`StepPlan`] from the [`TrainConfig`] and the iteration — view, source
 //!    views, channels to render, active loss terms and their weights ([`LossWeights`], zero for the terms left off), the
 //!    means' learning rate and the density control to run afterwards.
-//! 2. [`Trainer::execute`] (the CPU reference executor): render on the chosen rasterizer,
+//! 2. [`StepExecutor::execute`] on the [`ReferenceExecutor`]: render on the chosen rasterizer,
 //!    evaluate every term through the [`LossTerm`] contract into the output-gradient buffers,
-//!    back-propagate, Adam over the typed parameter layout ([`Param`]).
-//! 3. [`Trainer::refine`]: clone / split / prune, opacity reset, multi-view trim.
+//!    back-propagate, Adam over the typed parameter layout ([`Param`]). The [`Trainer`] owns the
+//!    [`TrainState`] and passes it to the executor explicitly, with the run's fixed
+//!    [`RunInputs`].
+//! 3. [`StepExecutor::refine`] ([`refine`]): clone / split / prune, opacity reset, multi-view trim.
 //!
 //! Per-view data (edge guides, grey images, VGG16 features) lives in [`caches`]. A model —
 //! training or trained — is a [`TrainedModel`], which meshing ([`extract_mesh`], or
@@ -37,7 +39,7 @@ pub mod densify;
 pub mod devices;
 pub mod error;
 pub mod evaluate;
-mod executor;
+pub mod executor;
 pub mod exposure;
 pub mod capture_path;
 pub mod floaters;
@@ -62,6 +64,7 @@ pub use region::GrowthRegion;
 pub use densify::{DensifyReport, DensifyStats, Growth};
 pub use error::{Result, TrainError};
 pub use evaluate::{ImageMetrics, PixelMasks, VEIL_MIN_COVER, Veil, ViewMetrics, evaluate_images, find_veil, score_view, seen_masks};
+pub use executor::{ReferenceExecutor, RunInputs, StepExecutor};
 pub use exposure::{Exposure, ExposureParams};
 pub use floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
 pub use mesh::{

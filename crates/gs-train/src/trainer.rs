@@ -1,14 +1,14 @@
 //! The VA-GS training driver (docs/method.md §Parameters to §Schedule): [`Trainer::step`] plans an iteration
 //! ([`crate::plan`]), sets the SH degree ([`crate::sh_policy`]), executes the plan
-//! ([`Trainer::execute`]: render, loss terms, backward, Adam) and then runs the density control
-//! ([`Trainer::refine`]).
+//! on its executor ([`crate::executor::StepExecutor::execute`]: render, loss terms, backward,
+//! Adam) and then runs the density control ([`crate::executor::StepExecutor::refine`]). The
+//! trainer owns the [`TrainState`] and lends it to the executor for each call.
 //!
 //! Determinism: every random choice of an iteration is drawn from a stream keyed by the seed and
 //! the iteration (see [`crate::plan`]), so the state to checkpoint is only the parameters, the
 //! optimiser and the statistics — and a resumed run continues bit-identically.
 
 use crate::budget::Budget;
-use crate::caches::ViewCaches;
 use crate::config::{Phase, TrainConfig};
 use crate::densify::{DensifyReport, DensifyStats};
 use crate::error::{Result, TrainError};
@@ -17,7 +17,7 @@ use crate::init::initial_gaussians;
 use crate::model::TrainedModel;
 use crate::plan::{StepPlan, plan_step};
 use crate::profile::{Clock, Part, StepProfile};
-use crate::devices::LossDevices;
+use crate::executor::{ReferenceExecutor, RunInputs, StepExecutor};
 use crate::sh_policy::{self, ShBandDecision};
 use crate::source_depths::SourceDepths;
 use crate::terms::LossValues;
@@ -75,23 +75,19 @@ pub struct TrainState {
 /// The trainer: a scene, its split, the configuration, the [`TrainState`], the rasterizer
 /// and the per-view caches.
 pub struct Trainer<'s> {
-    pub(crate) config: TrainConfig,
-    pub(crate) scene: &'s Scene,
-    pub(crate) train_views: Vec<usize>,
+    config: TrainConfig,
+    scene: &'s Scene,
+    train_views: Vec<usize>,
     test_views: Vec<usize>,
-    pub(crate) extent: f64,
-    pub(crate) raster: RasterConfig,
-    pub(crate) rasterizer: Rasterizer,
+    extent: f64,
+    raster: RasterConfig,
     selector: SourceViewSelector,
-    pub(crate) state: TrainState,
-    pub(crate) caches: ViewCaches,
-    pub(crate) budget: Budget,
+    state: TrainState,
+    budget: Budget,
     /// Where this process's training time went ([`crate::profile`]).
-    pub(crate) profile: StepProfile,
-    /// The loss terms' device executors, when the rasterizer runs on wgpu ([`crate::devices`]).
-    pub(crate) devices: LossDevices,
-    /// Why the terms run on the CPU although the rasterizer runs on wgpu, if they do.
-    devices_error: Option<String>,
+    profile: StepProfile,
+    /// Carries out each plan on `state` ([`crate::executor`]).
+    executor: ReferenceExecutor,
 }
 
 fn check_scene(scene: &Scene, train_views: &[usize]) -> Result<()> {
@@ -192,8 +188,7 @@ impl<'s> Trainer<'s> {
         let test_views = (0..scene.views.len()).filter(|i| !train_views.contains(i)).collect();
         Ok(Self {
             raster: config.raster_config(),
-            caches: ViewCaches::new(train_views.len()),
-            rasterizer: Rasterizer::new(Backend::Cpu)?,
+            executor: ReferenceExecutor::new(Rasterizer::new(Backend::Cpu)?, train_views.len(), config.losses.photometric),
             config,
             scene,
             train_views,
@@ -203,8 +198,6 @@ impl<'s> Trainer<'s> {
             state,
             budget,
             profile: StepProfile::default(),
-            devices: LossDevices::default(),
-            devices_error: None,
         })
     }
 
@@ -267,26 +260,18 @@ impl<'s> Trainer<'s> {
 
     /// Uses `rasterizer` from now on (see [`Trainer::set_backend`]).
     pub fn set_rasterizer(&mut self, rasterizer: Rasterizer) {
-        (self.devices, self.devices_error) = match LossDevices::for_rasterizer(&rasterizer, self.config.losses.photometric) {
-            Ok(d) => (d, None),
-            Err(e) => (LossDevices::default(), Some(e)),
-        };
-        self.rasterizer = rasterizer;
+        self.executor.set_rasterizer(rasterizer, self.config.losses.photometric);
     }
 
     /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device
     /// could not take them).
     pub fn loss_executors(&self) -> String {
-        let on = self.devices.describe();
-        match &self.devices_error {
-            Some(e) => format!("{on}: the device kernels failed to build ({e})"),
-            None => on,
-        }
+        self.executor.describe()
     }
 
     /// The rasterizer in use.
     pub fn rasterizer(&self) -> &Rasterizer {
-        &self.rasterizer
+        self.executor.rasterizer()
     }
 
     /// The current model and the rasterizer, borrowed together.
@@ -299,7 +284,7 @@ impl<'s> Trainer<'s> {
             extent: self.extent,
             gaussians: &self.state.gaussians,
         };
-        (model, &mut self.rasterizer)
+        (model, &mut self.executor.rasterizer)
     }
 
     /// [`crate::extract_mesh`] of the current model with this trainer's rasterizer.
@@ -328,7 +313,7 @@ impl<'s> Trainer<'s> {
     /// Bytes held by the per-view caches (edge guides, grey images, feature maps, reused
     /// source-view depths).
     pub fn cache_bytes(&self) -> usize {
-        self.caches.bytes() + self.state.source_depths.bytes()
+        self.executor.cache_bytes() + self.state.source_depths.bytes()
     }
 
     /// Supplies the grey GT images of L_p, one per training view in `train_views` order, at
@@ -356,7 +341,7 @@ impl<'s> Trainer<'s> {
                 )));
             }
         }
-        self.caches.set_greys(greys);
+        self.executor.caches.set_greys(greys);
         Ok(())
     }
 
@@ -369,14 +354,21 @@ impl<'s> Trainer<'s> {
     pub fn step(&mut self) -> Result<StepReport> {
         let mut whole = Clock::start();
         let plan = self.plan();
-        let (scene, views, rasterizer, raster) = (self.scene, &self.train_views, &mut self.rasterizer, &self.raster);
-        let s = &mut self.state;
-        let sh_band = sh_policy::update_sh_degree(&self.config, &mut s.gaussians, &mut s.adam, plan.iteration, |g, degree| {
-            sh_policy::judge_l1(g, degree, scene, views, rasterizer, raster)
+        let run = RunInputs {
+            config: &self.config,
+            scene: self.scene,
+            train_views: &self.train_views,
+            extent: self.extent,
+            raster: &self.raster,
+            budget: &self.budget,
+        };
+        let (s, rasterizer) = (&mut self.state, &mut self.executor.rasterizer);
+        let sh_band = sh_policy::update_sh_degree(run.config, &mut s.gaussians, &mut s.adam, plan.iteration, |g, degree| {
+            sh_policy::judge_l1(g, degree, run.scene, run.train_views, rasterizer, run.raster)
         })?;
-        let losses = self.execute(&plan)?;
+        let losses = self.executor.execute(&run, &mut self.state, &plan, &mut self.profile)?;
         let mut clock = Clock::start();
-        let refined = self.refine(&plan)?;
+        let refined = self.executor.refine(&run, &mut self.state, &plan)?;
         let phase = crate::checkpoint::Elapsed::phase_of(&self.config, plan.iteration);
         self.profile.add(phase, Part::Refine, clock.lap());
         self.profile.finish_iteration(phase, whole.lap());
