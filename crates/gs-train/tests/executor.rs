@@ -1,0 +1,59 @@
+//! The executor contract: a [`ReferenceExecutor`] driven from outside the trainer, on a
+//! [`TrainState`] the caller owns and passes in, reaches the same state bit for bit as
+//! [`Trainer::step`] — across every loss phase, densification, opacity reset, trim, exposure and
+//! the source-depth memo. So the state an executor sees is exactly what it is lent.
+
+use gs_core::NeighbourRule;
+use gs_mvs::{SourceSelection, SourceViewSelector};
+use gs_raster::{Backend, Rasterizer};
+use gs_train::{ReferenceExecutor, RunInputs, StepExecutor, TrainConfig, TrainState, Trainer, plan_step};
+
+fn config() -> TrainConfig {
+    let mut c = TrainConfig::default().scaled(80);
+    c.densify.from = 10;
+    c.densify.interval = 20;
+    c.densify.opacity_reset_interval = 50;
+    c.densify.trim_interval = 40;
+    c.seed = 11;
+    c.exposure = true;
+    c.source_depth_max_age = 15;
+    // The SH degree is the trainer's own business (it may judge bands on its rasterizer); a
+    // fixed degree leaves the step to the executor alone.
+    c.sh_degree_max = 0;
+    c
+}
+
+#[test]
+fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
+    let opts = gs_synth::BuiltinOptions { width: 64, height: 48, views: 8, supersample: 1, points: 400, ..Default::default() };
+    let scene = gs_synth::generate(&opts).unwrap().scene;
+    let (train, _) = scene.split(false);
+    let cfg = config();
+    assert!(cfg.warmup_end < cfg.photometric_end && cfg.photometric_end < cfg.iterations);
+
+    let mut trainer = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
+    let mut state: TrainState = trainer.state().clone();
+    let cams: Vec<&gs_core::Camera> = train.iter().map(|&i| &scene.views[i].camera).collect();
+    let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), cfg.source_views, SourceSelection::RandomN).unwrap();
+    let mut executor = ReferenceExecutor::new(Rasterizer::new(Backend::Cpu).unwrap(), train.len(), cfg.losses.photometric);
+    let budget = trainer.budget().clone();
+    let raster = trainer.raster_config().clone();
+    let run = RunInputs { config: &cfg, scene: &scene, train_views: &train, extent: trainer.extent(), raster: &raster, budget: &budget };
+    let mut profile = gs_train::StepProfile::default();
+    let (mut densified, mut trimmed, mut reset) = (0, 0, 0);
+    while !trainer.finished() {
+        let report = trainer.step().unwrap();
+        let plan = plan_step(&cfg, &train, &selector, run.extent, state.iteration + 1);
+        let losses = executor.execute(&run, &mut state, &plan, &mut profile).unwrap();
+        let refined = executor.refine(&run, &mut state, &plan).unwrap();
+        state.iteration = plan.iteration;
+        assert_eq!(losses, report.losses, "iteration {}", plan.iteration);
+        assert_eq!((refined.densify, refined.trimmed), (report.densify, report.trimmed), "iteration {}", plan.iteration);
+        densified += refined.densify.is_some() as u32;
+        trimmed += refined.trimmed.is_some() as u32;
+        reset += refined.opacity_reset as u32;
+        assert!(state == *trainer.state(), "the states part at iteration {}", plan.iteration);
+    }
+    assert!(densified > 0 && trimmed > 0 && reset > 0, "the run covers the density control: {densified} {trimmed} {reset}");
+    assert_ne!(state.gaussians.len(), 0);
+}
