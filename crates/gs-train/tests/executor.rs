@@ -8,25 +8,17 @@ use gs_mvs::{SourceSelection, SourceViewSelector};
 use gs_raster::{Backend, Rasterizer};
 use gs_train::{ReferenceExecutor, RunInputs, StepExecutor, TrainConfig, TrainState, Trainer, plan_step};
 
+mod common;
+
+/// The busy run with a fixed SH degree: the degree is the trainer's own business (it may judge
+/// bands on its rasterizer), so the step is left to the executor alone.
 fn config() -> TrainConfig {
-    let mut c = TrainConfig::default().scaled(80);
-    c.densify.from = 10;
-    c.densify.interval = 20;
-    c.densify.opacity_reset_interval = 50;
-    c.densify.trim_interval = 40;
-    c.seed = 11;
-    c.exposure = true;
-    c.source_depth_max_age = 15;
-    // The SH degree is the trainer's own business (it may judge bands on its rasterizer); a
-    // fixed degree leaves the step to the executor alone.
-    c.sh_degree_max = 0;
-    c
+    TrainConfig { sh_degree_max: 0, ..common::busy_config() }
 }
 
 #[test]
 fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
-    let opts = gs_synth::BuiltinOptions { width: 64, height: 48, views: 8, supersample: 1, points: 400, ..Default::default() };
-    let scene = gs_synth::generate(&opts).unwrap().scene;
+    let scene = common::small_scene();
     let (train, _) = scene.split(false);
     let cfg = config();
     assert!(cfg.warmup_end < cfg.photometric_end && cfg.photometric_end < cfg.iterations);

@@ -5,25 +5,8 @@
 use gs_train::checkpoint::Elapsed;
 use gs_train::{TrainConfig, Trainer, checkpoint};
 
-fn small_scene() -> gs_core::Scene {
-    let opts = gs_synth::BuiltinOptions { width: 64, height: 48, views: 8, supersample: 1, points: 400, ..Default::default() };
-    gs_synth::generate(&opts).unwrap().scene
-}
-
-fn config() -> TrainConfig {
-    let mut c = TrainConfig::default().scaled(120);
-    // Every mechanism fires within 120 iterations, including around the resume point (60).
-    c.densify.from = 10;
-    c.densify.interval = 20;
-    c.densify.opacity_reset_interval = 50;
-    c.densify.trim_interval = 40;
-    c.seed = 7;
-    // The per-view exposure corrections and their optimiser are checkpointed too.
-    c.exposure = true;
-    // So is the memo of source-view plane depths that L_p and L_f reuse.
-    c.source_depth_max_age = 15;
-    c
-}
+mod common;
+use common::{busy_config as config, small_scene};
 
 /// A trainer 3 iterations into the run: enough state for the checkpoint format tests.
 fn three_iterations(scene: &gs_core::Scene) -> Trainer<'_> {
