@@ -88,6 +88,23 @@ impl LossDevices {
         gs_mvs::photometric_loss(reference, sources, config)
     }
 
+    /// Each part of the loss terms and whether it runs on the device (the rest runs on the CPU),
+    /// in the order the terms run.
+    pub fn term_parts(&self) -> [(&'static str, bool); 6] {
+        #[cfg(feature = "wgpu")]
+        let (image, normal, photometric) = (self.image.is_some(), self.normal.is_some(), self.photometric.is_some());
+        #[cfg(not(feature = "wgpu"))]
+        let (image, normal, photometric) = (false, false, false);
+        [
+            ("L_I (L1, D-SSIM, edge term)", image),
+            ("L_nc and L_ns", normal),
+            ("L_p: NCC of the patches", photometric),
+            ("L_p: pixel selection, visibility υ and weight ω", false),
+            ("L_f (VGG16 features)", false),
+            ("exposure compensation", false),
+        ]
+    }
+
     /// Where each term runs, in words: `"L_p, L_I and L_nc/L_ns on wgpu (ADAPTER); the other
     /// terms on the CPU"`, or that every term runs on the CPU.
     pub fn describe(&self) -> String {

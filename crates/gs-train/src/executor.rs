@@ -21,6 +21,7 @@ use crate::terms::{GradientBuffers, LossValues, SourceInputs, TermInputs};
 use crate::trainer::TrainState;
 use gs_core::{Image, Scene};
 use gs_raster::{RasterConfig, Rasterizer, RenderRequest};
+use serde::Serialize;
 
 /// What an executor reads of the run and never changes: the configuration, the scene and its
 /// training split, the scene extent, the rasterizer settings and the Gaussian budget.
@@ -38,6 +39,15 @@ pub struct RunInputs<'a> {
     pub raster: &'a RasterConfig,
     /// The scene's Gaussian budget.
     pub budget: &'a Budget,
+}
+
+/// Where one part of an iteration runs (report.json `parts_on`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PartPlace {
+    /// The part, in words ("render and backward", a loss term, "Adam", "density control").
+    pub part: String,
+    /// Where it runs: `cpu (N threads)` or `wgpu on ADAPTER`.
+    pub on: String,
 }
 
 /// Carries out a [`StepPlan`] on a [`TrainState`] that the caller owns and passes in.
@@ -88,6 +98,18 @@ impl ReferenceExecutor {
             Some(e) => format!("{on}: the device kernels failed to build ({e})"),
             None => on,
         }
+    }
+
+    /// Where each part of the step runs: render and backward on the rasterizer, each loss
+    /// term on its device kernel or the CPU, Adam and density control on the CPU.
+    pub fn parts_on(&self) -> Vec<PartPlace> {
+        let cpu = format!("cpu ({} threads)", rayon::current_num_threads());
+        let device = self.rasterizer.description();
+        let place = |part: &str, on_device: bool| PartPlace { part: part.into(), on: if on_device { device.clone() } else { cpu.clone() } };
+        let mut parts = vec![place("render and backward", true)];
+        parts.extend(self.devices.term_parts().into_iter().map(|(part, on_device)| place(part, on_device)));
+        parts.extend(["Adam", "density control"].map(|part| place(part, false)));
+        parts
     }
 
     /// The rasterizer.

@@ -269,6 +269,11 @@ impl<'s> Trainer<'s> {
         self.executor.describe()
     }
 
+    /// Where each part of an iteration runs ([`ReferenceExecutor::parts_on`]).
+    pub fn parts_on(&self) -> Vec<crate::executor::PartPlace> {
+        self.executor.parts_on()
+    }
+
     /// The rasterizer in use.
     pub fn rasterizer(&self) -> &Rasterizer {
         self.executor.rasterizer()

@@ -277,6 +277,9 @@ pub struct TrainReport {
     pub time_by_part: gs_train::StepProfile,
     /// Where the loss terms ran, in words (gs_train::devices).
     pub loss_terms_on: String,
+    /// Where each part of an iteration ran (render and backward, each loss term, Adam,
+    /// density control).
+    pub parts_on: Vec<gs_train::PartPlace>,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
 }
@@ -464,6 +467,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         floaters_removed,
         time_by_part: trainer.profile().clone(),
         loss_terms_on: trainer.loss_executors(),
+        parts_on: trainer.parts_on(),
         last,
     };
     // The report first, then the model it describes: a run stopped between the two leaves a
