@@ -4,7 +4,7 @@
 //! The weights (torchvision ImageNet AlexNet convs + LPIPS v0.1 heads, from
 //! `shared/weights/lpips_alex_v0.1.npz`) are bundled in `weights/lpips_alex_v0.1.f16.bin`: conv
 //! weights in IEEE half, everything else f32, with a size and FNV-1a-64 check on load
-//! (`scripts/lpips_weights_to_f16.py` writes it). Forward pass: x ∈ [0,1] → 2x − 1 →
+//! (`scripts/lpips_weights_to_f16.py` writes it). Forward pass: x ∈ \[0,1\] → 2x − 1 →
 //! (x − shift)/scale → conv1 (11×11/4, pad 2) → ReLU → tap1 → maxpool 3/2 → conv2 (5×5, pad 2) →
 //! ReLU → tap2 → maxpool 3/2 → conv3 → ReLU → tap3 → conv4 → ReLU → tap4 → conv5 → ReLU → tap5;
 //! per tap: unit-normalise over channels (f / (‖f‖ + 1e-10)), squared difference, 1×1 linear head,

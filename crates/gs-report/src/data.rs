@@ -133,7 +133,7 @@ pub struct MeshData {
 
 impl MeshData {
     /// Packs `mesh` for the viewer, simplified by vertex clustering when it has more than
-    /// [`MAX_MESH_TRIANGLES`] triangles (a browser draws a few million smoothly).
+    /// `MAX_MESH_TRIANGLES` triangles (a browser draws a few million smoothly).
     pub fn from_mesh(mesh: &TriangleMesh) -> Result<Self> {
         mesh.validate().map_err(|e| ReportError::Invalid(format!("the mesh cannot be shown: {e}")))?;
         let source_triangles = mesh.triangles.len();

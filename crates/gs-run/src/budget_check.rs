@@ -70,7 +70,7 @@ pub fn limit(given: Option<u64>) -> u64 {
     given.unwrap_or_else(|| (available_bytes().unwrap_or(FALLBACK_AVAILABLE) as f64 * DEFAULT_SHARE) as u64)
 }
 
-/// Refuses a training run whose estimated peak ([`gs_train::memory`]) exceeds the limit
+/// Refuses a training run whose estimated peak ([`gs_train::training_memory`]) exceeds the limit
 /// ([`limit`] of `given`), with the estimate in words; returns the estimate in words otherwise.
 pub fn check_train(trainer: &gs_train::Trainer, given: Option<u64>) -> Result<String> {
     let estimate = trainer.memory_estimate();

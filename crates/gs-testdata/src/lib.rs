@@ -6,7 +6,7 @@
 //!   values, LPIPS/VGG reference weights): [`root`] is `$VAGSL_TEST_DATA`, or the `shared`
 //!   folder beside the clone. A test asks for what it reads with [`needs!`]; where something is
 //!   missing it prints one `SKIPPED: …` line to stderr and the test returns early, except under
-//!   `CI=true`, where a missing data set fails the test ([`skip_or_fail`], the rule the
+//!   `CI=true`, where a missing data set fails the test ([`skip_or_fail()`], the rule the
 //!   Chromium and wgpu-adapter checks follow too).
 //! - **Schedulers** ([`sched`]): a Slurm cluster that takes jobs ([`slurm!`]) and the
 //!   Kubernetes Job schema check ([`k8s_validator!`]), with the same SKIPPED / CI rule.
@@ -78,7 +78,7 @@ pub fn skip_or_fail(test: &str, why: &str, how: &str) {
 
 /// Whether every path in `needs` (relative to [`root`], e.g. `data/fox` or
 /// `weights/vgg16_imagenet_conv1_1-conv3_3.npz`) exists. Where one is missing this reports the
-/// skip once for the test (see [`skip_or_fail`]) and returns `false`. Use through [`needs!`],
+/// skip once for the test (see [`skip_or_fail()`]) and returns `false`. Use through [`needs!`],
 /// which fills in the test's name.
 pub fn needs(test: &str, needs: &[&str]) -> bool {
     let root = root();
@@ -97,7 +97,7 @@ pub fn needs(test: &str, needs: &[&str]) -> bool {
 }
 
 /// `needs!("data/fox", "data/synth-bunny")`: whether the shared test data holds each path,
-/// printing the test's one SKIPPED line (or failing under `CI=true`) where not. See [`needs`].
+/// printing the test's one SKIPPED line (or failing under `CI=true`) where not. See [`needs()`].
 #[macro_export]
 macro_rules! needs {
     ($($path:expr),+ $(,)?) => {
@@ -105,7 +105,7 @@ macro_rules! needs {
     };
 }
 
-/// `skip_or_fail!(why, how)`: [`skip_or_fail`] with the running test's name.
+/// `skip_or_fail!(why, how)`: [`skip_or_fail()`] with the running test's name.
 #[macro_export]
 macro_rules! skip_or_fail {
     ($why:expr, $how:expr $(,)?) => {

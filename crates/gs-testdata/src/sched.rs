@@ -2,7 +2,7 @@
 //! takes jobs ([`slurm`], usually the one-node cluster of `scripts/slurm-local.sh`) and the
 //! offline schema check of Kubernetes Job manifests ([`k8s_validator`],
 //! `scripts/check-k8s-manifest.sh`). Where one is missing the test prints its SKIPPED line, or
-//! fails under `CI=true` (see [`crate::skip_or_fail`]).
+//! fails under `CI=true` (see [`crate::skip_or_fail()`]).
 
 use std::ffi::OsString;
 use std::io::Read;

@@ -139,7 +139,7 @@ fn sample_position(g: &Gaussians, i: usize, rng: &mut Rng) -> [f32; 3] {
 /// (a clone adds one Gaussian, a split one net) happens only inside `cfg.region` (when set,
 /// [`crate::region`]) and stops at `growth`'s target and cap; when
 /// more candidates pass the thresholds than that allows, the highest-scoring ones are taken
-/// ([`score`]). New Gaussians get zero Adam moments; statistics are reset for every Gaussian.
+/// (`score`). New Gaussians get zero Adam moments; statistics are reset for every Gaussian.
 #[allow(clippy::too_many_arguments)]
 pub fn densify_and_prune(
     g: &mut Gaussians,

@@ -40,7 +40,7 @@ impl LossDevices {
     }
 
     /// L_I of `rendered` against `gt`: on the device when there is an executor for it, else
-    /// [`gs_losses::image_loss`] (the reference).
+    /// [`gs_losses::image_loss()`] (the reference).
     pub fn image_loss(
         &self,
         rendered: &gs_core::Image,

@@ -87,7 +87,7 @@ pub struct ImageMetrics {
 pub enum PixelMasks<'a> {
     /// The whole image.
     None,
-    /// The object inside each view's own mask (SCENE/masks/<stem>.png): the masked protocol of
+    /// The object inside each view's own mask (`SCENE/masks/<stem>.png`): the masked protocol of
     /// DTU novel-view benchmarks.
     Object,
     /// The pixels whose surface some training view sees ([`seen_masks`]), one mask per scored

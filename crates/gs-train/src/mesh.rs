@@ -61,7 +61,7 @@ pub struct MeshOptions {
     pub max_blocks: usize,
     /// Fuse only inside this box (world units): see [`gs_tsdf::TsdfConfig::bounds`].
     pub bounds: Option<gs_tsdf::Aabb>,
-    /// Refuse a fusion whose estimated peak memory (bytes; see [`gs_tsdf::memory`]) exceeds
+    /// Refuse a fusion whose estimated peak memory (bytes; see [`gs_tsdf::fusion_memory`]) exceeds
     /// this, before allocating it; the block cap is lowered to what fits, so an estimate that
     /// falls short still stops with an error. `None`: no estimate, only `max_blocks`.
     pub max_memory: Option<u64>,

@@ -171,14 +171,14 @@ pub fn simplify_mesh_graded(mesh: &TriangleMesh, bounds: &[f64]) -> Result<(Tria
     Ok((simplified, report))
 }
 
-/// Cell side of [`collapse_in_cells`], in multiples of the error bound.
+/// Cell side of `collapse_in_cells`, in multiples of the error bound.
 pub const CELL_BOUNDS: f64 = 256.0;
 
-/// Share of the bound that [`collapse_in_cells`] spends in its first round (the rest in the
+/// Share of the bound that `collapse_in_cells` spends in its first round (the rest in the
 /// second, around the first round's seams).
 pub const SEAM_SHARE_FIRST: f32 = 2.0 / 3.0;
 
-/// Smallest cell side of [`collapse_in_cells`], in mean edge lengths of the mesh.
+/// Smallest cell side of `collapse_in_cells`, in mean edge lengths of the mesh.
 pub const CELL_EDGES: f64 = 32.0;
 
 /// Edge collapses of the triangles `indices` (over `positions`) within `bound`, leaving the

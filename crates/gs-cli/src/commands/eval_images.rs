@@ -19,7 +19,7 @@ pub struct EvalImagesArgs {
     /// Skip LPIPS (it costs about 1 s per 800×600 image on 2 cores).
     #[arg(long)]
     pub no_lpips: bool,
-    /// Score only the object inside each view's mask (SCENE/masks/<stem>.png, required for
+    /// Score only the object inside each view's mask (`SCENE/masks/<stem>.png`, required for
     /// every scored view): PSNR over the mask's pixels, SSIM and LPIPS with render and photo
     /// on black outside it — the masked protocol of DTU novel-view benchmarks. Written to
     /// eval_images_masked.json.

@@ -34,7 +34,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub preset: Option<Preset>,
     /// Settings from a file (.toml or .json): a partial configuration (keys as for --set,
-    /// tables such as [weights] may be partial; `preset` picks the base), or a run's own
+    /// tables such as `[weights]` may be partial; `preset` picks the base), or a run's own
     /// OUT/config.json, which reproduces that run (its scene too, unless SCENE, -r, --width or
     /// --eval are given). Precedence: preset, then --iterations, then this file, then the
     /// flags below, then --set.
