@@ -72,8 +72,8 @@ pub struct TrainState {
     pub source_depths: SourceDepths,
 }
 
-/// The trainer: a scene, its split, the configuration, the [`TrainState`], the rasterizer
-/// and the per-view caches.
+/// The trainer: a scene, its split, the configuration, the [`TrainState`] it owns, and the
+/// executor it lends that state to (which holds the rasterizer and the per-view caches).
 pub struct Trainer<'s> {
     config: TrainConfig,
     scene: &'s Scene,
