@@ -77,17 +77,14 @@ impl ReferenceExecutor {
     /// An executor on `rasterizer` for `views` training views; the loss terms go to its device
     /// when it has one (L_p's kernel only when `photometric`).
     pub fn new(rasterizer: Rasterizer, views: usize, photometric: bool) -> Self {
-        let (devices, devices_error) = match LossDevices::for_rasterizer(&rasterizer, photometric) {
-            Ok(d) => (d, None),
-            Err(e) => (LossDevices::default(), Some(e)),
-        };
+        let (devices, devices_error) = devices_of(&rasterizer, photometric);
         Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error }
     }
 
     /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches.
     pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, photometric: bool) {
-        let Self { rasterizer, devices, devices_error, .. } = Self::new(rasterizer, 0, photometric);
-        (self.rasterizer, self.devices, self.devices_error) = (rasterizer, devices, devices_error);
+        (self.devices, self.devices_error) = devices_of(&rasterizer, photometric);
+        self.rasterizer = rasterizer;
     }
 
     /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device
@@ -277,6 +274,14 @@ impl StepExecutor for ReferenceExecutor {
 
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
         crate::refine::refine(&mut self.rasterizer, run, state, plan)
+    }
+}
+
+/// The loss terms' kernels on `rasterizer`'s device, or none with the reason they failed to build.
+fn devices_of(rasterizer: &Rasterizer, photometric: bool) -> (LossDevices, Option<String>) {
+    match LossDevices::for_rasterizer(rasterizer, photometric) {
+        Ok(d) => (d, None),
+        Err(e) => (LossDevices::default(), Some(e)),
     }
 }
 
