@@ -16,6 +16,9 @@ wgsl_types! {
     f32 => "f32", u32 => "u32", i32 => "i32",
     [f32; 2] => "vec2<f32>", [u32; 2] => "vec2<u32>", [i32; 2] => "vec2<i32>",
     [f32; 4] => "vec4<f32>", [u32; 4] => "vec4<u32>", [i32; 4] => "vec4<i32>",
+    // Scalar arrays (4-byte aligned, unlike vec3/vec4): fixed-width groups inside packed
+    // records, e.g. a mean or the blend channels of a splat.
+    [f32; 3] => "array<f32, 3>", [f32; 8] => "array<f32, 8>",
 }
 
 /// One member of a [`WgslStruct`]: its name, WGSL type and Rust byte offset.

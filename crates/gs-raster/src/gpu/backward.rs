@@ -4,11 +4,8 @@
 //! bit), then `project_bwd` per chunk of Gaussians, and the readback of the parameter
 //! gradients.
 
-use super::kernels::ScreenGrad;
-use super::{
-    BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, PARAM_STRIDE, WgpuRasterizer,
-    chunks,
-};
+use super::kernels::{BlendState, ParamGrad, ParamRecord, PixelGrad, ScreenGrad, ShCoeff, TileRect, bytes_of};
+use super::{BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
 use crate::cpu::project::CamParams;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
 use crate::{
@@ -85,7 +82,9 @@ impl WgpuRasterizer {
         frame: Frame,
     ) -> Result<GaussianGradients> {
         let nn = g.len() as u64;
-        let gstride = 15 + 3 * coeffs_for_degree(g.sh_degree) as u64;
+        // The readback: every Gaussian's `ParamGrad`, then its SH gradients.
+        let grad_bytes = nn * bytes_of::<ParamGrad>();
+        let sh_bytes = nn * coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>();
         let npix = cam.width as u64 * cam.height as u64;
         let flags = grads.color.is_some() as u32
             | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some())
@@ -102,11 +101,12 @@ impl WgpuRasterizer {
         let partial_bytes = frame.total as u64 * rec;
         self.check_binding("the per-intersection gradients", partial_bytes)?;
         let (p, b) = (&mut self.pool, &self.bufs);
-        p.ensure(b.bstate, npix * 36);
+        p.ensure(b.bstate, npix * bytes_of::<BlendState>());
         p.ensure(b.partials, partial_bytes);
         p.ensure(b.gacc, nn * rec + 4);
-        p.ensure(b.gout, nn * gstride * 4 + 4);
-        p.ensure(b.staging, nn * gstride * 4 + 4);
+        p.ensure(b.gout, grad_bytes + bytes_of::<ParamGrad>());
+        p.ensure(b.gout_sh, sh_bytes + bytes_of::<ShCoeff>());
+        p.ensure(b.staging, grad_bytes + sh_bytes + 4);
         self.upload_pixel_grads(cam, config, st, grads);
         let t1 = Instant::now();
         let mut enc = self.disp.encoder();
@@ -116,22 +116,15 @@ impl WgpuRasterizer {
             .clear_buffer(p.buffer(b.partials), 0, Some(partial_bytes));
         self.blend_backward(&mut enc, cam, &bands, frame)?;
         self.reduce_partials(&mut enc, cam, g.len() as u32)?;
-        self.project_backward(&mut enc, g, gstride)?;
-        enc.encoder.copy_buffer_to_buffer(
-            p.buffer(b.gout),
-            0,
-            p.buffer(b.staging),
-            0,
-            nn * gstride * 4,
-        );
+        self.project_backward(&mut enc, g)?;
+        let staging = p.buffer(b.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.gout), 0, staging, 0, grad_bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.gout_sh), 0, staging, grad_bytes, sh_bytes);
         self.disp.submit(enc);
-        let gs = gstride as usize;
-        let (out, t2) = self.ctx.read_mapped(p.buffer(b.staging), nn * gstride * 4, |bytes| {
+        let (out, t2) = self.ctx.read_mapped(staging, grad_bytes + sh_bytes, |bytes| {
             let t2 = Instant::now();
-            let out = match bytemuck::try_cast_slice::<u8, f32>(bytes) {
-                Ok(v) => unpack_gradients(v, gs, g),
-                Err(_) => unpack_gradients(&bytemuck::pod_collect_to_vec(bytes), gs, g),
-            };
+            let (gb, sb) = bytes.split_at(grad_bytes as usize);
+            let out = unpack_gradients(&pod_vec(gb), &pod_vec(sb), g);
             (out, t2)
         })?;
         self.timings.backward = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
@@ -139,7 +132,7 @@ impl WgpuRasterizer {
     }
 
     /// Per-pixel channel gradients, folded on the host exactly as the CPU backend does (rows
-    /// in parallel), written to `pixgrad` (9 floats a pixel).
+    /// in parallel), written to `pixgrad` (one `PixelGrad` a pixel).
     fn upload_pixel_grads(
         &mut self,
         cam: &CamParams,
@@ -148,13 +141,12 @@ impl WgpuRasterizer {
         grads: &OutputGradients,
     ) {
         let (w, h) = (cam.width as usize, cam.height as usize);
-        super::upload_with(&self.ctx, &mut self.pool, self.bufs.pixgrad, w * h * 9, |pg| {
-            pg.par_chunks_mut(w * 9).enumerate().for_each(|(y, row)| {
-                for (x, px) in row.chunks_mut(9).enumerate() {
-                    let (gc, ga) =
+        super::upload_with(&self.ctx, &mut self.pool, self.bufs.pixgrad, w * h, |pg: &mut [PixelGrad]| {
+            pg.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                for (x, px) in row.iter_mut().enumerate() {
+                    let (channels, final_t) =
                         crate::pixel::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
-                    px[..8].copy_from_slice(&gc);
-                    px[8] = ga;
+                    *px = PixelGrad { channels, final_t };
                 }
             })
         });
@@ -179,9 +171,9 @@ impl WgpuRasterizer {
                     p.whole(b.splat),
                     p.range(b.final_t, p0 * 4, bp * 4),
                     p.range(b.last, p0 * 4, bp * 4),
-                    p.range(b.pixgrad, p0 * 36, bp * 36),
+                    p.range(b.pixgrad, p0 * bytes_of::<PixelGrad>(), bp * bytes_of::<PixelGrad>()),
                     p.whole(b.partials),
-                    p.range(b.bstate, p0 * 36, bp * 36),
+                    p.range(b.bstate, p0 * bytes_of::<BlendState>(), bp * bytes_of::<BlendState>()),
                 ];
                 let pass = PassUniform {
                     n: bp as u32,
@@ -221,19 +213,21 @@ impl WgpuRasterizer {
         Ok(())
     }
 
-    /// `project_bwd` per chunk of Gaussians (records of `gstride` floats into `gout`).
-    fn project_backward(&self, enc: &mut Encoder, g: &Gaussians, gstride: u64) -> Result<()> {
+    /// `project_bwd` per chunk of Gaussians (a `ParamGrad` and the SH gradients of each).
+    fn project_backward(&self, enc: &mut Encoder, g: &Gaussians) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
-        let ncu = coeffs_for_degree(g.sh_degree) as u64;
-        let rec = std::mem::size_of::<ScreenGrad>() as u64;
+        let sh = coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>();
+        let (param, rect) = (bytes_of::<ParamRecord>(), bytes_of::<TileRect>());
+        let (screen, grad) = (bytes_of::<ScreenGrad>(), bytes_of::<ParamGrad>());
         for (bb, m) in chunks(g.len() as u32) {
             d.make_room(enc, 1);
             let binds = [
-                p.range(b.params, bb * PARAM_STRIDE * 4, m * PARAM_STRIDE * 4),
-                p.range(b.sh, bb * ncu * 12, m * ncu * 12),
-                p.range(b.proj, bb * 20, m * 20),
-                p.range(b.gacc, bb * rec, m * rec),
-                p.range(b.gout, bb * gstride * 4, m * gstride * 4),
+                p.range(b.params, bb * param, m * param),
+                p.range(b.sh, bb * sh, m * sh),
+                p.range(b.proj, bb * rect, m * rect),
+                p.range(b.gacc, bb * screen, m * screen),
+                p.range(b.gout, bb * grad, m * grad),
+                p.range(b.gout_sh, bb * sh, m * sh),
             ];
             let pass = PassUniform {
                 n: m as u32,
@@ -246,23 +240,32 @@ impl WgpuRasterizer {
     }
 }
 
-/// The gradients from the `gs`-float records of `v`, one per Gaussian (SH only up to the
-/// active degree, zero above), built in parallel.
-fn unpack_gradients(v: &[f32], gs: usize, g: &Gaussians) -> GaussianGradients {
+/// Records of type `T` from read-back bytes (copied only where the mapping is misaligned).
+fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> std::borrow::Cow<'_, [T]> {
+    match bytemuck::try_cast_slice::<u8, T>(bytes) {
+        Ok(v) => std::borrow::Cow::Borrowed(v),
+        Err(_) => std::borrow::Cow::Owned(bytemuck::pod_collect_to_vec(bytes)),
+    }
+}
+
+/// The gradients of `g` from one `ParamGrad` per Gaussian and its `nc` SH gradient records
+/// (SH only up to the active degree, zero above), built in parallel.
+fn unpack_gradients(v: &[ParamGrad], sh: &[ShCoeff], g: &Gaussians) -> GaussianGradients {
     let nc = coeffs_for_degree(g.sh_degree);
-    let recs = || v.par_chunks(gs).take(g.len());
+    let recs = || v.par_iter().take(g.len());
     GaussianGradients {
-        means: recs().map(|r| [r[0], r[1], r[2]]).collect(),
-        log_scales: recs().map(|r| [r[3], r[4], r[5]]).collect(),
-        rotations: recs().map(|r| [r[6], r[7], r[8], r[9]]).collect(),
-        opacity_logits: recs().map(|r| r[10]).collect(),
-        mean2d: recs().map(|r| [r[11], r[12]]).collect(),
-        mean2d_abs: recs().map(|r| [r[13], r[14]]).collect(),
-        sh: recs()
-            .map(|r| {
+        means: recs().map(|r| r.mean).collect(),
+        log_scales: recs().map(|r| r.log_scale).collect(),
+        rotations: recs().map(|r| [r.rot_w, r.rot_x, r.rot_y, r.rot_z]).collect(),
+        opacity_logits: recs().map(|r| r.opacity_logit).collect(),
+        mean2d: recs().map(|r| [r.mean2d_x, r.mean2d_y]).collect(),
+        mean2d_abs: recs().map(|r| [r.mean2d_abs_x, r.mean2d_abs_y]).collect(),
+        sh: (0..g.len())
+            .into_par_iter()
+            .map(|i| {
                 let mut c = [[0.0f32; 3]; 16];
-                for (k, ck) in c.iter_mut().enumerate().take(nc) {
-                    *ck = [r[15 + 3 * k], r[16 + 3 * k], r[17 + 3 * k]];
+                if nc > 0 {
+                    c.iter_mut().zip(&sh[i * nc..(i + 1) * nc]).for_each(|(ck, s)| *ck = s.rgb);
                 }
                 c
             })

@@ -10,7 +10,6 @@ const MAX_ALPHA: f32 = 0.99;
 const T_STOP: f32 = 1e-4;
 const MIN_COMPENSATION: f32 = 0.005;
 const INVISIBLE: u32 = 0xffffffffu;
-const SPLAT_STRIDE: u32 = 17u;
 
 fn is_finite(v: f32) -> bool {
     return (bitcast<u32>(v) & 0x7f800000u) != 0x7f800000u;

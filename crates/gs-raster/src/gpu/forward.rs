@@ -2,9 +2,8 @@
 //! 32-byte readback), then emission, tile sort, tile ranges, links and the blend (second
 //! submission and the readback of the requested planes).
 
-use super::{
-    CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, PARAM_STRIDE, SPLAT_STRIDE, WgpuRasterizer, chunks,
-};
+use super::kernels::{ParamRecord, ShCoeff, Splat, TileRect, bytes_of};
+use super::{CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
 use crate::cpu::project::CamParams;
 use crate::{
     ForwardState, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats, Result,
@@ -93,7 +92,7 @@ impl WgpuRasterizer {
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
-        self.check_binding("the splat buffer", nn * SPLAT_STRIDE * 4)?;
+        self.check_binding("the splat buffer", nn * bytes_of::<Splat>())?;
         let bands = self.bands(cam)?;
         self.check_binding("the tile ranges", n_tiles * 8)?;
         if cam.tiles_x > 65535 {
@@ -159,8 +158,9 @@ impl WgpuRasterizer {
         let nn = n32 as u64;
         let nc = coeffs_for_degree(g.sh_degree) as u64;
         let (p, b) = (&mut self.pool, &self.bufs);
-        p.ensure(b.splat, nn * SPLAT_STRIDE * 4 + 4);
-        p.ensure(b.proj, nn * 20 + 4);
+        let (splat, rect) = (bytes_of::<Splat>(), bytes_of::<TileRect>());
+        p.ensure(b.splat, (nn + 1) * splat);
+        p.ensure(b.proj, (nn + 1) * rect);
         p.ensure(b.radii, nn * 4 + 4);
         for k in [b.keys_a, b.vals_a, b.keys_b, b.vals_b, b.counts, b.observed] {
             p.ensure(k, nn * 4 + 4);
@@ -173,6 +173,7 @@ impl WgpuRasterizer {
         p.ensure(b.last, npix * 4);
         p.ensure(b.counters, 64);
         p.ensure(b.staging, 64);
+        let (param, sh) = (bytes_of::<ParamRecord>(), bytes_of::<ShCoeff>());
         let (d, p, k) = (&self.disp, &self.pool, &self.kernels);
         let mut enc = d.encoder();
         enc.encoder.clear_buffer(p.buffer(b.counters), 0, Some(64));
@@ -183,10 +184,10 @@ impl WgpuRasterizer {
                 ..Default::default()
             };
             let binds = [
-                p.range(b.params, bb * PARAM_STRIDE * 4, m * PARAM_STRIDE * 4),
-                p.range(b.sh, bb * nc * 12, m * nc * 12),
-                p.range(b.splat, bb * SPLAT_STRIDE * 4, m * SPLAT_STRIDE * 4),
-                p.range(b.proj, bb * 20, m * 20),
+                p.range(b.params, bb * param, m * param),
+                p.range(b.sh, bb * nc * sh, m * nc * sh),
+                p.range(b.splat, bb * splat, m * splat),
+                p.range(b.proj, bb * rect, m * rect),
                 p.whole(b.keys_a),
                 p.whole(b.vals_a),
                 p.whole(b.counters),

@@ -11,8 +11,8 @@ fn isect_count(ids: Ids) {
         counts[k] = 0u;
         return;
     }
-    let o = vals[k] * 5u;
-    let area = (proj[o + 2u] - proj[o]) * (proj[o + 3u] - proj[o + 1u]);
+    let r = proj[vals[k]];
+    let area = (r.x1 - r.x0) * (r.y1 - r.y0);
     counts[k] = area;
     let old = atomicAdd(&counters[2], area);
     if (old + area < old) {

@@ -11,11 +11,11 @@ fn isect_emit(ids: Ids) {
         return;
     }
     let gid = vals[k];
-    let r = gid * 5u;
-    let x0 = proj[r];
-    let y0 = proj[r + 1u];
-    let rw = proj[r + 2u] - x0;
-    let area = rw * (proj[r + 3u] - y0);
+    let r = proj[gid];
+    let x0 = r.x0;
+    let y0 = r.y0;
+    let rw = r.x1 - x0;
+    let area = rw * (r.y1 - y0);
     // Rectangle entries [pass_.shift, pass_.nb) in row-major order (one dispatch per window
     // of 32768 entries: llvmpipe caps an invocation at 65535 loop iterations).
     let end = min(area, pass_.nb);

@@ -111,10 +111,115 @@ gs_gpu::wgsl_struct! {
     }
 }
 
+gs_gpu::wgsl_struct! {
+    /// One Gaussian's parameters other than SH, as `project` and `project_bwd` read them
+    /// (WGSL `struct ParamRecord`; the host's [`Gaussians`] arrays, interleaved). 44 bytes.
+    pub(crate) struct ParamRecord as "ParamRecord" {
+        mean: [f32; 3],
+        log_scale: [f32; 3],
+        /// The unit quaternion (w, x, y, z), unnormalised.
+        rot_w: f32,
+        rot_x: f32,
+        rot_y: f32,
+        rot_z: f32,
+        opacity_logit: f32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One SH coefficient of one Gaussian, all three colour channels (WGSL `struct ShCoeff`):
+    /// Gaussian `i`'s coefficient `k` is record `i·nc + k` (`nc` coefficients of the active
+    /// degree). The SH parameters and their gradients. 12 bytes.
+    pub(crate) struct ShCoeff as "ShCoeff" {
+        rgb: [f32; 3],
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One projected Gaussian, what the blends read per intersection (WGSL `struct Splat`,
+    /// written by `project`). 68 bytes.
+    pub(crate) struct Splat as "Splat" {
+        /// Projected centre, pixels.
+        x: f32,
+        y: f32,
+        /// The 2D conic (inverse covariance) a, b, c.
+        conic_a: f32,
+        conic_b: f32,
+        conic_c: f32,
+        /// Opacity after the sigmoid and the antialiasing compensation.
+        opacity: f32,
+        /// Largest σ at which α still reaches the threshold.
+        sigma_max: f32,
+        /// Half extents of the α-threshold box, pixels.
+        ext_x: f32,
+        ext_y: f32,
+        /// The blend channels: colour r, g, b, camera normal x, y, z, distance D, depth t_z.
+        channels: [f32; 8],
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One projected Gaussian's tile rectangle [x0, x1) × [y0, y1) and its pixel radius
+    /// (WGSL `struct TileRect`; radius 0 = culled). 20 bytes.
+    pub(crate) struct TileRect as "TileRect" {
+        x0: u32,
+        y0: u32,
+        x1: u32,
+        y1: u32,
+        radius: u32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One Gaussian's parameter gradients other than SH, written by `project_bwd` (WGSL
+    /// `struct ParamGrad`), and the densification statistics in NDC units. 60 bytes.
+    pub(crate) struct ParamGrad as "ParamGrad" {
+        mean: [f32; 3],
+        log_scale: [f32; 3],
+        rot_w: f32,
+        rot_x: f32,
+        rot_y: f32,
+        rot_z: f32,
+        opacity_logit: f32,
+        /// dL/d of the projected centre in NDC (x, y).
+        mean2d_x: f32,
+        mean2d_y: f32,
+        /// Σ |dL/dx|, Σ |dL/dy| in NDC.
+        mean2d_abs_x: f32,
+        mean2d_abs_y: f32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One pixel's loss gradients as the reverse blend reads them (WGSL `struct PixelGrad`,
+    /// folded on the host): dL/d of the eight blend channels and of the final transmittance.
+    /// 36 bytes.
+    pub(crate) struct PixelGrad as "PixelGrad" {
+        channels: [f32; 8],
+        final_t: f32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One pixel's reverse-blend state between windows of its tile list (WGSL
+    /// `struct BlendState`): the transmittance and the eight "behind" sums. 36 bytes.
+    pub(crate) struct BlendState as "BlendState" {
+        t: f32,
+        behind: [f32; 8],
+    }
+}
+
+/// Bytes of one `T` record: buffer sizes and binding offsets come from the types.
+pub(crate) const fn bytes_of<T>() -> u64 {
+    std::mem::size_of::<T>() as u64
+}
+
 /// Every kernel of the rasterizer (the scan and sort live in gs-gpu).
 fn specs() -> Vec<Spec<'static>> {
     use Binding as B;
     let (f, u, au, sg) = ("array<f32>", "array<u32>", "array<atomic<u32>>", "array<ScreenGrad>");
+    let (par, sh, spl, rect, pg) =
+        ("array<ParamRecord>", "array<ShCoeff>", "array<Splat>", "array<TileRect>", "array<ParamGrad>");
     let spec = |entry, sources: &[&'static str], bindings: &[Binding<'static>]| Spec {
         entry,
         sources: sources.to_vec(),
@@ -125,10 +230,10 @@ fn specs() -> Vec<Spec<'static>> {
             "project",
             &[include_str!("project.wgsl"), PROJ_COMMON],
             &[
-                B::read("params", f),
-                B::read("sh", f),
-                B::write("splat", f),
-                B::write("proj", u),
+                B::read("params", par),
+                B::read("sh", sh),
+                B::write("splat", spl),
+                B::write("proj", rect),
                 B::write("keys", u),
                 B::write("vals", u),
                 B::write("counters", au),
@@ -139,11 +244,12 @@ fn specs() -> Vec<Spec<'static>> {
             "project_bwd",
             &[include_str!("project_bwd.wgsl"), PROJ_COMMON],
             &[
-                B::read("params", f),
-                B::read("sh", f),
-                B::read("proj", u),
+                B::read("params", par),
+                B::read("sh", sh),
+                B::read("proj", rect),
                 B::read("gacc", sg),
-                B::write("gout", f),
+                B::write("gout", pg),
+                B::write("gout_sh", sh),
             ],
         ),
         spec(
@@ -152,7 +258,7 @@ fn specs() -> Vec<Spec<'static>> {
             &[
                 B::read("keys", u),
                 B::read("vals", u),
-                B::read("proj", u),
+                B::read("proj", rect),
                 B::write("counts", u),
                 B::write("counters", au),
             ],
@@ -163,7 +269,7 @@ fn specs() -> Vec<Spec<'static>> {
             &[
                 B::read("keys", u),
                 B::read("vals", u),
-                B::read("proj", u),
+                B::read("proj", rect),
                 B::read("offsets", u),
                 B::write("tile_keys", u),
                 B::write("tile_vals", u),
@@ -191,7 +297,7 @@ fn specs() -> Vec<Spec<'static>> {
             &[
                 B::read("ranges", u),
                 B::read("gids", u),
-                B::read("splat", f),
+                B::read("splat", spl),
                 B::write("acc", f),
                 B::write("final_t", f),
                 B::write("last", u),
@@ -205,12 +311,12 @@ fn specs() -> Vec<Spec<'static>> {
             &[
                 B::read("ranges", u),
                 B::read("gids", u),
-                B::read("splat", f),
+                B::read("splat", spl),
                 B::read("final_t", f),
                 B::read("last", u),
-                B::read("pixgrad", f),
+                B::read("pixgrad", "array<PixelGrad>"),
                 B::write("partials", sg),
-                B::write("bstate", f),
+                B::write("bstate", "array<BlendState>"),
             ],
         ),
         spec(
@@ -248,9 +354,21 @@ pub(crate) struct Kernels {
     pub grad_reduce: Kernel,
 }
 
-/// The generated WGSL declarations every kernel starts with (`Cam`, `ScreenGrad`).
+/// The generated WGSL declarations every kernel starts with (the camera uniform and every
+/// storage record).
 fn decls() -> String {
-    CamUniform::wgsl_decl() + &ScreenGrad::wgsl_decl()
+    [
+        CamUniform::wgsl_decl(),
+        ScreenGrad::wgsl_decl(),
+        ParamRecord::wgsl_decl(),
+        ShCoeff::wgsl_decl(),
+        Splat::wgsl_decl(),
+        TileRect::wgsl_decl(),
+        ParamGrad::wgsl_decl(),
+        PixelGrad::wgsl_decl(),
+        BlendState::wgsl_decl(),
+    ]
+    .concat()
 }
 
 impl Kernels {
@@ -280,9 +398,9 @@ mod tests {
     use super::*;
     use gs_gpu::{PassUniform, check_layout, kernel_source};
 
-    /// Every kernel's full source (exactly what the device compiles) parses, and its `Cam`,
-    /// `ScreenGrad` and `Pass` structs have the Rust offsets and sizes (naga's layouter
-    /// against `offset_of!` / `size_of`).
+    /// Every kernel's full source (exactly what the device compiles) parses, and each of its
+    /// generated structs has the Rust offsets and sizes (naga's layouter against
+    /// `offset_of!` / `size_of`).
     #[test]
     fn host_and_wgsl_struct_layouts_agree_in_every_kernel() {
         let decls = decls();
@@ -291,9 +409,20 @@ mod tests {
             check_layout::<CamUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
             check_layout::<ScreenGrad>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
             check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<ParamRecord>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<ShCoeff>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<Splat>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<TileRect>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<ParamGrad>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<PixelGrad>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            check_layout::<BlendState>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
         }
         assert_eq!(std::mem::size_of::<CamUniform>(), 144);
         assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);
+        let sizes = [bytes_of::<ParamRecord>(), bytes_of::<ShCoeff>(), bytes_of::<Splat>()];
+        assert_eq!(sizes, [44, 12, 68]);
+        assert_eq!([bytes_of::<TileRect>(), bytes_of::<ParamGrad>()], [20, 60]);
+        assert_eq!([bytes_of::<PixelGrad>(), bytes_of::<BlendState>()], [36, 36]);
     }
 
     /// A field added to the WGSL side only (a hand-written `Cam`) is caught.

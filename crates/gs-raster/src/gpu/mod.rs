@@ -43,7 +43,7 @@ use gs_core::sh::coeffs_for_degree;
 use gs_gpu::{
     BufId, BufferPool, Dispatcher, GpuContext, GpuError, GpuOptions, RadixSort, ShrinkPolicy,
 };
-use kernels::{CamUniform, Kernels};
+use kernels::{BlendState, CamUniform, Kernels, ParamRecord, PixelGrad, ShCoeff, bytes_of};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -51,10 +51,6 @@ pub use gs_gpu::{hardware_adapter_available, probe_adapter};
 
 /// Gaussians per chunk of the per-Gaussian kernels (a power of two keeps chunk offsets aligned).
 const CHUNK: u32 = 1 << 18;
-/// Floats per splat record (x, y, conic 3, opacity, σ_max, ext 2, features 8).
-const SPLAT_STRIDE: u64 = 17;
-/// Floats per parameter record (mean 3, log-scale 3, quaternion 4, opacity logit).
-const PARAM_STRIDE: u64 = 11;
 /// Pixel rows per tile row.
 const TILE_ROWS_PX: u64 = crate::TILE_SIZE as u64;
 /// Tile-list positions per forward dispatch and per backward dispatch. Software Vulkan
@@ -62,8 +58,13 @@ const TILE_ROWS_PX: u64 = crate::TILE_SIZE as u64;
 /// are walked in windows with the per-pixel state kept in buffers between dispatches.
 const FWD_WINDOW: u32 = 32768;
 const BWD_WINDOW: u32 = 256;
-/// Largest per-pixel record bound to one kernel (the 9 floats of `pixgrad` / `bstate`).
-const MAX_PIXEL_BYTES: u64 = 36;
+/// Largest per-pixel record bound to one kernel (`pixgrad` / `bstate`; the eight accumulator
+/// planes take 32 bytes a pixel).
+const MAX_PIXEL_BYTES: u64 = max_u64(kernels::bytes_of::<PixelGrad>(), kernels::bytes_of::<BlendState>());
+
+const fn max_u64(a: u64, b: u64) -> u64 {
+    if a > b { a } else { b }
+}
 
 /// Distinguishes rasterizers, so that a render's state is never used by another one.
 static NEXT_ID: AtomicU64 = AtomicU64::new(1);
@@ -124,6 +125,7 @@ struct Buffers {
     partials: BufId,
     gacc: BufId,
     gout: BufId,
+    gout_sh: BufId,
     staging: BufId,
 }
 
@@ -157,6 +159,7 @@ impl Buffers {
             partials: b("partials"),
             gacc: b("gacc"),
             gout: b("gout"),
+            gout_sh: b("gout_sh"),
             staging: pool.add_staging("staging"),
         }
     }
@@ -351,41 +354,45 @@ impl WgpuRasterizer {
     fn upload_gaussians(&mut self, g: &Gaussians) {
         let n = g.len();
         let nc = coeffs_for_degree(g.sh_degree);
-        let ps = PARAM_STRIDE as usize;
-        upload_with(&self.ctx, &mut self.pool, self.bufs.params, n * ps, |out| {
-            out.par_chunks_mut(ps).enumerate().for_each(|(i, r)| {
-                r[0..3].copy_from_slice(&g.means[i]);
-                r[3..6].copy_from_slice(&g.log_scales[i]);
-                r[6..10].copy_from_slice(&g.rotations[i]);
-                r[10] = g.opacity_logits[i];
+        upload_with(&self.ctx, &mut self.pool, self.bufs.params, n, |out: &mut [ParamRecord]| {
+            out.par_iter_mut().enumerate().for_each(|(i, r)| {
+                let [rot_w, rot_x, rot_y, rot_z] = g.rotations[i];
+                *r = ParamRecord {
+                    mean: g.means[i],
+                    log_scale: g.log_scales[i],
+                    rot_w,
+                    rot_x,
+                    rot_y,
+                    rot_z,
+                    opacity_logit: g.opacity_logits[i],
+                };
             })
         });
-        upload_with(&self.ctx, &mut self.pool, self.bufs.sh, n * nc * 3, |out| {
+        upload_with(&self.ctx, &mut self.pool, self.bufs.sh, n * nc, |out: &mut [ShCoeff]| {
             if nc > 0 {
-                out.par_chunks_mut(nc * 3).zip(&g.sh).for_each(|(r, c)| {
-                    for (k, v) in c.iter().take(nc).enumerate() {
-                        r[3 * k..3 * k + 3].copy_from_slice(v);
-                    }
+                out.par_chunks_mut(nc).zip(&g.sh).for_each(|(r, c)| {
+                    r.iter_mut().zip(c).for_each(|(r, v)| r.rgb = *v);
                 })
             }
         });
     }
 }
 
-/// Writes `len` f32 produced by `fill` to the start of pool buffer `id` (grown first).
-fn upload_with(
+/// Writes `len` records produced by `fill` to the start of pool buffer `id` (grown first, to
+/// at least one record: a kernel's binding holds at least one).
+fn upload_with<T: bytemuck::Pod>(
     ctx: &GpuContext,
     pool: &mut BufferPool,
     id: BufId,
     len: usize,
-    fill: impl Fn(&mut [f32]),
+    fill: impl Fn(&mut [T]),
 ) {
-    let bytes = (len * 4) as u64;
-    pool.ensure(id, bytes.max(4));
-    ctx.write_with(pool.buffer(id), bytes, |b| match bytemuck::try_cast_slice_mut::<u8, f32>(b) {
+    let bytes = len as u64 * bytes_of::<T>();
+    pool.ensure(id, bytes.max(bytes_of::<T>()));
+    ctx.write_with(pool.buffer(id), bytes, |b| match bytemuck::try_cast_slice_mut::<u8, T>(b) {
         Ok(f) => fill(f),
         Err(_) => {
-            let mut v = vec![0.0f32; len];
+            let mut v = vec![T::zeroed(); len];
             fill(&mut v);
             b.copy_from_slice(bytemuck::cast_slice(&v));
         }

@@ -143,17 +143,17 @@ fn sh_basis(d: vec3<f32>) -> array<f32, 16> {
 }
 
 fn read_sh(i: u32, k: u32) -> vec3<f32> {
-    let o = (i * cam.nc + k) * 3u;
-    return vec3<f32>(sh[o], sh[o + 1u], sh[o + 2u]);
+    let c = sh[i * cam.nc + k].rgb;
+    return vec3<f32>(c[0], c[1], c[2]);
 }
 
 fn read_param(i: u32) -> Param {
-    let o = i * 11u;
+    let r = params[i];
     var p: Param;
-    p.mean = vec3<f32>(params[o], params[o + 1u], params[o + 2u]);
-    p.log_scale = vec3<f32>(params[o + 3u], params[o + 4u], params[o + 5u]);
-    p.quat = vec4<f32>(params[o + 6u], params[o + 7u], params[o + 8u], params[o + 9u]);
-    p.logit = params[o + 10u];
+    p.mean = vec3<f32>(r.mean[0], r.mean[1], r.mean[2]);
+    p.log_scale = vec3<f32>(r.log_scale[0], r.log_scale[1], r.log_scale[2]);
+    p.quat = vec4<f32>(r.rot_w, r.rot_x, r.rot_y, r.rot_z);
+    p.logit = r.opacity_logit;
     return p;
 }
 

@@ -10,9 +10,7 @@ fn project(ids: Ids) {
     let gi = pass_.base + i;
     keys[gi] = INVISIBLE;
     vals[gi] = gi;
-    for (var k = 0u; k < 5u; k++) {
-        proj[i * 5u + k] = 0u;
-    }
+    proj[i] = TileRect();
     radii[i] = 0u;
     let it = internals(i, read_param(i));
     if (!it.ok) {
@@ -44,30 +42,13 @@ fn project(ids: Ids) {
     if (tx0 >= u32(tx1) || ty0 >= u32(ty1)) {
         return;
     }
-    let o = i * SPLAT_STRIDE;
-    splat[o] = x;
-    splat[o + 1u] = y;
-    splat[o + 2u] = it.conic.x;
-    splat[o + 3u] = it.conic.y;
-    splat[o + 4u] = it.conic.z;
-    splat[o + 5u] = it.opacity;
-    splat[o + 6u] = sigma_max;
-    splat[o + 7u] = ext_x;
-    splat[o + 8u] = ext_y;
-    splat[o + 9u] = it.color.x;
-    splat[o + 10u] = it.color.y;
-    splat[o + 11u] = it.color.z;
-    splat[o + 12u] = it.n_c.x;
-    splat[o + 13u] = it.n_c.y;
-    splat[o + 14u] = it.n_c.z;
-    splat[o + 15u] = it.dist;
-    splat[o + 16u] = t.z;
-    proj[i * 5u] = tx0;
-    proj[i * 5u + 1u] = ty0;
-    proj[i * 5u + 2u] = u32(tx1);
-    proj[i * 5u + 3u] = u32(ty1);
-    proj[i * 5u + 4u] = u32(min(radius_f, 4294967040.0));
-    radii[i] = proj[i * 5u + 4u];
+    let channels = array<f32, 8>(
+        it.color.x, it.color.y, it.color.z, it.n_c.x, it.n_c.y, it.n_c.z, it.dist, t.z,
+    );
+    splat[i] = Splat(x, y, it.conic.x, it.conic.y, it.conic.z, it.opacity, sigma_max, ext_x, ext_y, channels);
+    let radius = u32(min(radius_f, 4294967040.0));
+    proj[i] = TileRect(tx0, ty0, u32(tx1), u32(ty1), radius);
+    radii[i] = radius;
     keys[gi] = bitcast<u32>(t.z);
     atomicAdd(&counters[0], 1u);
 }

@@ -70,12 +70,11 @@ fn project_bwd(ids: Ids) {
     if (i >= pass_.n) {
         return;
     }
-    let stride = 15u + 3u * cam.nc;
-    let o = i * stride;
-    for (var k = 0u; k < stride; k++) {
-        gout[o + k] = 0.0;
+    gout[i] = ParamGrad();
+    for (var k = 0u; k < cam.nc; k++) {
+        gout_sh[i * cam.nc + k] = ShCoeff();
     }
-    if (proj[i * 5u + 4u] == 0u) {
+    if (proj[i].radius == 0u) {
         return;
     }
     let r = gacc[i];
@@ -186,31 +185,20 @@ fn project_bwd(ids: Ids) {
     for (var k = 0u; k < cam.nc; k++) {
         let c = read_sh(i, k);
         let gs = bs[k] * g_col;
-        let so = o + 15u + 3u * k;
-        gout[so] = gs.x;
-        gout[so + 1u] = gs.y;
-        gout[so + 2u] = gs.z;
+        gout_sh[i * cam.nc + k] = ShCoeff(array<f32, 3>(gs.x, gs.y, gs.z));
         let s = c.x * g_col.x + c.y * g_col.y + c.z * g_col.z;
         g_dir += s * sh_jacobian(k, dir);
     }
     let g_dir_raw = normalize_backward(it.dir_raw, g_dir);
     g_t += rc * g_dir_raw;
     let g_mean = transpose(rc) * g_t;
-    gout[o] = g_mean.x;
-    gout[o + 1u] = g_mean.y;
-    gout[o + 2u] = g_mean.z;
-    gout[o + 3u] = g_log_scale.x;
-    gout[o + 4u] = g_log_scale.y;
-    gout[o + 5u] = g_log_scale.z;
-    gout[o + 6u] = g_q.x;
-    gout[o + 7u] = g_q.y;
-    gout[o + 8u] = g_q.z;
-    gout[o + 9u] = g_q.w;
-    gout[o + 10u] = g_logit;
     let sx = 0.5 * f32(cam.width);
     let sy = 0.5 * f32(cam.height);
-    gout[o + 11u] = sg[0] * sx;
-    gout[o + 12u] = sg[1] * sy;
-    gout[o + 13u] = sg[14] * sx;
-    gout[o + 14u] = sg[15] * sy;
+    gout[i] = ParamGrad(
+        array<f32, 3>(g_mean.x, g_mean.y, g_mean.z),
+        array<f32, 3>(g_log_scale.x, g_log_scale.y, g_log_scale.z),
+        g_q.x, g_q.y, g_q.z, g_q.w,
+        g_logit,
+        sg[0] * sx, sg[1] * sy, sg[14] * sx, sg[15] * sy,
+    );
 }

@@ -51,10 +51,11 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             tr[q] = final_t[p];
             tf[q] = final_t[p];
             lastq[q] = last[p];
+            let pg = pixgrad[p];
             for (var c = 0u; c < 8u; c++) {
-                gch[q * 8u + c] = pixgrad[p * 9u + c];
+                gch[q * 8u + c] = pg.channels[c];
             }
-            gfin[q] = pixgrad[p * 9u + 8u];
+            gfin[q] = pg.final_t;
             my_max = max(my_max, lastq[q]);
         }
     }
@@ -73,9 +74,10 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
         for (var q = 0u; q < 2u; q++) {
             if (valid[q]) {
                 let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
-                tr[q] = bstate[p * 9u];
+                let bs = bstate[p];
+                tr[q] = bs.t;
                 for (var c = 0u; c < 8u; c++) {
-                    behind[q * 8u + c] = bstate[p * 9u + 1u + c];
+                    behind[q * 8u + c] = bs.behind[c];
                 }
             }
         }
@@ -83,20 +85,17 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     for (var kk = lo; kk < hi; kk++) {
         let k = hi - 1u - (kk - lo);
         let gid = gids[start + k];
-        let o = gid * SPLAT_STRIDE;
-        let sx = splat[o];
-        let sy = splat[o + 1u];
-        let ca = splat[o + 2u];
-        let cb = splat[o + 3u];
-        let cc = splat[o + 4u];
-        let op = splat[o + 5u];
-        let smax = splat[o + 6u];
-        let ex = splat[o + 7u];
-        let ey = splat[o + 8u];
-        var f: array<f32, 8>;
-        for (var c = 0u; c < 8u; c++) {
-            f[c] = splat[o + 9u + c];
-        }
+        let s = splat[gid];
+        let sx = s.x;
+        let sy = s.y;
+        let ca = s.conic_a;
+        let cb = s.conic_b;
+        let cc = s.conic_c;
+        let op = s.opacity;
+        let smax = s.sigma_max;
+        let ex = s.ext_x;
+        let ey = s.ext_y;
+        var f = s.channels;
         var g: array<f32, 16>;
         for (var c = 0u; c < 16u; c++) {
             g[c] = 0.0;
@@ -192,10 +191,12 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     for (var q = 0u; q < 2u; q++) {
         if (valid[q]) {
             let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
-            bstate[p * 9u] = tr[q];
+            var bs: BlendState;
+            bs.t = tr[q];
             for (var c = 0u; c < 8u; c++) {
-                bstate[p * 9u + 1u + c] = behind[q * 8u + c];
+                bs.behind[c] = behind[q * 8u + c];
             }
+            bstate[p] = bs;
         }
     }
 }

@@ -68,19 +68,19 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     }
     for (var k = lo; k < hi && !done; k++) {
         let gid = gids[start + k];
-        let o = gid * SPLAT_STRIDE;
-        let sx = splat[o];
-        let sy = splat[o + 1u];
-        if (!in_box(sx, splat[o + 7u], x0, tw, lid.x) || !in_box(sy, splat[o + 8u], y0, th, lid.y)) {
+        let s = splat[gid];
+        let sx = s.x;
+        let sy = s.y;
+        if (!in_box(sx, s.ext_x, x0, tw, lid.x) || !in_box(sy, s.ext_y, y0, th, lid.y)) {
             continue;
         }
         let dx = fx - sx;
         let dy = fy - sy;
-        let sigma = 0.5 * (splat[o + 2u] * dx * dx + splat[o + 4u] * dy * dy) + splat[o + 3u] * dx * dy;
-        if (!(sigma >= 0.0 && sigma <= splat[o + 6u])) {
+        let sigma = 0.5 * (s.conic_a * dx * dx + s.conic_c * dy * dy) + s.conic_b * dx * dy;
+        if (!(sigma >= 0.0 && sigma <= s.sigma_max)) {
             continue;
         }
-        var alpha = splat[o + 5u] * exp_neg(sigma);
+        var alpha = s.opacity * exp_neg(sigma);
         if (alpha < cam.threshold) {
             continue;
         }
@@ -93,9 +93,9 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
         }
         let w = alpha * t;
         if (color) {
-            a[0] += w * splat[o + 9u];
-            a[1] += w * splat[o + 10u];
-            a[2] += w * splat[o + 11u];
+            a[0] += w * s.channels[0];
+            a[1] += w * s.channels[1];
+            a[2] += w * s.channels[2];
         }
         if (geo) {
             // The geometry cut (RenderRequest::geometry_cut): blend only while T > cut.
@@ -103,13 +103,13 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             if (cam.geometry_cut > 0.0) {
                 wg = max(t - max(next_t, cam.geometry_cut), 0.0);
             }
-            a[3] += wg * splat[o + 12u];
-            a[4] += wg * splat[o + 13u];
-            a[5] += wg * splat[o + 14u];
-            a[6] += wg * splat[o + 15u];
+            a[3] += wg * s.channels[3];
+            a[4] += wg * s.channels[4];
+            a[5] += wg * s.channels[5];
+            a[6] += wg * s.channels[6];
         }
         if (depth) {
-            a[7] += w * splat[o + 16u];
+            a[7] += w * s.channels[7];
         }
         if (obs && t > 0.5) {
             atomicAdd(&observed[gid], 1u);
