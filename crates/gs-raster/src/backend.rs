@@ -98,7 +98,7 @@ impl Rasterizer {
     /// A human-readable description (the adapter for wgpu) for logs.
     pub fn description(&self) -> String {
         match &self.inner {
-            Inner::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
+            Inner::Cpu => cpu_description(),
             #[cfg(feature = "wgpu")]
             Inner::Wgpu(r) => format!("wgpu on {}", r.adapter_description()),
         }
@@ -176,5 +176,19 @@ mod tests {
             Err(crate::RasterError::BackendUnavailable(_))
         ));
         assert_eq!(Rasterizer::new(Backend::Auto).unwrap().backend(), Backend::Cpu);
+    }
+}
+
+/// The CPU backend in words, "cpu (2 threads)": what [`Rasterizer::description`] says of it
+/// and what a run reports for its parts on the CPU.
+pub fn cpu_description() -> String {
+    format!("cpu ({})", cpu_threads_in_words())
+}
+
+/// The CPU's worker count in words ("1 thread", "16 threads"): the current rayon pool.
+pub fn cpu_threads_in_words() -> String {
+    match rayon::current_num_threads() {
+        1 => "1 thread".into(),
+        n => format!("{n} threads"),
     }
 }

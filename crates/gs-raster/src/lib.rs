@@ -75,7 +75,7 @@ mod types;
 mod validate;
 pub use validate::MAX_LOW_PASS;
 
-pub use backend::{Backend, Rasterizer};
+pub use backend::{Backend, Rasterizer, cpu_description, cpu_threads_in_words};
 pub use cpu::project::{JACOBIAN_CLAMP, LOW_PASS, MIN_COMPENSATION};
 pub use cpu::{backward, render, render_naive};
 #[cfg(feature = "wgpu")]

@@ -126,7 +126,7 @@ impl LossDevices {
         match (&self.adapter, on.split_last()) {
             (Some(a), Some((last, []))) => format!("{last} on wgpu ({a}); the other terms on the CPU"),
             (Some(a), Some((last, first))) => format!("{} and {last} on wgpu ({a}); the other terms on the CPU", first.join(", ")),
-            _ => format!("every loss term on the CPU ({} threads)", rayon::current_num_threads()),
+            _ => format!("every loss term on the CPU ({})", gs_raster::cpu_threads_in_words()),
         }
     }
 }

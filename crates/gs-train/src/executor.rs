@@ -100,7 +100,7 @@ impl ReferenceExecutor {
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
     /// term on its device kernel or the CPU, Adam and density control on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
-        let cpu = format!("cpu ({} threads)", rayon::current_num_threads());
+        let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
         let place = |part: &str, on_device: bool| PartPlace { part: part.into(), on: if on_device { device.clone() } else { cpu.clone() } };
         let mut parts = vec![place("render and backward", true)];
