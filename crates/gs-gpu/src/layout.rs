@@ -81,6 +81,10 @@ macro_rules! wgsl_struct {
         $vis struct $name {
             $( $(#[$fmeta])* pub $field: $ty, )*
         }
+        // A struct is also a member type of other structs (nested records).
+        impl $crate::WgslType for $name {
+            const WGSL: &'static str = $wgsl;
+        }
         impl $crate::WgslStruct for $name {
             const WGSL_NAME: &'static str = $wgsl;
             fn wgsl_fields() -> ::std::vec::Vec<$crate::WgslField> {

@@ -254,10 +254,10 @@ fn unpack_gradients(v: &[ParamGrad], sh: &[ShCoeff], g: &Gaussians) -> GaussianG
     let nc = coeffs_for_degree(g.sh_degree);
     let recs = || v.par_iter().take(g.len());
     GaussianGradients {
-        means: recs().map(|r| r.mean).collect(),
-        log_scales: recs().map(|r| r.log_scale).collect(),
-        rotations: recs().map(|r| [r.rot_w, r.rot_x, r.rot_y, r.rot_z]).collect(),
-        opacity_logits: recs().map(|r| r.opacity_logit).collect(),
+        means: recs().map(|r| r.param.mean).collect(),
+        log_scales: recs().map(|r| r.param.log_scale).collect(),
+        rotations: recs().map(|r| r.param.rotation()).collect(),
+        opacity_logits: recs().map(|r| r.param.opacity_logit).collect(),
         mean2d: recs().map(|r| [r.mean2d_x, r.mean2d_y]).collect(),
         mean2d_abs: recs().map(|r| [r.mean2d_abs_x, r.mean2d_abs_y]).collect(),
         sh: (0..g.len())

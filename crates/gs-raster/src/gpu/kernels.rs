@@ -174,13 +174,8 @@ gs_gpu::wgsl_struct! {
     /// One Gaussian's parameter gradients other than SH, written by `project_bwd` (WGSL
     /// `struct ParamGrad`), and the densification statistics in NDC units. 60 bytes.
     pub(crate) struct ParamGrad as "ParamGrad" {
-        mean: [f32; 3],
-        log_scale: [f32; 3],
-        rot_w: f32,
-        rot_x: f32,
-        rot_y: f32,
-        rot_z: f32,
-        opacity_logit: f32,
+        /// dL/d of each parameter, in the parameters' own record.
+        param: ParamRecord,
         /// dL/d of the projected centre in NDC (x, y).
         mean2d_x: f32,
         mean2d_y: f32,
@@ -206,6 +201,19 @@ gs_gpu::wgsl_struct! {
     pub(crate) struct BlendState as "BlendState" {
         t: f32,
         behind: [f32; 8],
+    }
+}
+
+impl ParamRecord {
+    /// Gaussian `i`'s record from the host's arrays.
+    pub(crate) fn of(g: &Gaussians, i: usize) -> Self {
+        let [rot_w, rot_x, rot_y, rot_z] = g.rotations[i];
+        Self { mean: g.means[i], log_scale: g.log_scales[i], rot_w, rot_x, rot_y, rot_z, opacity_logit: g.opacity_logits[i] }
+    }
+
+    /// The quaternion (w, x, y, z).
+    pub(crate) fn rotation(&self) -> [f32; 4] {
+        [self.rot_w, self.rot_x, self.rot_y, self.rot_z]
     }
 }
 

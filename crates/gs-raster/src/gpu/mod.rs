@@ -355,18 +355,7 @@ impl WgpuRasterizer {
         let n = g.len();
         let nc = coeffs_for_degree(g.sh_degree);
         upload_with(&self.ctx, &mut self.pool, self.bufs.params, n, |out: &mut [ParamRecord]| {
-            out.par_iter_mut().enumerate().for_each(|(i, r)| {
-                let [rot_w, rot_x, rot_y, rot_z] = g.rotations[i];
-                *r = ParamRecord {
-                    mean: g.means[i],
-                    log_scale: g.log_scales[i],
-                    rot_w,
-                    rot_x,
-                    rot_y,
-                    rot_z,
-                    opacity_logit: g.opacity_logits[i],
-                };
-            })
+            out.par_iter_mut().enumerate().for_each(|(i, r)| *r = ParamRecord::of(g, i))
         });
         upload_with(&self.ctx, &mut self.pool, self.bufs.sh, n * nc, |out: &mut [ShCoeff]| {
             if nc > 0 {

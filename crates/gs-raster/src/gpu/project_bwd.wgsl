@@ -194,11 +194,11 @@ fn project_bwd(ids: Ids) {
     let g_mean = transpose(rc) * g_t;
     let sx = 0.5 * f32(cam.width);
     let sy = 0.5 * f32(cam.height);
-    gout[i] = ParamGrad(
+    let g_param = ParamRecord(
         array<f32, 3>(g_mean.x, g_mean.y, g_mean.z),
         array<f32, 3>(g_log_scale.x, g_log_scale.y, g_log_scale.z),
         g_q.x, g_q.y, g_q.z, g_q.w,
         g_logit,
-        sg[0] * sx, sg[1] * sy, sg[14] * sx, sg[15] * sy,
     );
+    gout[i] = ParamGrad(g_param, sg[0] * sx, sg[1] * sy, sg[14] * sx, sg[15] * sy);
 }
