@@ -58,6 +58,9 @@ done
 MODE=$([[ $QUICK == 1 ]] && echo quick || echo full)
 OUT="${OUT:-$ROOT/target/suite/$MODE}"
 CACHE="$ROOT/target/suite-scenes/$MODE-seed$SEED"
+# What the table says was run: the checkout's commit (taken now, not when the table is
+# written), or the binary the caller named.
+if [[ -n "${VAGSL:-}" ]]; then BUILT_FROM="the binary $VAGSL"; else BUILT_FROM="at $(git -C "$ROOT" describe --always --dirty 2>/dev/null || echo 'an unknown commit')"; fi
 VAGSL="${VAGSL:-$ROOT/target/release/vagsl}"
 if [[ ! -x "$VAGSL" ]]; then
   (cd "$ROOT" && cargo build --release -p gs-cli)
@@ -164,12 +167,12 @@ done
 T_END=$(date +%s.%N)
 
 # The table: one row per scene, then the mean and the worst value of every column.
-SUITE_ROOT="$ROOT" python3 - "$OUT" "$MODE" "$SEED" "$PRESET" "$THREADS" "$LOAD_START" "$(cut -d' ' -f1-3 /proc/loadavg)" \
+SUITE_BUILT_FROM="$BUILT_FROM" python3 - "$OUT" "$MODE" "$SEED" "$PRESET" "$THREADS" "$LOAD_START" "$(cut -d' ' -f1-3 /proc/loadavg)" \
   "$(python3 -c "print($T_END - $T_SUITE)")" "$ARGS" "${DONE[@]}" <<'PY'
-import json, sys, subprocess, os
+import json, sys, os
 out, mode, seed, preset, threads, load0, load1, wall, _args, *scenes = sys.argv[1:]
 rows = [json.load(open(f"{out}/{s}/row.json")) for s in scenes]
-commit = subprocess.run(["git", "-C", os.environ["SUITE_ROOT"], "describe", "--always", "--dirty"], capture_output=True, text=True).stdout.strip()
+built_from = os.environ["SUITE_BUILT_FROM"]
 cols = [  # header, key, format, worst = max or min
     ("Chamfer", "chamfer", "{:.5f}", max), ("floor", "floor_chamfer", "{:.5f}", max), ("× floor", "chamfer_ratio", "{:.2f}", max),
     ("F1", "f1", "{:.3f}", min), ("floor F1", "floor_f1", "{:.3f}", min), ("F1 ÷ floor", "f1_ratio", "{:.3f}", min),
@@ -181,7 +184,7 @@ cols = [  # header, key, format, worst = max or min
 fmt = lambda f, v: f.format(int(round(v)) if f in ("{:d}", "{:,}") else v)
 lines = [
     f"# Validation suite ({mode}, seed {seed}, preset {preset or 'default'})", "",
-    f"`scripts/suite.sh {_args}`".replace("` ", "`").replace(" `", "`") + f" at {commit}; {threads} threads "
+    f"`scripts/suite.sh {_args}`".replace("` ", "`").replace(" `", "`") + f" {built_from}; {threads} thread{'' if threads == '1' else 's'} "
     f"(RAYON_NUM_THREADS); load average {load0} at the start, {load1} at the end; {float(wall) / 60:.1f} min of wall time "
     "for the scenes run now. Object protocol: crop to the object's box + 5 %, floor (z < 0.005) removed, "
     "τ = 0.5 % of its diagonal; the floor is `vagsl mesh SCENE --depth-dir SCENE/gt --no-simplify` scored the same way. "
