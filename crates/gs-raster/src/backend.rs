@@ -147,6 +147,20 @@ impl Rasterizer {
     }
 }
 
+/// The CPU backend in words, "cpu (2 threads)": what [`Rasterizer::description`] says of it
+/// and what a run reports for its parts on the CPU.
+pub fn cpu_description() -> String {
+    format!("cpu ({})", cpu_threads_in_words())
+}
+
+/// The CPU's worker count in words ("1 thread", "16 threads"): the current rayon pool.
+pub fn cpu_threads_in_words() -> String {
+    match rayon::current_num_threads() {
+        1 => "1 thread".into(),
+        n => format!("{n} threads"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -176,19 +190,5 @@ mod tests {
             Err(crate::RasterError::BackendUnavailable(_))
         ));
         assert_eq!(Rasterizer::new(Backend::Auto).unwrap().backend(), Backend::Cpu);
-    }
-}
-
-/// The CPU backend in words, "cpu (2 threads)": what [`Rasterizer::description`] says of it
-/// and what a run reports for its parts on the CPU.
-pub fn cpu_description() -> String {
-    format!("cpu ({})", cpu_threads_in_words())
-}
-
-/// The CPU's worker count in words ("1 thread", "16 threads"): the current rayon pool.
-pub fn cpu_threads_in_words() -> String {
-    match rayon::current_num_threads() {
-        1 => "1 thread".into(),
-        n => format!("{n} threads"),
     }
 }

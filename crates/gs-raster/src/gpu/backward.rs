@@ -264,9 +264,7 @@ fn unpack_gradients(v: &[ParamGrad], sh: &[ShCoeff], g: &Gaussians) -> GaussianG
             .into_par_iter()
             .map(|i| {
                 let mut c = [[0.0f32; 3]; 16];
-                if nc > 0 {
-                    c.iter_mut().zip(&sh[i * nc..(i + 1) * nc]).for_each(|(ck, s)| *ck = s.rgb);
-                }
+                c.iter_mut().zip(&sh[i * nc..(i + 1) * nc]).for_each(|(ck, s)| *ck = s.rgb);
                 c
             })
             .collect(),

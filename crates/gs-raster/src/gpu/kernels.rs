@@ -362,21 +362,38 @@ pub(crate) struct Kernels {
     pub grad_reduce: Kernel,
 }
 
-/// The generated WGSL declarations every kernel starts with (the camera uniform and every
-/// storage record).
-fn decls() -> String {
+/// One struct whose WGSL the kernels take from its Rust definition: the declaration, and the
+/// check of a compiled source's layout of it against the Rust struct.
+struct Generated {
+    decl: fn() -> String,
+    /// Read by the layout test only.
+    #[cfg_attr(not(test), allow(dead_code))]
+    check: fn(&str) -> Result<(), String>,
+}
+
+fn generated<T: WgslStruct>() -> Generated {
+    Generated { decl: T::wgsl_decl, check: gs_gpu::check_layout::<T> }
+}
+
+/// The camera uniform and every storage record: one list, so that every struct the kernels
+/// declare is also the one the layout test checks.
+fn generated_structs() -> [Generated; 9] {
     [
-        CamUniform::wgsl_decl(),
-        ScreenGrad::wgsl_decl(),
-        ParamRecord::wgsl_decl(),
-        ShCoeff::wgsl_decl(),
-        Splat::wgsl_decl(),
-        TileRect::wgsl_decl(),
-        ParamGrad::wgsl_decl(),
-        PixelGrad::wgsl_decl(),
-        BlendState::wgsl_decl(),
+        generated::<CamUniform>(),
+        generated::<ScreenGrad>(),
+        generated::<ParamRecord>(),
+        generated::<ShCoeff>(),
+        generated::<Splat>(),
+        generated::<TileRect>(),
+        generated::<ParamGrad>(),
+        generated::<PixelGrad>(),
+        generated::<BlendState>(),
     ]
-    .concat()
+}
+
+/// The generated WGSL declarations every kernel starts with.
+fn decls() -> String {
+    generated_structs().iter().map(|g| (g.decl)()).collect()
 }
 
 impl Kernels {
@@ -414,16 +431,11 @@ mod tests {
         let decls = decls();
         for s in specs() {
             let src = kernel_source(&sources(&decls, &s), &s.bindings);
-            check_layout::<CamUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<ScreenGrad>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            // gs-gpu's prelude declares `Pass`; the rest come from this crate's list.
             check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<ParamRecord>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<ShCoeff>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<Splat>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<TileRect>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<ParamGrad>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<PixelGrad>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            check_layout::<BlendState>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            for g in generated_structs() {
+                (g.check)(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            }
         }
         assert_eq!(std::mem::size_of::<CamUniform>(), 144);
         assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);
