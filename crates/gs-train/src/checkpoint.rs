@@ -1,12 +1,14 @@
 //! Versioned, checksummed training checkpoints (docs/architecture.md §Errors): the configuration (JSON), the
 //! Gaussians, the Adam moments, the densification statistics, the exposure corrections, the
-//! wall time spent so far and the memo of source-view plane depths, little-endian, followed by
+//! wall time spent so far, the memo of source-view plane depths and the 3D smoothing filter's
+//! variances, little-endian, followed by
 //! a CRC-32 of everything before it. Written atomically (temporary file + rename).
 
 use crate::exposure::Exposure;
 use crate::config::TrainConfig;
 use crate::densify::DensifyStats;
 use crate::error::{Result, TrainError};
+use crate::smoothing::Smoothing;
 use crate::source_depths::SourceDepths;
 use crate::trainer::TrainState;
 use gs_core::optim::ParamGroup;
@@ -18,8 +20,9 @@ use std::path::Path;
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"VAGSLCKP";
-/// Format version (3 added the elapsed wall time, 4 the source-depth memo).
-pub const VERSION: u32 = 4;
+/// Format version (3 added the elapsed wall time, 4 the source-depth memo, 5 the 3D smoothing
+/// filter's variances).
+pub const VERSION: u32 = 5;
 
 /// Wall seconds a run has spent in the training loop so far, per phase (warm-up, photometric
 /// L_p, features L_f, refinement). Carried in the checkpoint so that a run resumed over several
@@ -157,9 +160,11 @@ pub fn encode(config: &TrainConfig, state: &TrainState, elapsed: &Elapsed) -> Ve
     let g = &state.gaussians;
     w.u32(g.sh_degree);
     w.f32s(g.means.as_flattened());
-    w.f32s(g.log_scales.as_flattened());
+    // The raw (optimised) log-scales and opacity logits, also while the 3D filter is applied.
+    let (log_scales, opacity_logits) = state.smoothing.as_ref().map_or((&g.log_scales[..], &g.opacity_logits[..]), |s| s.raw(g));
+    w.f32s(log_scales.as_flattened());
     w.f32s(g.rotations.as_flattened());
-    w.f32s(&g.opacity_logits);
+    w.f32s(opacity_logits);
     w.f32s(g.sh.as_flattened().as_flattened());
     let a = &state.adam;
     w.f32s(&[a.config.beta1, a.config.beta2, a.config.eps]);
@@ -203,6 +208,14 @@ pub fn encode(config: &TrainConfig, state: &TrainState, elapsed: &Elapsed) -> Ve
                 w.u64(d.width() as u64);
                 w.f32s(d.data());
             }
+        }
+    }
+    // Version 5: the 3D smoothing filter's variances (absent = 0).
+    match &state.smoothing {
+        None => w.u32(0),
+        Some(s) => {
+            w.u32(1);
+            w.f32s(&s.variances);
         }
     }
     let crc = crc32(&w.0);
@@ -313,10 +326,14 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Checkpoint> {
             None
         };
         let source_depths = if version >= 4 { read_source_depths(r)? } else { SourceDepths::default() };
+        let smoothing = match version >= 5 && r.u32()? != 0 {
+            true => Some(Smoothing::new(r.f32s("3D smoothing variances")?)),
+            false => None,
+        };
         if r.pos != r.buf.len() {
             return Err(format!("{} unexpected bytes after the last record", r.buf.len() - r.pos));
         }
-        let state = TrainState { iteration, gaussians, adam, stats, capped, exposure, source_depths };
+        let state = TrainState { iteration, gaussians, adam, stats, capped, exposure, source_depths, smoothing };
         Ok(Checkpoint { config, state, elapsed })
     };
     let ck = parse(&mut r).map_err(err)?;

@@ -256,6 +256,12 @@ impl StepExecutor for ReferenceExecutor {
         if let Some(go) = &grads.opacity_logits {
             g.opacity_logits.iter_mut().zip(go).for_each(|(a, b)| *a += b);
         }
+        // Rendered through the 3D smoothing filter: back to the raw parameters for Adam and
+        // density control (the trainer applies the filter again after them).
+        if let Some(s) = &mut state.smoothing {
+            s.chain(&mut g)?;
+            s.revert(&mut state.gaussians);
+        }
         profile.add(phase, Part::Backward, clock.lap());
         if plan.refine.accumulate {
             state.stats.accumulate(&out.radii, &g, plan.scale as f32);

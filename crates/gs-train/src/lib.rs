@@ -54,6 +54,7 @@ pub mod profile;
 pub mod refine;
 pub mod region;
 pub mod sh_policy;
+pub mod smoothing;
 pub mod source_depths;
 pub mod terms;
 pub mod trainer;

@@ -19,6 +19,7 @@ use crate::plan::{StepPlan, plan_step};
 use crate::profile::{Clock, Part, StepProfile};
 use crate::executor::{ReferenceExecutor, RunInputs, StepExecutor};
 use crate::sh_policy::{self, ShBandDecision};
+use crate::smoothing::Smoothing;
 use crate::source_depths::SourceDepths;
 use crate::terms::LossValues;
 use gs_core::{Adam, Gaussians, Image, NeighbourRule, Scene};
@@ -70,6 +71,9 @@ pub struct TrainState {
     /// The last rendered plane depth of each training view, reused by L_p / L_f as source
     /// depth (`config.source_depth_max_age`; empty when 0).
     pub source_depths: SourceDepths,
+    /// The 3D smoothing filter (when `config.smoothing_3d` > 0): between iterations the
+    /// Gaussians hold the filtered values, the model as rendered ([`crate::smoothing`]).
+    pub smoothing: Option<Smoothing>,
 }
 
 /// The trainer: a scene, its split, the configuration, the [`TrainState`] it owns, and the
@@ -161,7 +165,16 @@ impl<'s> Trainer<'s> {
         let budget = budget_of(scene, &train_views, &config, &gaussians);
         let source_depths = SourceDepths::default();
         let state =
-            TrainState { iteration: 0, stats: DensifyStats::new(n), gaussians, adam, capped: false, exposure, source_depths };
+            TrainState {
+            iteration: 0,
+            stats: DensifyStats::new(n),
+            gaussians,
+            adam,
+            capped: false,
+            exposure,
+            source_depths,
+            smoothing: None,
+        };
         Self::assemble(scene, train_views, config, state, budget)
     }
 
@@ -183,6 +196,7 @@ impl<'s> Trainer<'s> {
             state.source_depths = SourceDepths::new(train_views.len());
         }
         let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
+        crate::smoothing::settle(&mut state, &cams, f64::from(config.near), config.smoothing_3d, false)?;
         let extent = scene.extent_of(&train_views).max(1e-9);
         let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), config.source_views, SourceSelection::RandomN)?;
         let test_views = (0..scene.views.len()).filter(|i| !train_views.contains(i)).collect();
@@ -374,6 +388,10 @@ impl<'s> Trainer<'s> {
         let losses = self.executor.execute(&run, &mut self.state, &plan, &mut self.profile)?;
         let mut clock = Clock::start();
         let refined = self.executor.refine(&run, &mut self.state, &plan)?;
+        let rows_changed = refined.densify.is_some() || refined.trimmed.is_some() || refined.floaters.is_some();
+        let due = rows_changed || plan.iteration % crate::smoothing::RECOMPUTE_EVERY == 0;
+        let cams: Vec<&gs_core::Camera> = self.train_views.iter().map(|&i| &self.scene.views[i].camera).collect();
+        crate::smoothing::settle(&mut self.state, &cams, f64::from(self.config.near), self.config.smoothing_3d, due)?;
         let phase = crate::checkpoint::Elapsed::phase_of(&self.config, plan.iteration);
         self.profile.add(phase, Part::Refine, clock.lap());
         self.profile.finish_iteration(phase, whole.lap());

@@ -73,26 +73,57 @@ fn corrupt_checkpoints_are_named_errors() {
 }
 
 #[test]
-fn version_2_and_3_checkpoints_still_load() {
+fn version_2_to_4_checkpoints_still_load() {
     let scene = small_scene();
     let (train, _) = scene.split(false);
     let mut t = Trainer::new(&scene, train, TrainConfig { source_depth_max_age: 0, ..config() }).unwrap();
     t.run(|_, r| r.iteration < 3).unwrap();
-    let v4 = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
-    // A version-3 file is the version-4 body without the trailing (empty) source-depth memo
-    // (a 4-byte slot count); a version-2 file also lacks the elapsed record before it (8-byte
-    // count + 4 × 8 bytes). Each has its own version number and checksum.
+    let v5 = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
+    // A version-4 file is the version-5 body without the trailing 3D-filter flag (4 bytes, 0);
+    // a version-3 file also lacks the (empty) source-depth memo before it (a 4-byte slot
+    // count); a version-2 file also lacks the elapsed record (8-byte count + 4 × 8 bytes).
+    // Each has its own version number and checksum.
     let old = |version: u32, cut: usize| {
-        let mut b = v4[..v4.len() - 4 - cut].to_vec();
+        let mut b = v5[..v5.len() - 4 - cut].to_vec();
         b[8..12].copy_from_slice(&version.to_le_bytes());
         let crc = gs_features::weights::crc32(&b);
         b.extend_from_slice(&crc.to_le_bytes());
         checkpoint::decode(&b, std::path::Path::new("old.bin")).unwrap()
     };
-    let v3 = old(3, 4);
+    let v4 = old(4, 4);
+    assert_eq!((v4.elapsed, &v4.state), (Some(Elapsed::default()), t.state()));
+    let v3 = old(3, 8);
     assert_eq!((v3.elapsed, &v3.state), (Some(Elapsed::default()), t.state()));
-    let v2 = old(2, 4 + 40);
+    let v2 = old(2, 8 + 40);
     assert_eq!((v2.elapsed, &v2.state), (None, t.state()));
+}
+
+/// The 3D smoothing filter (`smoothing_3d`): a run checkpointed between two computations of
+/// the variances resumes bit-identically (they travel in the checkpoint), the checkpoint holds
+/// the raw parameters, and the model at rest is the filtered one (no axis thinner than √s²).
+#[test]
+fn the_3d_filter_resumes_bit_identically_and_rests_filtered() {
+    let scene = small_scene();
+    let (train, _) = scene.split(false);
+    let cfg = TrainConfig { smoothing_3d: 0.2, ..config() };
+    assert!(cfg.iterations > 100, "the run recomputes the variances at least once");
+    let mut straight = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
+    straight.run(|_, _| true).unwrap();
+    let mut first = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
+    first.run(|_, r| r.iteration < 73).unwrap();
+    let bytes = checkpoint::encode(first.config(), first.state(), &Elapsed::default());
+    let ck = checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).unwrap();
+    let s = first.state().smoothing.as_ref().expect("the filter is on");
+    assert_eq!((&ck.state.gaussians.log_scales[..], &ck.state.gaussians.opacity_logits[..]), s.raw(first.gaussians()));
+    assert_ne!(ck.state.gaussians.log_scales, first.gaussians().log_scales, "at rest the model is filtered");
+    let mut resumed = Trainer::with_state(&scene, train, ck.config, ck.state).unwrap();
+    resumed.run(|_, _| true).unwrap();
+    assert_eq!(resumed.state(), straight.state(), "parameters, optimiser, statistics and filter must match bit for bit");
+    let (g, s) = (straight.gaussians(), straight.state().smoothing.as_ref().unwrap());
+    assert!(s.applied() && s.variances.iter().all(|v| *v > 0.0));
+    for (ls, v) in g.log_scales.iter().zip(&s.variances) {
+        assert!(ls.iter().all(|l| 2.0 * l >= v.ln() - 1e-4), "{ls:?} thinner than the filter's {v}");
+    }
 }
 
 #[test]
@@ -103,8 +134,9 @@ fn a_source_depth_that_does_not_fill_its_rows_is_refused() {
     let depth = gs_core::Image::filled(5, 3, 1, 1.0).unwrap();
     state.source_depths = gs_train::SourceDepths::from_entries(vec![Some((2, depth))]);
     let mut bytes = checkpoint::encode(t.config(), &state, &Elapsed::default());
-    // The stored width (the u64 before the 15 depth values and their 8-byte count) becomes 4.
-    let at = bytes.len() - 4 - 15 * 4 - 8 - 8;
+    // The stored width (the u64 before the 15 depth values and their 8-byte count, which the
+    // 3D filter's 4-byte flag follows) becomes 4.
+    let at = bytes.len() - 4 - 4 - 15 * 4 - 8 - 8;
     bytes[at..at + 8].copy_from_slice(&4u64.to_le_bytes());
     let body = bytes.len() - 4;
     let crc = gs_features::weights::crc32(&bytes[..body]);

@@ -340,6 +340,12 @@ pub struct TrainConfig {
     /// config.json written before the setting existed.
     #[serde(default = "default_low_pass")]
     pub low_pass: f32,
+    /// Mip-Splatting's 3D smoothing filter ([`crate::smoothing`], docs/method.md §3D
+    /// smoothing): each Gaussian is widened by the variance k·(z/f)² of the finest sampling
+    /// interval z/f any training view has of it, with k this value (Mip-Splatting's 0.2); 0 is
+    /// off, as in every preset and in a config.json written before the setting existed.
+    #[serde(default)]
+    pub smoothing_3d: f32,
     /// Render resolution of the colour warm-up (coarse-to-fine); off = full size throughout.
     #[serde(default)]
     pub coarse_to_fine: CoarseToFine,
@@ -496,6 +502,7 @@ impl TrainConfig {
             near: 0.01,
             antialiased: false,
             low_pass: default_low_pass(),
+            smoothing_3d: 0.0,
             coarse_to_fine: CoarseToFine::default(),
             multiview_interval: 1,
             source_depth_max_age: 0,

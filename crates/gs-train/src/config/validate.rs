@@ -128,6 +128,9 @@ impl TrainConfig {
         if !(1..=8).contains(&self.source_depth_downscale) {
             return bad(format!("source_depth_downscale = {} must be in 1..=8", self.source_depth_downscale));
         }
+        if !(self.smoothing_3d >= 0.0 && self.smoothing_3d <= crate::smoothing::MAX_K) {
+            return bad(format!("smoothing_3d = {} must lie in [0, {}]", self.smoothing_3d, crate::smoothing::MAX_K));
+        }
         // The renderer's settings (near plane, background, low-pass filter) by the renderer's rules.
         match self.raster_config().validate() {
             Err(gs_raster::RasterError::InvalidConfig(m)) => return bad(m),

@@ -1,0 +1,299 @@
+//! Mip-Splatting's 3D smoothing filter (docs/method.md §3D smoothing): every Gaussian is
+//! convolved with an isotropic Gaussian of variance s² = k·(z/f)², where z/f is the finest
+//! world-space sampling interval that any training view has of its centre (z its depth, f the
+//! focal length; views whose frustum, widened by [`FRUSTUM_MARGIN`], holds the centre in front
+//! of the near plane). So no Gaussian is thinner than the training views could have seen, which
+//! a screen-space filter cannot tell apart from a surface that is fine.
+//!
+//! The filter is rotation-free: Σ' = Σ + s²·I has the scales √(σᵢ² + s²) on the same axes, and
+//! the opacity is multiplied by √(det Σ / det Σ') so that the Gaussian's integral is kept. It
+//! therefore wraps either rasterizer on the host: [`Smoothing::apply`] writes the filtered
+//! log-scales and opacity logits into the Gaussians (the model at rest, the one rendered,
+//! evaluated, meshed and exported), keeping the optimised (raw) values aside;
+//! [`Smoothing::chain`] carries the rasterizer's gradients back to the raw values and
+//! [`Smoothing::revert`] puts them back for Adam and density control. The variances are
+//! recomputed every [`RECOMPUTE_EVERY`] iterations and whenever density control changes the
+//! rows, and are part of the checkpoint, so a resumed run is bit-identical.
+
+use crate::error::{Result, TrainError};
+use crate::trainer::TrainState;
+use gs_core::{Camera, Gaussians};
+use gs_raster::GaussianGradients;
+use rayon::prelude::*;
+
+/// Iterations between two computations of the variances (Mip-Splatting's 100).
+pub const RECOMPUTE_EVERY: u64 = 100;
+
+/// The largest accepted `smoothing_3d` k: at 16 the filter's standard deviation is four
+/// sampling intervals, past any use.
+pub const MAX_K: f32 = 16.0;
+
+/// A centre counts as seen by a view when it projects within this multiple of the image,
+/// measured from the image's centre (Mip-Splatting's 15 % margin).
+pub const FRUSTUM_MARGIN: f64 = 1.15;
+
+/// The filter's state in a run: the variances, the raw parameters while the Gaussians hold the
+/// filtered ones, and which of the two the Gaussians hold.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Smoothing {
+    /// s² per Gaussian (world units²).
+    pub variances: Vec<f32>,
+    /// While `applied`: the raw log-scales; otherwise scratch.
+    spare_log_scales: Vec<[f32; 3]>,
+    /// While `applied`: the raw opacity logits; otherwise scratch.
+    spare_opacity_logits: Vec<f32>,
+    /// Whether the Gaussians hold the filtered values.
+    applied: bool,
+}
+
+impl Smoothing {
+    /// A filter with `variances` (one per Gaussian), not yet applied.
+    pub fn new(variances: Vec<f32>) -> Self {
+        Self { variances, ..Self::default() }
+    }
+
+    /// Whether the Gaussians hold the filtered values.
+    pub fn applied(&self) -> bool {
+        self.applied
+    }
+
+    /// Writes the filtered log-scales and opacity logits into `g`, keeping the raw ones aside.
+    /// Does nothing when already applied.
+    pub fn apply(&mut self, g: &mut Gaussians) -> Result<()> {
+        if self.applied {
+            return Ok(());
+        }
+        self.check_rows(g.len())?;
+        std::mem::swap(&mut g.log_scales, &mut self.spare_log_scales);
+        std::mem::swap(&mut g.opacity_logits, &mut self.spare_opacity_logits);
+        let raw = (&self.spare_log_scales, &self.spare_opacity_logits);
+        g.log_scales.clear();
+        g.opacity_logits.clear();
+        for ((ls, &o), &s2) in raw.0.iter().zip(raw.1).zip(&self.variances) {
+            let (fls, fo) = filtered(ls.map(f64::from), f64::from(o), f64::from(s2));
+            g.log_scales.push(fls.map(|x| x as f32));
+            g.opacity_logits.push(fo as f32);
+        }
+        self.applied = true;
+        Ok(())
+    }
+
+    /// Puts the raw log-scales and opacity logits back into `g`. Does nothing when not applied.
+    pub fn revert(&mut self, g: &mut Gaussians) {
+        if self.applied {
+            std::mem::swap(&mut g.log_scales, &mut self.spare_log_scales);
+            std::mem::swap(&mut g.opacity_logits, &mut self.spare_opacity_logits);
+            self.applied = false;
+        }
+    }
+
+    /// Turns gradients with respect to the filtered log-scales and opacity logits into
+    /// gradients with respect to the raw ones (the other parameters pass through unchanged).
+    /// Needs the filter applied (the raw values are read from aside).
+    pub fn chain(&self, grads: &mut GaussianGradients) -> Result<()> {
+        if !self.applied || grads.log_scales.len() != self.variances.len() {
+            return Err(TrainError::InvalidConfig("3D smoothing: gradients do not match the filtered Gaussians".into()));
+        }
+        let raw = self.spare_log_scales.iter().zip(&self.spare_opacity_logits).zip(&self.variances);
+        for ((gls, go), ((ls, &o), &s2)) in grads.log_scales.iter_mut().zip(grads.opacity_logits.iter_mut()).zip(raw) {
+            let (rls, ro) = chain_rule(ls.map(f64::from), f64::from(o), f64::from(s2), gls.map(f64::from), f64::from(*go));
+            *gls = rls.map(|x| x as f32);
+            *go = ro as f32;
+        }
+        Ok(())
+    }
+
+    /// The raw log-scales and opacity logits, whichever the Gaussians hold now.
+    pub fn raw<'a>(&'a self, g: &'a Gaussians) -> (&'a [[f32; 3]], &'a [f32]) {
+        match self.applied {
+            true => (&self.spare_log_scales, &self.spare_opacity_logits),
+            false => (&g.log_scales, &g.opacity_logits),
+        }
+    }
+
+    /// Refuses variances that do not match `n` Gaussians or are not finite and non-negative.
+    fn check_rows(&self, n: usize) -> Result<()> {
+        if self.variances.len() != n {
+            return Err(TrainError::InvalidConfig(format!("3D smoothing: {} variances for {n} Gaussians", self.variances.len())));
+        }
+        if let Some(v) = self.variances.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            return Err(TrainError::InvalidConfig(format!("3D smoothing: variance {v} is not a finite, non-negative number")));
+        }
+        Ok(())
+    }
+}
+
+/// Brings `state`'s filter in line with the run's `k` (`smoothing_3d`): off drops it, putting
+/// the raw values back; on computes the variances over `cameras` when `recompute`, when there
+/// are none or when density control changed the rows, and leaves the filter applied.
+pub(crate) fn settle(state: &mut TrainState, cameras: &[&Camera], near: f64, k: f32, recompute: bool) -> Result<()> {
+    if k <= 0.0 {
+        if let Some(mut s) = state.smoothing.take() {
+            s.revert(&mut state.gaussians);
+        }
+        return Ok(());
+    }
+    let s = state.smoothing.get_or_insert_with(Smoothing::default);
+    if recompute || s.variances.len() != state.gaussians.len() {
+        s.revert(&mut state.gaussians);
+        s.variances = variances(&state.gaussians, cameras, near, f64::from(k));
+    }
+    s.apply(&mut state.gaussians)
+}
+
+/// s² = `k`·(z/f)² for every centre of `g` over `cameras`: z/f is the smallest over the views
+/// that see the centre (depth z beyond `near`, projection within [`FRUSTUM_MARGIN`]); a centre
+/// that no view sees takes the largest z/f of those seen (Mip-Splatting's rule), or 0 when no
+/// centre is seen at all.
+pub fn variances(g: &Gaussians, cameras: &[&Camera], near: f64, k: f64) -> Vec<f32> {
+    let interval: Vec<Option<f64>> = g.means.par_iter().map(|m| finest_interval(m, cameras, near)).collect();
+    let fallback = interval.iter().flatten().copied().fold(0.0f64, f64::max);
+    interval.iter().map(|d| (k * d.unwrap_or(fallback).powi(2)) as f32).collect()
+}
+
+/// The smallest z/f of `mean` over the views that see it.
+fn finest_interval(mean: &[f32; 3], cameras: &[&Camera], near: f64) -> Option<f64> {
+    let p = gs_core::glam::DVec3::from(mean.map(f64::from));
+    let mut best: Option<f64> = None;
+    for cam in cameras {
+        let c = cam.world_to_camera(p);
+        if c.z <= near {
+            continue;
+        }
+        let k = &cam.intrinsics;
+        let (u, v) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
+        let (w, h) = (f64::from(cam.width), f64::from(cam.height));
+        let inside = |x: f64, size: f64| (x - 0.5 * size).abs() <= 0.5 * size * FRUSTUM_MARGIN;
+        if inside(u, w) && inside(v, h) {
+            let d = c.z / k.fx.max(k.fy);
+            best = Some(best.map_or(d, |b: f64| b.min(d)));
+        }
+    }
+    best
+}
+
+/// ln(1 + eˣ) without overflow.
+fn softplus(x: f64) -> f64 {
+    x.max(0.0) + (-x.abs()).exp().ln_1p()
+}
+
+/// The filtered log-scales ½·ln(σᵢ² + s²) and opacity logit logit(σ(o)·c), c = Πᵢ √(σᵢ² / (σᵢ² + s²)).
+pub fn filtered(log_scales: [f64; 3], logit: f64, s2: f64) -> ([f64; 3], f64) {
+    let v = log_scales.map(|l| (2.0 * l).exp());
+    let ln_c: f64 = (0..3).map(|i| log_scales[i] - 0.5 * (v[i] + s2).ln()).sum();
+    // logit(p·c) = ln p + ln c − ln(1 − p·c), with 1 − p·c = (1 − c) + c·(1 − p).
+    let ln_p = -softplus(-logit);
+    let one_minus_pc = one_minus_pc(logit, ln_c);
+    (std::array::from_fn(|i| 0.5 * (v[i] + s2).ln()), ln_p + ln_c - one_minus_pc.ln())
+}
+
+/// 1 − σ(o)·c for ln c, without cancellation.
+fn one_minus_pc(logit: f64, ln_c: f64) -> f64 {
+    let c = ln_c.exp();
+    -ln_c.exp_m1() + c * sigmoid64(-logit)
+}
+
+/// σ(x) in f64.
+fn sigmoid64(x: f64) -> f64 {
+    (-softplus(-x)).exp()
+}
+
+/// ∂L/∂(raw log-scales, raw logit) from ∂L/∂(filtered log-scales, filtered logit): the log-scales
+/// through σᵢ²/(σᵢ² + s²) and through c (∂ln c/∂lᵢ = s²/(σᵢ² + s²), ∂o'/∂ln c = 1/(1 − p·c)),
+/// the logit through (1 − p)/(1 − p·c), which lies in (0, 1].
+pub fn chain_rule(log_scales: [f64; 3], logit: f64, s2: f64, g_scales: [f64; 3], g_logit: f64) -> ([f64; 3], f64) {
+    let v = log_scales.map(|l| (2.0 * l).exp());
+    let ln_c: f64 = (0..3).map(|i| log_scales[i] - 0.5 * (v[i] + s2).ln()).sum();
+    let denom = one_minus_pc(logit, ln_c);
+    let through_c = if denom > 0.0 { g_logit / denom } else { 0.0 };
+    let g = std::array::from_fn(|i| {
+        let share = if v[i] + s2 > 0.0 { 1.0 / (v[i] + s2) } else { 0.0 };
+        g_scales[i] * v[i] * share + through_c * s2 * share
+    });
+    let g_o = if denom > 0.0 { g_logit * sigmoid64(-logit) / denom } else { g_logit };
+    (g, g_o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// L = a·l' + b·o' for fixed weights, in f64.
+    fn loss(ls: [f64; 3], o: f64, s2: f64, a: [f64; 3], b: f64) -> f64 {
+        let (fl, fo) = filtered(ls, o, s2);
+        (0..3).map(|i| a[i] * fl[i]).sum::<f64>() + b * fo
+    }
+
+    #[test]
+    fn the_chain_rule_matches_finite_differences_at_the_extremes() {
+        let (a, b) = ([0.7, -1.3, 0.4], -0.9);
+        let cases = [
+            ([-3.0, -2.5, -6.0], 0.3, 0.01),
+            ([-8.0, -8.5, -12.0], 4.0, 1e-4),
+            ([1.0, 0.5, -1.0], -12.0, 2.0),
+            ([-5.0, -5.0, -5.0], 12.0, 1e-6),
+            ([-2.0, -3.0, -4.0], 1.5, 0.0),
+        ];
+        for (ls, o, s2) in cases {
+            let (gl, go) = chain_rule(ls, o, s2, a, b);
+            let h = 1e-6;
+            for i in 0..3 {
+                let (mut p, mut m) = (ls, ls);
+                p[i] += h;
+                m[i] -= h;
+                let fd = (loss(p, o, s2, a, b) - loss(m, o, s2, a, b)) / (2.0 * h);
+                assert!((fd - gl[i]).abs() <= 1e-6 * (1.0 + fd.abs()), "∂/∂l{i} at {ls:?} {o} {s2}: {} vs {fd}", gl[i]);
+            }
+            let fd = (loss(ls, o + h, s2, a, b) - loss(ls, o - h, s2, a, b)) / (2.0 * h);
+            assert!((fd - go).abs() <= 1e-6 * (1.0 + fd.abs()), "∂/∂o at {ls:?} {o} {s2}: {go} vs {fd}");
+        }
+    }
+
+    #[test]
+    fn the_filter_keeps_the_integral_and_widens_every_axis() {
+        let (ls, o, s2) = ([-4.0, -3.0, -7.0], 2.0, 1e-4);
+        let (fl, fo) = filtered(ls, o, s2);
+        // opacity × √det Σ is the integral up to a constant: the same before and after.
+        let mass = |l: [f64; 3], o: f64| sigmoid64(o) * l.iter().sum::<f64>().exp();
+        assert!((mass(ls, o) - mass(fl, fo)).abs() < 1e-12 * mass(ls, o).max(1e-30) + 1e-15);
+        assert!((0..3).all(|i| fl[i] > ls[i] && (2.0 * fl[i]).exp() >= s2));
+        // s² = 0 changes nothing; an opaque, very thin Gaussian stays finite.
+        let (same, so) = filtered(ls, o, 0.0);
+        assert!((0..3).all(|i| (same[i] - ls[i]).abs() < 1e-12) && (so - o).abs() < 1e-9);
+        let (tl, to) = filtered([-30.0, -30.0, -30.0], 40.0, 1.0);
+        assert!(tl.iter().all(|x| x.is_finite()) && to.is_finite() && (to + 90.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn apply_revert_and_chain_round_trip() {
+        let mut g = Gaussians::default();
+        g.means = vec![[0.0; 3], [0.1, 0.0, 0.2]];
+        g.log_scales = vec![[-3.0, -4.0, -6.0], [-2.0, -2.0, -9.0]];
+        g.rotations = vec![[1.0, 0.0, 0.0, 0.0]; 2];
+        g.opacity_logits = vec![0.5, 3.0];
+        g.sh = vec![[[0.0; 3]; gs_core::sh::SH_COEFFS]; 2];
+        let raw = g.clone();
+        let mut s = Smoothing::new(vec![1e-4, 0.0]);
+        s.apply(&mut g).unwrap();
+        assert!(s.applied() && g.log_scales[0][2] > raw.log_scales[0][2] && g.opacity_logits[0] < raw.opacity_logits[0]);
+        assert_eq!(s.raw(&g), (&raw.log_scales[..], &raw.opacity_logits[..]));
+        s.apply(&mut g).unwrap();
+        assert_eq!(s.raw(&g).0, &raw.log_scales[..], "applying twice filters once");
+        s.revert(&mut g);
+        assert_eq!(g, raw);
+        assert!(Smoothing::new(vec![1.0]).apply(&mut g).is_err(), "rows must match");
+        assert!(Smoothing::new(vec![f32::NAN, 0.0]).apply(&mut g).is_err());
+    }
+
+    #[test]
+    fn the_variance_follows_the_nearest_view() {
+        let cams = gs_core::camera::camera_ring(8);
+        let refs: Vec<&Camera> = cams.iter().collect();
+        let mut g = Gaussians::default();
+        g.means = vec![[0.0; 3], [1e6, 1e6, 1e6]];
+        let v = variances(&g, &refs, 0.01, 0.2);
+        let nearest = refs.iter().map(|c| c.world_to_camera(Default::default()).z / c.intrinsics.fx.max(c.intrinsics.fy)).fold(f64::MAX, f64::min);
+        assert!(((v[0] as f64) - 0.2 * nearest * nearest).abs() < 1e-6 * v[0] as f64);
+        assert_eq!(v[1], v[0], "a centre no view sees takes the largest interval seen");
+    }
+}
