@@ -42,6 +42,8 @@ pub struct Smoothing {
     spare_log_scales: Vec<[f32; 3]>,
     /// While `applied`: the raw opacity logits; otherwise scratch.
     spare_opacity_logits: Vec<f32>,
+    /// While `applied`: each Gaussian's partial derivatives through the filter.
+    partials: Vec<Filtered<f32>>,
     /// Whether the Gaussians hold the filtered values.
     applied: bool,
 }
@@ -57,8 +59,8 @@ impl Smoothing {
         self.applied
     }
 
-    /// Writes the filtered log-scales and opacity logits into `g`, keeping the raw ones aside.
-    /// Does nothing when already applied.
+    /// Writes the filtered log-scales and opacity logits into `g`, keeping the raw ones aside
+    /// and the partial derivatives for [`Smoothing::chain`]. Does nothing when already applied.
     pub fn apply(&mut self, g: &mut Gaussians) -> Result<()> {
         if self.applied {
             return Ok(());
@@ -66,14 +68,13 @@ impl Smoothing {
         self.check_rows(g.len())?;
         std::mem::swap(&mut g.log_scales, &mut self.spare_log_scales);
         std::mem::swap(&mut g.opacity_logits, &mut self.spare_opacity_logits);
-        let raw = (&self.spare_log_scales, &self.spare_opacity_logits);
+        let raw = self.spare_log_scales.par_iter().zip(&self.spare_opacity_logits).zip(&self.variances);
+        let rows: Vec<Filtered<f32>> = raw.map(|((l, &o), &s2)| filter_one(*l, o, s2)).collect();
         g.log_scales.clear();
+        g.log_scales.extend(rows.iter().map(|f| f.log_scales));
         g.opacity_logits.clear();
-        for ((ls, &o), &s2) in raw.0.iter().zip(raw.1).zip(&self.variances) {
-            let (fls, fo) = filtered(ls.map(f64::from), f64::from(o), f64::from(s2));
-            g.log_scales.push(fls.map(|x| x as f32));
-            g.opacity_logits.push(fo as f32);
-        }
+        g.opacity_logits.extend(rows.iter().map(|f| f.logit));
+        self.partials = rows;
         self.applied = true;
         Ok(())
     }
@@ -89,17 +90,17 @@ impl Smoothing {
 
     /// Turns gradients with respect to the filtered log-scales and opacity logits into
     /// gradients with respect to the raw ones (the other parameters pass through unchanged).
-    /// Needs the filter applied (the raw values are read from aside).
+    /// Needs the filter applied.
     pub fn chain(&self, grads: &mut GaussianGradients) -> Result<()> {
-        if !self.applied || grads.log_scales.len() != self.variances.len() {
+        if !self.applied || grads.log_scales.len() != self.partials.len() || grads.opacity_logits.len() != self.partials.len() {
             return Err(TrainError::InvalidConfig("3D smoothing: gradients do not match the filtered Gaussians".into()));
         }
-        let raw = self.spare_log_scales.iter().zip(&self.spare_opacity_logits).zip(&self.variances);
-        for ((gls, go), ((ls, &o), &s2)) in grads.log_scales.iter_mut().zip(grads.opacity_logits.iter_mut()).zip(raw) {
-            let (rls, ro) = chain_rule(ls.map(f64::from), f64::from(o), f64::from(s2), gls.map(f64::from), f64::from(*go));
-            *gls = rls.map(|x| x as f32);
-            *go = ro as f32;
-        }
+        let rows = grads.log_scales.par_iter_mut().zip(grads.opacity_logits.par_iter_mut()).zip(&self.partials);
+        rows.for_each(|((gl, go), f)| {
+            let g_logit = *go;
+            *gl = std::array::from_fn(|i| gl[i] * f.scale_scale[i] + g_logit * f.logit_scale[i]);
+            *go = g_logit * f.logit_logit;
+        });
         Ok(())
     }
 
@@ -172,46 +173,97 @@ fn finest_interval(mean: &[f32; 3], cameras: &[&Camera], near: f64) -> Option<f6
     best
 }
 
+/// The arithmetic of the filter, in f32 for training and f64 for the finite-difference tests.
+pub trait Real:
+    Copy
+    + PartialOrd
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::Neg<Output = Self>
+{
+    /// The number `x`.
+    fn of(x: f32) -> Self;
+    /// eˣ.
+    fn exp(self) -> Self;
+    /// ln x.
+    fn ln(self) -> Self;
+    /// ln(1 + x).
+    fn ln_1p(self) -> Self;
+    /// eˣ − 1.
+    fn exp_m1(self) -> Self;
+}
+
+macro_rules! real {
+    ($t:ty) => {
+        impl Real for $t {
+            fn of(x: f32) -> Self {
+                x as $t
+            }
+            fn exp(self) -> Self {
+                <$t>::exp(self)
+            }
+            fn ln(self) -> Self {
+                <$t>::ln(self)
+            }
+            fn ln_1p(self) -> Self {
+                <$t>::ln_1p(self)
+            }
+            fn exp_m1(self) -> Self {
+                <$t>::exp_m1(self)
+            }
+        }
+    };
+}
+real!(f32);
+real!(f64);
+
+/// One Gaussian through the filter: its filtered log-scales and logit, and the partial
+/// derivatives that carry gradients back.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Filtered<R> {
+    /// ½·ln(σᵢ² + s²).
+    pub log_scales: [R; 3],
+    /// logit(σ(o)·c), c = Πᵢ √(σᵢ² / (σᵢ² + s²)).
+    pub logit: R,
+    /// ∂l'ᵢ/∂lᵢ = σᵢ²/(σᵢ² + s²).
+    pub scale_scale: [R; 3],
+    /// ∂o'/∂lᵢ = s²/((σᵢ² + s²)(1 − σ(o)·c)).
+    pub logit_scale: [R; 3],
+    /// ∂o'/∂o = (1 − σ(o))/(1 − σ(o)·c), in (0, 1].
+    pub logit_logit: R,
+}
+
 /// ln(1 + eˣ) without overflow.
-fn softplus(x: f64) -> f64 {
-    x.max(0.0) + (-x.abs()).exp().ln_1p()
+fn softplus<R: Real>(x: R) -> R {
+    let zero = R::of(0.0);
+    let (pos, neg_abs) = if x > zero { (x, -x) } else { (zero, x) };
+    pos + neg_abs.exp().ln_1p()
 }
 
-/// The filtered log-scales ½·ln(σᵢ² + s²) and opacity logit logit(σ(o)·c), c = Πᵢ √(σᵢ² / (σᵢ² + s²)).
-pub fn filtered(log_scales: [f64; 3], logit: f64, s2: f64) -> ([f64; 3], f64) {
-    let v = log_scales.map(|l| (2.0 * l).exp());
-    let ln_c: f64 = (0..3).map(|i| log_scales[i] - 0.5 * (v[i] + s2).ln()).sum();
-    // logit(p·c) = ln p + ln c − ln(1 − p·c), with 1 − p·c = (1 − c) + c·(1 − p).
-    let ln_p = -softplus(-logit);
-    let one_minus_pc = one_minus_pc(logit, ln_c);
-    (std::array::from_fn(|i| 0.5 * (v[i] + s2).ln()), ln_p + ln_c - one_minus_pc.ln())
-}
-
-/// 1 − σ(o)·c for ln c, without cancellation.
-fn one_minus_pc(logit: f64, ln_c: f64) -> f64 {
-    let c = ln_c.exp();
-    -ln_c.exp_m1() + c * sigmoid64(-logit)
-}
-
-/// σ(x) in f64.
-fn sigmoid64(x: f64) -> f64 {
-    (-softplus(-x)).exp()
-}
-
-/// ∂L/∂(raw log-scales, raw logit) from ∂L/∂(filtered log-scales, filtered logit): the log-scales
-/// through σᵢ²/(σᵢ² + s²) and through c (∂ln c/∂lᵢ = s²/(σᵢ² + s²), ∂o'/∂ln c = 1/(1 − p·c)),
-/// the logit through (1 − p)/(1 − p·c), which lies in (0, 1].
-pub fn chain_rule(log_scales: [f64; 3], logit: f64, s2: f64, g_scales: [f64; 3], g_logit: f64) -> ([f64; 3], f64) {
-    let v = log_scales.map(|l| (2.0 * l).exp());
-    let ln_c: f64 = (0..3).map(|i| log_scales[i] - 0.5 * (v[i] + s2).ln()).sum();
-    let denom = one_minus_pc(logit, ln_c);
-    let through_c = if denom > 0.0 { g_logit / denom } else { 0.0 };
-    let g = std::array::from_fn(|i| {
-        let share = if v[i] + s2 > 0.0 { 1.0 / (v[i] + s2) } else { 0.0 };
-        g_scales[i] * v[i] * share + through_c * s2 * share
-    });
-    let g_o = if denom > 0.0 { g_logit * sigmoid64(-logit) / denom } else { g_logit };
-    (g, g_o)
+/// Filters one Gaussian (log-scales `l`, logit `o`) by the variance `s2` (docs/method.md §3D
+/// smoothing). logit(p·c) = ln p + ln c − ln(1 − p·c) with 1 − p·c = (1 − c) + c·σ(−o), so
+/// nothing cancels; where 1 − p·c is 0 (p = c = 1) the derivatives take their limits.
+pub fn filter_one<R: Real>(l: [R; 3], o: R, s2: R) -> Filtered<R> {
+    let (zero, one, half, two) = (R::of(0.0), R::of(1.0), R::of(0.5), R::of(2.0));
+    let v = l.map(|x| (two * x).exp());
+    let w = v.map(|x| x + s2);
+    let ln_w = w.map(|x| x.ln());
+    let ln_c = (l[0] - half * ln_w[0]) + (l[1] - half * ln_w[1]) + (l[2] - half * ln_w[2]);
+    let sp = softplus(o); // ln(1 + eᵒ); ln p = −softplus(−o) = o − sp
+    let q = (-sp).exp(); // σ(−o) = 1 − p
+    let c_minus_one = ln_c.exp_m1();
+    let rest = -c_minus_one + (one + c_minus_one) * q; // 1 − p·c
+    let inv = if rest > zero { one / rest } else { zero };
+    let share = |i: usize| if w[i] > zero { one / w[i] } else { zero };
+    Filtered {
+        log_scales: ln_w.map(|x| half * x),
+        logit: (o - sp) + ln_c - rest.ln(),
+        scale_scale: std::array::from_fn(|i| v[i] * share(i)),
+        logit_scale: std::array::from_fn(|i| s2 * share(i) * inv),
+        logit_logit: if rest > zero { q * inv } else { one },
+    }
 }
 
 #[cfg(test)]
@@ -220,8 +272,23 @@ mod tests {
 
     /// L = a·l' + b·o' for fixed weights, in f64.
     fn loss(ls: [f64; 3], o: f64, s2: f64, a: [f64; 3], b: f64) -> f64 {
-        let (fl, fo) = filtered(ls, o, s2);
-        (0..3).map(|i| a[i] * fl[i]).sum::<f64>() + b * fo
+        let f = filter_one(ls, o, s2);
+        (0..3).map(|i| a[i] * f.log_scales[i]).sum::<f64>() + b * f.logit
+    }
+
+    /// ∂L/∂(l, o) of that loss through the partials.
+    fn chain_rule(ls: [f64; 3], o: f64, s2: f64, a: [f64; 3], b: f64) -> ([f64; 3], f64) {
+        let f = filter_one(ls, o, s2);
+        (std::array::from_fn(|i| a[i] * f.scale_scale[i] + b * f.logit_scale[i]), b * f.logit_logit)
+    }
+
+    fn filtered(ls: [f64; 3], o: f64, s2: f64) -> ([f64; 3], f64) {
+        let f = filter_one(ls, o, s2);
+        (f.log_scales, f.logit)
+    }
+
+    fn sigmoid64(x: f64) -> f64 {
+        1.0 / (1.0 + (-x).exp())
     }
 
     #[test]
@@ -233,6 +300,7 @@ mod tests {
             ([1.0, 0.5, -1.0], -12.0, 2.0),
             ([-5.0, -5.0, -5.0], 12.0, 1e-6),
             ([-2.0, -3.0, -4.0], 1.5, 0.0),
+            ([-4.0, -4.0, -9.0], 30.0, 1e-5),
         ];
         for (ls, o, s2) in cases {
             let (gl, go) = chain_rule(ls, o, s2, a, b);
@@ -262,6 +330,17 @@ mod tests {
         assert!((0..3).all(|i| (same[i] - ls[i]).abs() < 1e-12) && (so - o).abs() < 1e-9);
         let (tl, to) = filtered([-30.0, -30.0, -30.0], 40.0, 1.0);
         assert!(tl.iter().all(|x| x.is_finite()) && to.is_finite() && (to + 90.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn f32_agrees_with_f64() {
+        for (l, o, s2) in [([-3.0f32, -2.5, -6.0], 0.3f32, 0.01f32), ([-12.0, -11.0, -15.0], 9.0, 1e-7), ([0.5, 0.2, -1.0], -15.0, 3.0)] {
+            let (a, b) = (filter_one(l, o, s2), filter_one(l.map(f64::from), f64::from(o), f64::from(s2)));
+            let close = |x: f32, y: f64| (f64::from(x) - y).abs() <= 2e-5 * (1.0 + y.abs());
+            assert!((0..3).all(|i| close(a.log_scales[i], b.log_scales[i]) && close(a.scale_scale[i], b.scale_scale[i])));
+            assert!((0..3).all(|i| close(a.logit_scale[i], b.logit_scale[i])), "{a:?} {b:?}");
+            assert!(close(a.logit, b.logit) && close(a.logit_logit, b.logit_logit), "{a:?} {b:?}");
+        }
     }
 
     #[test]
