@@ -3,7 +3,33 @@
 //! buffer of their readback and the dispatcher (docs/architecture.md §GPU).
 
 use crate::error::{LossError, Result};
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, ShrinkPolicy};
+use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, ShrinkPolicy, WgslStruct};
+
+/// One struct whose WGSL a loss kernel takes from its Rust definition (the frame uniform or a
+/// storage record): its declaration, and the check of a compiled source's layout of it against
+/// the Rust struct. Each executor keeps one list of these, so that every struct its kernels
+/// declare is also one its layout test checks.
+pub(crate) struct Generated {
+    decl: fn() -> String,
+    /// Read by the layout tests only.
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub check: fn(&str) -> std::result::Result<(), String>,
+}
+
+/// The entry of `T` in a list of generated structs.
+pub(crate) fn generated<T: WgslStruct>() -> Generated {
+    Generated { decl: T::wgsl_decl, check: gs_gpu::check_layout::<T> }
+}
+
+/// The WGSL declarations of `structs`, in order (the start of a kernel's source).
+pub(crate) fn declarations(structs: &[Generated]) -> String {
+    structs.iter().map(|g| (g.decl)()).collect()
+}
+
+/// Bytes of `count` records of `T`: buffer sizes and offsets come from the record types.
+pub(crate) const fn bytes_of<T>(count: usize) -> u64 {
+    (count * std::mem::size_of::<T>()) as u64
+}
 
 /// The kernels and buffers of one loss executor with `B` storage bindings.
 pub(crate) struct LossKernels<const B: usize> {
@@ -24,13 +50,14 @@ pub(crate) fn gpu_error(e: gs_gpu::GpuError) -> LossError {
 }
 
 impl<const B: usize> LossKernels<B> {
-    /// Compiles `passes` (entry points of `source`, after the frame struct's declaration
-    /// `frame_decl`) on `ctx`'s device with the storage `bindings`, for frames of `frame_bytes`.
-    pub fn new(ctx: &GpuContext, frame_decl: &str, frame_bytes: usize, source: &str, bindings: &[Binding<'static>; B], passes: &[&str]) -> Result<Self> {
+    /// Compiles `passes` (entry points of `source`, after the generated declarations `decls`:
+    /// the frame struct's and the storage records') on `ctx`'s device with the storage
+    /// `bindings`, for frames of `frame_bytes`.
+    pub fn new(ctx: &GpuContext, decls: &str, frame_bytes: usize, source: &str, bindings: &[Binding<'static>; B], passes: &[&str]) -> Result<Self> {
         let ctx = ctx.clone();
         let kernels = passes
             .iter()
-            .map(|entry| Kernel::new(&ctx, entry, &[frame_decl, source], bindings).map_err(gpu_error))
+            .map(|entry| Kernel::new(&ctx, entry, &[decls, source], bindings).map_err(gpu_error))
             .collect::<Result<Vec<_>>>()?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let bufs = bindings.map(|b| pool.add_storage(b.name));

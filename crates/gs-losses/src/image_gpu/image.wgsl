@@ -8,12 +8,19 @@
 // - `loss_gradient` adds the three gradients in the reference's order: L1's, then SSIM's, then
 //   the edge term's.
 //
-// Generated before this file: `struct ImageFrame` (binding 0) and the storage bindings `images`
-// (a, then b, then ∇I), `moments` (5 planes), `partials` (3 planes), `blurred` (3 planes),
-// `values` (per value: SSIM, |a − b|; then per pixel |∇Ĩ − ∇I|), `grad`, `edge` (per pixel:
-// g_x, g_y, the backward's c_x, c_y; then the interior min and max, then each range group's).
+// Generated before this file: `struct ImageFrame` (binding 0), the records `EdgeTexel` and
+// `EdgeRange`, and the storage bindings: planes of `frame.n` values (or `frame.pixels` for
+// pixel planes) in `images` (a, then b, then the pixel plane ∇I), `moments` (5 planes),
+// `partials` (3), `blurred` (3), `values` (SSIM, |a − b|, then the pixel plane |∇Ĩ − ∇I|) and
+// `grad` (1); `edge`, one `EdgeTexel` per pixel; `edge_ranges`, the interior's `EdgeRange`,
+// then each range group's.
 
 @group(0) @binding(0) var<uniform> frame: ImageFrame;
+
+// The index of value (or pixel) i in plane k of a buffer of planes.
+fn plane_at(k: u32, i: u32) -> u32 {
+    return k * frame.n + i;
+}
 
 fn sign0(v: f32) -> f32 {
     return select(0.0, 1.0, v > 0.0) - select(0.0, 1.0, v < 0.0);
@@ -30,7 +37,7 @@ fn tap(k: u32) -> f32 {
 
 fn product(plane: u32, i: u32) -> f32 {
     let a = images[i];
-    let b = images[frame.n + i];
+    let b = images[plane_at(1u, i)];
     switch plane {
         case 0u: { return a; }
         case 1u: { return b; }
@@ -53,7 +60,7 @@ fn blur_row(plane: u32, i: u32, from_images: bool) -> f32 {
             if (from_images) {
                 acc += tap(k) * product(plane, j);
             } else {
-                acc += tap(k) * partials[plane * frame.n + j];
+                acc += tap(k) * partials[plane_at(plane, j)];
             }
         }
     }
@@ -68,7 +75,7 @@ fn blur_rows(ids: Ids) {
         return;
     }
     for (var plane = 0u; plane < 5u; plane++) {
-        moments[plane * frame.n + i] = blur_row(plane, i, true);
+        moments[plane_at(plane, i)] = blur_row(plane, i, true);
     }
 }
 
@@ -83,9 +90,9 @@ fn blur_column(plane: u32, i: u32, from_moments: bool) -> f32 {
         if (yy >= 0 && yy < i32(frame.height)) {
             let j = u32(i32(i) + (yy - y) * i32(row));
             if (from_moments) {
-                acc += tap(k) * moments[plane * frame.n + j];
+                acc += tap(k) * moments[plane_at(plane, j)];
             } else {
-                acc += tap(k) * blurred[plane * frame.n + j];
+                acc += tap(k) * blurred[plane_at(plane, j)];
             }
         }
     }
@@ -121,8 +128,8 @@ fn ssim_values(ids: Ids) {
     let ds_dsaa = -sv / den2;
     let wp = frame.wp;
     partials[i] = wp * (ds_dmu - 2.0 * ma * ds_dsaa - mb * ds_dsab);
-    partials[frame.n + i] = wp * ds_dsaa;
-    partials[2u * frame.n + i] = wp * ds_dsab;
+    partials[plane_at(1u, i)] = wp * ds_dsaa;
+    partials[plane_at(2u, i)] = wp * ds_dsab;
 }
 
 // Pass 3: horizontal blur of the three partial planes (the blur is self-adjoint).
@@ -133,7 +140,7 @@ fn blur_partials(ids: Ids) {
         return;
     }
     for (var plane = 0u; plane < 3u; plane++) {
-        blurred[plane * frame.n + i] = blur_row(plane, i, false);
+        blurred[plane_at(plane, i)] = blur_row(plane, i, false);
     }
 }
 
@@ -162,12 +169,12 @@ fn edge_raw(ids: Ids) {
             gy += abs(value_at(x, y + 1u, k) - value_at(x, y - 1u, k));
         }
     }
-    edge[4u * p] = gx * frame.inv_c;
-    edge[4u * p + 1u] = gy * frame.inv_c;
+    edge[p].gx = gx * frame.inv_c;
+    edge[p].gy = gy * frame.inv_c;
 }
 
 fn raw(p: u32) -> f32 {
-    return max(edge[4u * p], edge[4u * p + 1u]);
+    return max(edge[p].gx, edge[p].gy);
 }
 
 var<workgroup> rmin: array<f32, 256>;
@@ -202,27 +209,24 @@ fn edge_range_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invoc
     rmax[li] = hi;
     reduce_range(li);
     if (li == 0u) {
-        edge[4u * frame.pixels + 2u + 2u * wid.x] = rmin[0];
-        edge[4u * frame.pixels + 3u + 2u * wid.x] = rmax[0];
+        edge_ranges[1u + wid.x] = EdgeRange(rmin[0], rmax[0]);
     }
 }
 
 // Edge pass 3: one workgroup folds the groups' ranges into the interior min and max.
 @compute @workgroup_size(256)
 fn edge_range(@builtin(local_invocation_index) li: u32) {
-    let at = 4u * frame.pixels + 2u;
-    var lo = edge[at];
-    var hi = edge[at + 1u];
+    var lo = edge_ranges[1u].lo;
+    var hi = edge_ranges[1u].hi;
     for (var g = li; g < frame.groups; g += 256u) {
-        lo = min(lo, edge[at + 2u * g]);
-        hi = max(hi, edge[at + 2u * g + 1u]);
+        lo = min(lo, edge_ranges[1u + g].lo);
+        hi = max(hi, edge_ranges[1u + g].hi);
     }
     rmin[li] = lo;
     rmax[li] = hi;
     reduce_range(li);
     if (li == 0u) {
-        edge[4u * frame.pixels] = rmin[0];
-        edge[4u * frame.pixels + 1u] = rmax[0];
+        edge_ranges[0] = EdgeRange(rmin[0], rmax[0]);
     }
 }
 
@@ -236,15 +240,16 @@ fn edge_terms(ids: Ids) {
     }
     let x = p % frame.width;
     let y = p / frame.width;
-    let inv = 1.0 / (edge[4u * frame.pixels + 1u] - edge[4u * frame.pixels] + frame.grad_eps);
-    let gx = edge[4u * p];
-    let gy = edge[4u * p + 1u];
+    let range = edge_ranges[0];
+    let inv = 1.0 / (range.hi - range.lo + frame.grad_eps);
+    let gx = edge[p].gx;
+    let gy = edge[p].gy;
     var grad_map = 1.0;
     if (inside(x, y)) {
-        grad_map = (max(gx, gy) - edge[4u * frame.pixels]) * inv;
+        grad_map = (max(gx, gy) - range.lo) * inv;
     }
-    let d = grad_map - images[2u * frame.n + p];
-    values[2u * frame.n + p] = abs(d);
+    let d = grad_map - images[plane_at(2u, p)];
+    values[plane_at(2u, p)] = abs(d);
     let up = frame.w_edge * sign0(d);
     var cx = 0.0;
     var cy = 0.0;
@@ -256,8 +261,8 @@ fn edge_terms(ids: Ids) {
             cy = up * scale;
         }
     }
-    edge[4u * p + 2u] = cx;
-    edge[4u * p + 3u] = cy;
+    edge[p].cx = cx;
+    edge[p].cy = cy;
 }
 
 // ∂(edge term)/∂a at value (x, y, k): the four neighbours whose central differences hold it.
@@ -266,16 +271,16 @@ fn edge_backward(x: u32, y: u32, k: u32, v: f32) -> f32 {
     let p = y * w + x;
     var g = 0.0;
     if (x >= 2u) {
-        g += edge[4u * (p - 1u) + 2u] * sign0(v - value_at(x - 2u, y, k));
+        g += edge[p - 1u].cx * sign0(v - value_at(x - 2u, y, k));
     }
     if (x + 2u < w) {
-        g -= edge[4u * (p + 1u) + 2u] * sign0(value_at(x + 2u, y, k) - v);
+        g -= edge[p + 1u].cx * sign0(value_at(x + 2u, y, k) - v);
     }
     if (y >= 2u) {
-        g += edge[4u * (p - w) + 3u] * sign0(v - value_at(x, y - 2u, k));
+        g += edge[p - w].cy * sign0(v - value_at(x, y - 2u, k));
     }
     if (y + 2u < frame.height) {
-        g -= edge[4u * (p + w) + 3u] * sign0(value_at(x, y + 2u, k) - v);
+        g -= edge[p + w].cy * sign0(value_at(x, y + 2u, k) - v);
     }
     return g;
 }
@@ -289,8 +294,8 @@ fn loss_gradient(ids: Ids) {
         return;
     }
     let a = images[i];
-    let b = images[frame.n + i];
-    values[frame.n + i] = abs(a - b);
+    let b = images[plane_at(1u, i)];
+    values[plane_at(1u, i)] = abs(a - b);
     let b_mu = blur_column(0u, i, false);
     let b_aa = blur_column(1u, i, false);
     let b_ab = blur_column(2u, i, false);

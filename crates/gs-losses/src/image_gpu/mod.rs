@@ -5,7 +5,7 @@
 //! [`crate::ssim::ssim_backward`] over the whole image. Tolerances: `tests/image_gpu.rs`
 //! (docs/method.md §L_I, docs/architecture.md §GPU).
 
-use crate::device::{LossKernels, gpu_error};
+use crate::device::{Generated, LossKernels, bytes_of, declarations, generated, gpu_error};
 use crate::dims::{Dims, ordered_sum};
 use crate::error::{LossError, Result};
 use crate::gradient::GRAD_NORM_EPS;
@@ -13,7 +13,7 @@ use crate::image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, check_input
 use crate::l1::chunked_mean;
 use crate::ssim::{SSIM_C1, SSIM_C2, gaussian_window_1d};
 use gs_core::Image;
-use gs_gpu::{Binding, GpuContext, PassUniform, WgslStruct};
+use gs_gpu::{Binding, GpuContext, PassUniform};
 
 gs_gpu::wgsl_struct! {
     /// Constants of one evaluation (binding 0; WGSL `struct ImageFrame`).
@@ -50,16 +50,47 @@ gs_gpu::wgsl_struct! {
     }
 }
 
-/// The kernels' storage bindings, by name (slot order; one table for every pass).
-const BINDINGS: [Binding<'static>; 7] = [
+gs_gpu::wgsl_struct! {
+    /// One pixel of the edge term (WGSL `struct EdgeTexel`): `edge_raw` writes the channel
+    /// means of the central differences, `edge_terms` the backward's coefficients on them,
+    /// which `loss_gradient` reads at the pixel's neighbours. 16 bytes.
+    pub(crate) struct EdgeTexel as "EdgeTexel" {
+        /// g_x, g_y (0 on the border).
+        gx: f32,
+        gy: f32,
+        /// ∂(edge term)/∂g_x, ∂/∂g_y (0 on the border and off the larger axis).
+        cx: f32,
+        cy: f32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// A min and max of max(g_x, g_y) over interior pixels (WGSL `struct EdgeRange`): record 0
+    /// the whole interior's, record 1 + g range group g's share. 8 bytes.
+    pub(crate) struct EdgeRange as "EdgeRange" {
+        lo: f32,
+        hi: f32,
+    }
+}
+
+/// The kernels' storage bindings, by name (slot order; one table for every pass). The `f32`
+/// arrays are planes of one value per image value or pixel (see `image.wgsl`).
+const BINDINGS: [Binding<'static>; 8] = [
     Binding::read("images", "array<f32>"),
     Binding::write("moments", "array<f32>"),
     Binding::write("partials", "array<f32>"),
     Binding::write("blurred", "array<f32>"),
     Binding::write("values", "array<f32>"),
     Binding::write("grad", "array<f32>"),
-    Binding::write("edge", "array<f32>"),
+    Binding::write("edge", "array<EdgeTexel>"),
+    Binding::write("edge_ranges", "array<EdgeRange>"),
 ];
+
+/// The frame uniform and the storage records: one list for the kernels' declarations and the
+/// layout test.
+fn generated_structs() -> [Generated; 3] {
+    [generated::<ImageFrame>(), generated::<EdgeTexel>(), generated::<EdgeRange>()]
+}
 
 /// How a pass is dispatched.
 #[derive(Clone, Copy)]
@@ -91,12 +122,12 @@ const RANGE_GROUPS: usize = 256;
 
 /// The kernels' whole WGSL source.
 pub fn image_kernel_source() -> String {
-    gs_gpu::kernel_source(&[&ImageFrame::wgsl_decl(), include_str!("image.wgsl")], &BINDINGS)
+    gs_gpu::kernel_source(&[&declarations(&generated_structs()), include_str!("image.wgsl")], &BINDINGS)
 }
 
 /// The device executor of L_I: its context (shared), buffers and kernels.
 pub struct ImageLossGpu {
-    k: LossKernels<7>,
+    k: LossKernels<8>,
 }
 
 impl std::fmt::Debug for ImageLossGpu {
@@ -116,14 +147,16 @@ struct Terms {
 impl ImageLossGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernels compiled.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let frame = (ImageFrame::wgsl_decl(), std::mem::size_of::<ImageFrame>());
-        Ok(Self { k: LossKernels::new(ctx, &frame.0, frame.1, include_str!("image.wgsl"), &BINDINGS, &PASSES.map(|p| p.0))? })
+        let decls = declarations(&generated_structs());
+        let frame = std::mem::size_of::<ImageFrame>();
+        Ok(Self { k: LossKernels::new(ctx, &decls, frame, include_str!("image.wgsl"), &BINDINGS, &PASSES.map(|p| p.0))? })
     }
 
-    /// Whether images of `dims` fit this device's storage bindings (else the reference runs).
+    /// Whether images of `dims` fit this device's storage bindings (else the reference runs):
+    /// the largest, `moments`, holds five planes of values.
     fn fits(&self, dims: Dims) -> bool {
-        let n = dims.len() as u64;
-        n > 0 && 4 * 5 * n <= self.k.ctx.max_storage_binding() && n <= u32::MAX as u64 / 5
+        let n = dims.len();
+        n > 0 && n <= u32::MAX as usize / 5 && bytes_of::<f32>(5 * n) <= self.k.ctx.max_storage_binding()
     }
 
     /// [`crate::ssim::ssim_backward`] over the whole image ([`crate::SsimRegion::Full`]):
@@ -195,13 +228,14 @@ impl ImageLossGpu {
             g1: [g[4], g[5], g[6], g[7]],
             g2: [g[8], g[9], g[10], 0.0],
         };
-        let bytes = 4 * n as u64;
-        let pixel_bytes = 4 * pixels as u64;
+        let bytes = bytes_of::<f32>(n);
+        let pixel_bytes = bytes_of::<f32>(pixels);
         // Values read back: SSIM and |a − b| per value, then |∇Ĩ − ∇I| per pixel; the gradient.
         let read = 2 * bytes + pixel_bytes;
         let k = &mut self.k;
-        k.begin([2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, read, bytes, 4 * pixel_bytes + 8 * (1 + groups as u64)], read + bytes);
-        let [images, _, _, _, values, grad, _] = k.bufs;
+        let edge = [bytes_of::<EdgeTexel>(pixels), bytes_of::<EdgeRange>(1 + groups)];
+        k.begin([2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, read, bytes, edge[0], edge[1]], read + bytes);
+        let [images, _, _, _, values, grad, _, _] = k.bufs;
         let q = k.ctx.queue();
         q.write_buffer(k.pool.buffer(images), 0, bytemuck::cast_slice(a));
         q.write_buffer(k.pool.buffer(images), bytes, bytemuck::cast_slice(b));
@@ -252,8 +286,17 @@ impl ImageLossGpu {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    /// The whole source (what the device compiles) parses, and each generated struct has the
+    /// Rust offsets and sizes (naga's layouter against `offset_of!` / `size_of`).
     #[test]
-    fn frame_matches_its_wgsl_layout() {
-        gs_gpu::check_layout::<super::ImageFrame>(&super::image_kernel_source()).unwrap();
+    fn host_and_wgsl_struct_layouts_agree() {
+        let src = image_kernel_source();
+        gs_gpu::check_layout::<PassUniform>(&src).unwrap();
+        for g in generated_structs() {
+            (g.check)(&src).unwrap();
+        }
+        assert_eq!([bytes_of::<EdgeTexel>(1), bytes_of::<EdgeRange>(1)], [16, 8]);
     }
 }

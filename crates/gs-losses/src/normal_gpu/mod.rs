@@ -5,13 +5,13 @@
 //! device. Tolerances: `tests/normal_gpu.rs` (docs/method.md §L_nc, §L_ns; docs/architecture.md
 //! §GPU).
 
-use crate::device::{LossKernels, gpu_error};
+use crate::device::{Generated, LossKernels, bytes_of, declarations, generated, gpu_error};
 use crate::error::Result;
 use crate::image_loss::EdgeGuide;
 use crate::normal::{NORMALIZE_EPS, ray_x, ray_y};
 use crate::normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, check_inputs, consistency_sum, smoothing_sum};
 use gs_core::{Image, Intrinsics};
-use gs_gpu::{Binding, GpuContext, PassUniform, WgslStruct};
+use gs_gpu::{Binding, GpuContext, PassUniform};
 
 gs_gpu::wgsl_struct! {
     /// Constants of one evaluation (binding 0; WGSL `struct NormalFrame`).
@@ -20,7 +20,7 @@ gs_gpu::wgsl_struct! {
         height: u32,
         /// Pixels (width · height).
         n: u32,
-        /// Whether `inputs` holds the alpha plane A after δ.
+        /// Whether the inputs' `alpha` holds A (else it is 1).
         has_alpha: u32,
         /// λ1 / n, the scale of ∂L_nc.
         s_nc: f32,
@@ -40,23 +40,81 @@ gs_gpu::wgsl_struct! {
     }
 }
 
+gs_gpu::wgsl_struct! {
+    /// One pixel's inputs (WGSL `struct PixelInput`), interleaved on the host from the
+    /// planar images. 24 bytes.
+    pub(crate) struct PixelInput as "PixelInput" {
+        /// The plane depth z.
+        z: f32,
+        /// The rendered normal Ñ.
+        normal: [f32; 3],
+        /// The edge weight δ.
+        delta: f32,
+        /// A (0 and unread without alpha).
+        alpha: f32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One pixel's 3-vector (WGSL `struct PixelVec3`): N̂, ∂/∂N̂ or ∂/∂Ñ. 12 bytes, so an array
+    /// of them is the host's 3-channel image.
+    pub(crate) struct PixelVec3 as "PixelVec3" {
+        v: [f32; 3],
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One pixel's loss terms (WGSL `struct PixelTerms`), summed on the host in the
+    /// reference's order. 16 bytes.
+    pub(crate) struct PixelTerms as "PixelTerms" {
+        /// δ·‖N̂ − Ñ‖₁.
+        nc: f32,
+        /// δ_k·ReLU(‖N̂_k − N̂_p‖₁ − τ²) of the right and the down pair where it is active.
+        ns_right: f32,
+        ns_down: f32,
+        /// The number of active pairs (0, 1 or 2).
+        pairs: f32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// ∂/∂dx and ∂/∂dy of one pixel's normal (WGSL `struct DiffGrad`), the central
+    /// differences of its neighbours' points. 24 bytes.
+    pub(crate) struct DiffGrad as "DiffGrad" {
+        dx: [f32; 3],
+        dy: [f32; 3],
+    }
+}
+
 /// The kernels' storage bindings, by name (slot order; one table for the four passes).
 const BINDINGS: [Binding<'static>; 8] = [
-    Binding::read("inputs", "array<f32>"),
+    Binding::read("inputs", "array<PixelInput>"),
     Binding::read("rays", "array<f32>"),
-    Binding::write("nhat", "array<f32>"),
-    Binding::write("values", "array<f32>"),
-    Binding::write("gnhat", "array<f32>"),
-    Binding::write("gnt", "array<f32>"),
-    Binding::write("gab", "array<f32>"),
+    Binding::write("nhat", "array<PixelVec3>"),
+    Binding::write("values", "array<PixelTerms>"),
+    Binding::write("gnhat", "array<PixelVec3>"),
+    Binding::write("gnt", "array<PixelVec3>"),
+    Binding::write("gab", "array<DiffGrad>"),
     Binding::write("gz", "array<f32>"),
 ];
+
+/// The frame uniform and the storage records: one list for the kernels' declarations and the
+/// layout test.
+fn generated_structs() -> [Generated; 5] {
+    [
+        generated::<NormalFrame>(),
+        generated::<PixelInput>(),
+        generated::<PixelVec3>(),
+        generated::<PixelTerms>(),
+        generated::<DiffGrad>(),
+    ]
+}
 
 const PASSES: [&str; 4] = ["depth_normals", "normal_terms", "normal_chain", "depth_gradient"];
 
 /// The kernels' whole WGSL source.
 pub fn normal_kernel_source() -> String {
-    gs_gpu::kernel_source(&[&NormalFrame::wgsl_decl(), include_str!("normal.wgsl")], &BINDINGS)
+    gs_gpu::kernel_source(&[&declarations(&generated_structs()), include_str!("normal.wgsl")], &BINDINGS)
 }
 
 /// The device executor of L_nc and L_ns: its context (shared), buffers and four kernels.
@@ -73,8 +131,9 @@ impl std::fmt::Debug for NormalGpu {
 impl NormalGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernels compiled.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let frame = (NormalFrame::wgsl_decl(), std::mem::size_of::<NormalFrame>());
-        Ok(Self { k: LossKernels::new(ctx, &frame.0, frame.1, include_str!("normal.wgsl"), &BINDINGS, &PASSES)? })
+        let decls = declarations(&generated_structs());
+        let frame = std::mem::size_of::<NormalFrame>();
+        Ok(Self { k: LossKernels::new(ctx, &decls, frame, include_str!("normal.wgsl"), &BINDINGS, &PASSES)? })
     }
 
     /// [`crate::normal_losses`] on the device: the same inputs, checks and output. Views larger
@@ -91,8 +150,9 @@ impl NormalGpu {
         check_inputs(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?;
         let (w, h) = (plane_depth.width(), plane_depth.height());
         let n = w * h;
-        let bytes = 4 * n as u64;
-        if n == 0 || 6 * bytes > self.k.ctx.max_storage_binding() || n > u32::MAX as usize / 6 {
+        // The largest records are the inputs and ∂/∂(dx, dy), 24 bytes a pixel.
+        let largest = bytes_of::<PixelInput>(1).max(bytes_of::<DiffGrad>(1));
+        if n == 0 || n > u32::MAX as usize || n as u64 * largest > self.k.ctx.max_storage_binding() {
             return crate::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg);
         }
         let frame = NormalFrame {
@@ -110,19 +170,15 @@ impl NormalGpu {
             pad: 0,
         };
         let rays: Vec<f32> = (0..w).map(|i| ray_x(intrinsics, i) as f32).chain((0..h).map(|j| ray_y(intrinsics, j) as f32)).collect();
-        // Each binding's size: planes of one value per pixel, and the rays; the readback: N̂, the
-        // values, ∂/∂Ñ and ∂/∂z.
-        const READ: u64 = 3 + 4 + 3 + 1;
+        let inputs = pixel_inputs(plane_depth, rendered_normal, &guide.delta, alpha);
+        // The readback: N̂, the terms, ∂/∂Ñ and ∂/∂z.
+        let (vec3, terms, plane) = (bytes_of::<PixelVec3>(n), bytes_of::<PixelTerms>(n), bytes_of::<f32>(n));
+        let read = [vec3, terms, vec3, plane];
         let k = &mut self.k;
-        k.begin([6 * bytes, 4 * rays.len() as u64, 3 * bytes, 4 * bytes, 3 * bytes, 3 * bytes, 6 * bytes, bytes], READ * bytes);
-        let [inputs, ray_buf, nhat, values, _, gnt, _, gz] = k.bufs;
+        k.begin([bytes_of::<PixelInput>(n), bytes_of::<f32>(rays.len()), vec3, terms, vec3, vec3, bytes_of::<DiffGrad>(n), plane], read.iter().sum());
+        let [input_buf, ray_buf, nhat, values, _, gnt, _, gz] = k.bufs;
         let q = k.ctx.queue();
-        let planes: [&[f32]; 4] = [plane_depth.data(), rendered_normal.data(), guide.delta.data(), alpha.map_or(&[], |a| a.data())];
-        let mut at = 0;
-        for plane in planes {
-            q.write_buffer(k.pool.buffer(inputs), at, bytemuck::cast_slice(plane));
-            at += 4 * plane.len() as u64;
-        }
+        q.write_buffer(k.pool.buffer(input_buf), 0, bytemuck::cast_slice(&inputs));
         q.write_buffer(k.pool.buffer(ray_buf), 0, bytemuck::cast_slice(&rays));
         k.disp.write_frame(&frame);
         let p = &k.pool;
@@ -134,41 +190,66 @@ impl NormalGpu {
         }
         let staging = p.buffer(k.staging);
         let mut at = 0;
-        for (id, planes) in [(nhat, 3), (values, 4), (gnt, 3), (gz, 1)] {
-            enc.encoder.copy_buffer_to_buffer(p.buffer(id), 0, staging, at, planes * bytes);
-            at += planes * bytes;
+        for (id, size) in [nhat, values, gnt, gz].into_iter().zip(read) {
+            enc.encoder.copy_buffer_to_buffer(p.buffer(id), 0, staging, at, size);
+            at += size;
         }
         k.disp.submit(enc);
         k.ctx.pop_error_scopes().map_err(gpu_error)?;
         let (nhat, values, g_nt, g_z) = k
             .ctx
-            .read_mapped(staging, READ * bytes, |m| {
-                let all = bytemuck::cast_slice::<u8, f32>(m);
-                let (nhat, rest) = all.split_at(3 * n);
-                let (values, rest) = rest.split_at(4 * n);
-                let (g_nt, g_z) = rest.split_at(3 * n);
-                (nhat.to_vec(), values.to_vec(), g_nt.to_vec(), g_z.to_vec())
+            .read_mapped(staging, at, |m| {
+                let (nhat, rest) = m.split_at(vec3 as usize);
+                let (values, rest) = rest.split_at(terms as usize);
+                let (g_nt, g_z) = rest.split_at(vec3 as usize);
+                // N̂ and ∂/∂Ñ: the records' components are the 3-channel images' values.
+                let f = |b: &[u8]| bytemuck::cast_slice::<u8, f32>(b).to_vec();
+                (f(nhat), bytemuck::cast_slice::<u8, PixelTerms>(values).to_vec(), f(g_nt), f(g_z))
             })
             .map_err(gpu_error)?;
-        let l_nc = consistency_sum(n, |p| values[4 * p] as f64) / n as f64;
-        // The reference's L_ns sum: each row's active pairs in order (right, then down), in f64.
-        let rows = (0..h)
-            .map(|j| {
-                let row = &values[4 * j * w..4 * (j + 1) * w];
-                let s = row.chunks(4).flat_map(|v| [v[1] as f64, v[2] as f64]).fold(0.0, |s, v| s + v);
-                (s, row.chunks(4).map(|v| v[3] as usize).sum())
-            })
-            .collect();
-        let (ns_sum, active) = smoothing_sum(rows);
-        let l_ns = ns_sum / n as f64;
-        NormalLossOutput::assemble(cfg, (w, h), (l_nc, l_ns, active), nhat, g_z, g_nt)
+        NormalLossOutput::assemble(cfg, (w, h), term_sums(&values, w), nhat, g_z, g_nt)
     }
+}
+
+/// The per-pixel input records from the planar images: z, Ñ, δ and A (0 without alpha).
+fn pixel_inputs(z: &Image, normal: &Image, delta: &Image, alpha: Option<&Image>) -> Vec<PixelInput> {
+    let normals: &[[f32; 3]] = bytemuck::cast_slice(normal.data());
+    let alpha = |p: usize| alpha.map_or(0.0, |a| a.data()[p]);
+    let zd = z.data().iter().zip(delta.data());
+    zd.zip(normals).enumerate().map(|(p, ((&z, &delta), &normal))| PixelInput { z, normal, delta, alpha: alpha(p) }).collect()
+}
+
+/// L_nc, L_ns and the number of active pairs from the per-pixel terms of rows of `w` pixels,
+/// summed as the reference sums them.
+fn term_sums(values: &[PixelTerms], w: usize) -> (f64, f64, usize) {
+    let n = values.len();
+    let l_nc = consistency_sum(n, |p| values[p].nc as f64) / n as f64;
+    // The reference's L_ns sum: each row's active pairs in order (right, then down), in f64.
+    let rows = values
+        .chunks(w)
+        .map(|row| {
+            let s = row.iter().flat_map(|v| [v.ns_right as f64, v.ns_down as f64]).fold(0.0, |s, v| s + v);
+            (s, row.iter().map(|v| v.pairs as usize).sum())
+        })
+        .collect();
+    let (ns_sum, active) = smoothing_sum(rows);
+    (l_nc, ns_sum / n as f64, active)
 }
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    /// The whole source (what the device compiles) parses, and each generated struct has the
+    /// Rust offsets and sizes (naga's layouter against `offset_of!` / `size_of`).
     #[test]
-    fn frame_matches_its_wgsl_layout() {
-        gs_gpu::check_layout::<super::NormalFrame>(&super::normal_kernel_source()).unwrap();
+    fn host_and_wgsl_struct_layouts_agree() {
+        let src = normal_kernel_source();
+        gs_gpu::check_layout::<PassUniform>(&src).unwrap();
+        for g in generated_structs() {
+            (g.check)(&src).unwrap();
+        }
+        let sizes = [bytes_of::<PixelInput>(1), bytes_of::<PixelVec3>(1), bytes_of::<PixelTerms>(1), bytes_of::<DiffGrad>(1)];
+        assert_eq!(sizes, [24, 12, 16, 24]);
     }
 }

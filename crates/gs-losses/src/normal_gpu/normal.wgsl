@@ -2,11 +2,12 @@
 // §L_ns): four passes of one thread per pixel. Each pass does the reference's arithmetic in
 // the reference's order, so that the host can sum the per-pixel values as the reference does.
 //
-// Generated before this file: `struct NormalFrame` (binding 0) and the storage bindings
-// `inputs` (z, then Ñ, δ and, when `has_alpha`, A), `rays` (x of each column's ray, then y of
-// each row's), `nhat` (N̂), `values` (per pixel: δ·‖N̂ − Ñ‖₁, the right and the down pair's
-// δ_k·ReLU(‖N̂_k − N̂_p‖₁ − τ²) where the pair is active, the number of active pairs),
-// `gnhat` (∂/∂N̂), `gnt` (∂/∂Ñ), `gab` (∂/∂dx and ∂/∂dy per pixel), `gz` (∂/∂z).
+// Generated before this file: `struct NormalFrame` (binding 0), the records `PixelInput`,
+// `PixelVec3`, `PixelTerms` and `DiffGrad`, and the storage bindings, one record per pixel:
+// `inputs` (z, Ñ, δ, A), `nhat` (N̂), `values` (δ·‖N̂ − Ñ‖₁, the right and the down pair's
+// δ_k·ReLU(‖N̂_k − N̂_p‖₁ − τ²) where the pair is active, the number of active pairs), `gnhat`
+// (∂/∂N̂), `gnt` (∂/∂Ñ), `gab` (∂/∂dx and ∂/∂dy), `gz` (∂/∂z); and `rays`, x of each column's
+// ray, then y of each row's (`ray_x`, `ray_y`).
 
 @group(0) @binding(0) var<uniform> frame: NormalFrame;
 
@@ -28,27 +29,43 @@ fn l1(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return d.x + d.y + d.z;
 }
 
+// A record's packed `array<f32, 3>` as a vector, and back.
+fn to_vec(a: array<f32, 3>) -> vec3<f32> {
+    return vec3<f32>(a[0], a[1], a[2]);
+}
+
+fn to_array(v: vec3<f32>) -> array<f32, 3> {
+    return array<f32, 3>(v.x, v.y, v.z);
+}
+
+fn ray_x(i: u32) -> f32 {
+    return rays[i];
+}
+
+fn ray_y(j: u32) -> f32 {
+    return rays[frame.width + j];
+}
+
 fn point(i: u32, j: u32) -> vec3<f32> {
-    let d = inputs[j * frame.width + i];
-    return vec3<f32>(rays[i] * d, rays[frame.width + j] * d, d);
+    let d = inputs[j * frame.width + i].z;
+    return vec3<f32>(ray_x(i) * d, ray_y(j) * d, d);
 }
 
 fn ntilde(p: u32) -> vec3<f32> {
-    let o = frame.n + 3u * p;
-    return vec3<f32>(inputs[o], inputs[o + 1u], inputs[o + 2u]);
+    return to_vec(inputs[p].normal);
 }
 
 fn nh(p: u32) -> vec3<f32> {
-    return vec3<f32>(nhat[3u * p], nhat[3u * p + 1u], nhat[3u * p + 2u]);
+    return to_vec(nhat[p].v);
 }
 
 fn delta(p: u32) -> f32 {
-    return inputs[4u * frame.n + p];
+    return inputs[p].delta;
 }
 
 fn alpha(p: u32) -> f32 {
     if (frame.has_alpha != 0u) {
-        return inputs[5u * frame.n + p];
+        return inputs[p].alpha;
     }
     return 1.0;
 }
@@ -84,9 +101,7 @@ fn depth_normals(ids: Ids) {
         let n = raw_normal(i, j);
         out = n * (alpha(p) / max(len3(n), frame.eps));
     }
-    nhat[3u * p] = out.x;
-    nhat[3u * p + 1u] = out.y;
-    nhat[3u * p + 2u] = out.z;
+    nhat[p] = PixelVec3(to_array(out));
 }
 
 // Whether the L_ns pair (p, k) counts: the pair rule and the gate on ‖Ñ_k − Ñ_p‖₁.
@@ -134,7 +149,7 @@ fn normal_terms(ids: Ids) {
     let diff = np - ntilde(p);
     let d = abs(diff);
     let dp = delta(p);
-    values[4u * p] = dp * (d.x + d.y + d.z);
+    let nc = dp * (d.x + d.y + d.z);
     // The pairs (p, right) and (p, down), each evaluated once for its value and its gradient.
     var right = Pair(false, 0.0);
     if (i + 1u < w) {
@@ -158,13 +173,9 @@ fn normal_terms(ids: Ids) {
             ns.y = delta(p + w) * down.r;
         }
     }
-    values[4u * p + 1u] = ns.x;
-    values[4u * p + 2u] = ns.y;
-    values[4u * p + 3u] = count;
+    values[p] = PixelTerms(nc, ns.x, ns.y, count);
     let gnc = frame.s_nc * dp * sign3(diff);
-    gnt[3u * p] = -gnc.x;
-    gnt[3u * p + 1u] = -gnc.y;
-    gnt[3u * p + 2u] = -gnc.z;
+    gnt[p] = PixelVec3(to_array(-gnc));
     // L_ns: p as the first pixel of (p, right) and (p, down), then as the neighbour of
     // (left, p) and (up, p), in the reference's order.
     var acc = vec3<f32>(0.0);
@@ -188,10 +199,7 @@ fn normal_terms(ids: Ids) {
             acc += c * sign3(np - nh(p - w));
         }
     }
-    let g = gnc + acc;
-    gnhat[3u * p] = g.x;
-    gnhat[3u * p + 1u] = g.y;
-    gnhat[3u * p + 2u] = g.z;
+    gnhat[p] = PixelVec3(to_array(gnc + acc));
 }
 
 // Pass 3: ∂/∂dx and ∂/∂dy of each interior pixel's normal (zero where ∂/∂N̂ is zero).
@@ -203,7 +211,7 @@ fn normal_chain(ids: Ids) {
     }
     let i = p % frame.width;
     let j = p / frame.width;
-    let g = vec3<f32>(gnhat[3u * p], gnhat[3u * p + 1u], gnhat[3u * p + 2u]);
+    let g = to_vec(gnhat[p].v);
     var da = vec3<f32>(0.0);
     var db = vec3<f32>(0.0);
     if (inside(i, j) && !(g.x == 0.0 && g.y == 0.0 && g.z == 0.0)) {
@@ -224,18 +232,15 @@ fn normal_chain(ids: Ids) {
         da = cross3(dy, gn);
         db = cross3(gn, dx);
     }
-    for (var c = 0u; c < 3u; c++) {
-        gab[6u * p + c] = da[c];
-        gab[6u * p + 3u + c] = db[c];
-    }
+    gab[p] = DiffGrad(to_array(da), to_array(db));
 }
 
 fn ga(p: u32) -> vec3<f32> {
-    return vec3<f32>(gab[6u * p], gab[6u * p + 1u], gab[6u * p + 2u]);
+    return to_vec(gab[p].dx);
 }
 
 fn gb(p: u32) -> vec3<f32> {
-    return vec3<f32>(gab[6u * p + 3u], gab[6u * p + 4u], gab[6u * p + 5u]);
+    return to_vec(gab[p].dy);
 }
 
 // Pass 4: ∂/∂z, each pixel's share of its neighbours' differences along its ray.
@@ -261,5 +266,5 @@ fn depth_gradient(ids: Ids) {
     if (j >= 1u) {
         s -= gb(p - w);
     }
-    gz[p] = s.x * rays[i] + s.y * rays[w + j] + s.z;
+    gz[p] = s.x * ray_x(i) + s.y * ray_y(j) + s.z;
 }
