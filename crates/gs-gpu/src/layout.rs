@@ -98,6 +98,36 @@ macro_rules! wgsl_struct {
     };
 }
 
+/// One struct whose WGSL a kernel takes from its Rust definition: its declaration, and the
+/// check of a compiled source's layout of it against the Rust struct. A kernel keeps one list
+/// of these for both its declarations ([`declarations`]) and its layout test, so that no
+/// declared struct goes unchecked.
+#[derive(Clone, Copy)]
+pub struct GeneratedStruct {
+    /// The WGSL declaration.
+    pub decl: fn() -> String,
+    /// [`check_layout`] of the struct.
+    pub check: fn(&str) -> Result<(), String>,
+}
+
+impl GeneratedStruct {
+    /// The entry of `T`.
+    pub fn of<T: WgslStruct>() -> Self {
+        Self { decl: T::wgsl_decl, check: check_layout::<T> }
+    }
+}
+
+/// The WGSL declarations of `structs`, in order (the start of a kernel's source).
+pub fn declarations(structs: &[GeneratedStruct]) -> String {
+    structs.iter().map(|g| (g.decl)()).collect()
+}
+
+/// Bytes of `count` records of `T`: buffer sizes and binding offsets come from the record types,
+/// never from strides written by hand.
+pub const fn bytes_of<T>(count: usize) -> u64 {
+    (count * std::mem::size_of::<T>()) as u64
+}
+
 /// Checks the WGSL struct `T::WGSL_NAME` in `source` (a whole module, e.g. a composed kernel
 /// source) against the Rust struct `T`: the same member names in the same order, each at the
 /// Rust offset, and the same size. Any struct written or edited by hand on one side only

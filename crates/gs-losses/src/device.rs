@@ -3,33 +3,7 @@
 //! buffer of their readback and the dispatcher (docs/architecture.md §GPU).
 
 use crate::error::{LossError, Result};
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, ShrinkPolicy, WgslStruct};
-
-/// One struct whose WGSL a loss kernel takes from its Rust definition (the frame uniform or a
-/// storage record): its declaration, and the check of a compiled source's layout of it against
-/// the Rust struct. Each executor keeps one list of these, so that every struct its kernels
-/// declare is also one its layout test checks.
-pub(crate) struct Generated {
-    decl: fn() -> String,
-    /// Read by the layout tests only.
-    #[cfg_attr(not(test), allow(dead_code))]
-    pub check: fn(&str) -> std::result::Result<(), String>,
-}
-
-/// The entry of `T` in a list of generated structs.
-pub(crate) fn generated<T: WgslStruct>() -> Generated {
-    Generated { decl: T::wgsl_decl, check: gs_gpu::check_layout::<T> }
-}
-
-/// The WGSL declarations of `structs`, in order (the start of a kernel's source).
-pub(crate) fn declarations(structs: &[Generated]) -> String {
-    structs.iter().map(|g| (g.decl)()).collect()
-}
-
-/// Bytes of `count` records of `T`: buffer sizes and offsets come from the record types.
-pub(crate) const fn bytes_of<T>(count: usize) -> u64 {
-    (count * std::mem::size_of::<T>()) as u64
-}
+use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, ShrinkPolicy};
 
 /// The kernels and buffers of one loss executor with `B` storage bindings.
 pub(crate) struct LossKernels<const B: usize> {

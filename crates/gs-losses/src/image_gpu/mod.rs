@@ -5,7 +5,8 @@
 //! [`crate::ssim::ssim_backward`] over the whole image. Tolerances: `tests/image_gpu.rs`
 //! (docs/method.md §L_I, docs/architecture.md §GPU).
 
-use crate::device::{Generated, LossKernels, bytes_of, declarations, generated, gpu_error};
+use crate::device::{LossKernels, gpu_error};
+use gs_gpu::{GeneratedStruct, bytes_of, declarations};
 use crate::dims::{Dims, ordered_sum};
 use crate::error::{LossError, Result};
 use crate::gradient::GRAD_NORM_EPS;
@@ -88,8 +89,8 @@ const BINDINGS: [Binding<'static>; 8] = [
 
 /// The frame uniform and the storage records: one list for the kernels' declarations and the
 /// layout test.
-fn generated_structs() -> [Generated; 3] {
-    [generated::<ImageFrame>(), generated::<EdgeTexel>(), generated::<EdgeRange>()]
+fn generated_structs() -> [GeneratedStruct; 3] {
+    [GeneratedStruct::of::<ImageFrame>(), GeneratedStruct::of::<EdgeTexel>(), GeneratedStruct::of::<EdgeRange>()]
 }
 
 /// How a pass is dispatched.

@@ -5,7 +5,8 @@
 //! device. Tolerances: `tests/normal_gpu.rs` (docs/method.md §L_nc, §L_ns; docs/architecture.md
 //! §GPU).
 
-use crate::device::{Generated, LossKernels, bytes_of, declarations, generated, gpu_error};
+use crate::device::{LossKernels, gpu_error};
+use gs_gpu::{GeneratedStruct, bytes_of, declarations};
 use crate::error::Result;
 use crate::image_loss::EdgeGuide;
 use crate::normal::{NORMALIZE_EPS, ray_x, ray_y};
@@ -100,13 +101,13 @@ const BINDINGS: [Binding<'static>; 8] = [
 
 /// The frame uniform and the storage records: one list for the kernels' declarations and the
 /// layout test.
-fn generated_structs() -> [Generated; 5] {
+fn generated_structs() -> [GeneratedStruct; 5] {
     [
-        generated::<NormalFrame>(),
-        generated::<PixelInput>(),
-        generated::<PixelVec3>(),
-        generated::<PixelTerms>(),
-        generated::<DiffGrad>(),
+        GeneratedStruct::of::<NormalFrame>(),
+        GeneratedStruct::of::<PixelInput>(),
+        GeneratedStruct::of::<PixelVec3>(),
+        GeneratedStruct::of::<PixelTerms>(),
+        GeneratedStruct::of::<DiffGrad>(),
     ]
 }
 

@@ -4,7 +4,8 @@
 //! bit), then `project_bwd` per chunk of Gaussians, and the readback of the parameter
 //! gradients.
 
-use super::kernels::{BlendState, ParamGrad, ParamRecord, PixelGrad, ScreenGrad, ShCoeff, TileRect, bytes_of};
+use super::kernels::{BlendState, ParamGrad, ParamRecord, PixelGrad, ScreenGrad, ShCoeff, TileRect};
+use gs_gpu::bytes_of;
 use super::{BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
 use crate::cpu::project::CamParams;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
@@ -83,8 +84,8 @@ impl WgpuRasterizer {
     ) -> Result<GaussianGradients> {
         let nn = g.len() as u64;
         // The readback: every Gaussian's `ParamGrad`, then its SH gradients.
-        let grad_bytes = nn * bytes_of::<ParamGrad>();
-        let sh_bytes = nn * coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>();
+        let grad_bytes = nn * bytes_of::<ParamGrad>(1);
+        let sh_bytes = nn * coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>(1);
         let npix = cam.width as u64 * cam.height as u64;
         let flags = grads.color.is_some() as u32
             | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some())
@@ -101,11 +102,11 @@ impl WgpuRasterizer {
         let partial_bytes = frame.total as u64 * rec;
         self.check_binding("the per-intersection gradients", partial_bytes)?;
         let (p, b) = (&mut self.pool, &self.bufs);
-        p.ensure(b.bstate, npix * bytes_of::<BlendState>());
+        p.ensure(b.bstate, npix * bytes_of::<BlendState>(1));
         p.ensure(b.partials, partial_bytes);
         p.ensure(b.gacc, nn * rec + 4);
-        p.ensure(b.gout, grad_bytes + bytes_of::<ParamGrad>());
-        p.ensure(b.gout_sh, sh_bytes + bytes_of::<ShCoeff>());
+        p.ensure(b.gout, grad_bytes + bytes_of::<ParamGrad>(1));
+        p.ensure(b.gout_sh, sh_bytes + bytes_of::<ShCoeff>(1));
         p.ensure(b.staging, grad_bytes + sh_bytes + 4);
         self.upload_pixel_grads(cam, config, st, grads);
         let t1 = Instant::now();
@@ -171,9 +172,9 @@ impl WgpuRasterizer {
                     p.whole(b.splat),
                     p.range(b.final_t, p0 * 4, bp * 4),
                     p.range(b.last, p0 * 4, bp * 4),
-                    p.range(b.pixgrad, p0 * bytes_of::<PixelGrad>(), bp * bytes_of::<PixelGrad>()),
+                    p.range(b.pixgrad, p0 * bytes_of::<PixelGrad>(1), bp * bytes_of::<PixelGrad>(1)),
                     p.whole(b.partials),
-                    p.range(b.bstate, p0 * bytes_of::<BlendState>(), bp * bytes_of::<BlendState>()),
+                    p.range(b.bstate, p0 * bytes_of::<BlendState>(1), bp * bytes_of::<BlendState>(1)),
                 ];
                 let pass = PassUniform {
                     n: bp as u32,
@@ -216,9 +217,9 @@ impl WgpuRasterizer {
     /// `project_bwd` per chunk of Gaussians (a `ParamGrad` and the SH gradients of each).
     fn project_backward(&self, enc: &mut Encoder, g: &Gaussians) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
-        let sh = coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>();
-        let (param, rect) = (bytes_of::<ParamRecord>(), bytes_of::<TileRect>());
-        let (screen, grad) = (bytes_of::<ScreenGrad>(), bytes_of::<ParamGrad>());
+        let sh = coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>(1);
+        let (param, rect) = (bytes_of::<ParamRecord>(1), bytes_of::<TileRect>(1));
+        let (screen, grad) = (bytes_of::<ScreenGrad>(1), bytes_of::<ParamGrad>(1));
         for (bb, m) in chunks(g.len() as u32) {
             d.make_room(enc, 1);
             let binds = [

@@ -2,7 +2,8 @@
 //! 32-byte readback), then emission, tile sort, tile ranges, links and the blend (second
 //! submission and the readback of the requested planes).
 
-use super::kernels::{ParamRecord, ShCoeff, Splat, TileRect, bytes_of};
+use super::kernels::{ParamRecord, ShCoeff, Splat, TileRect};
+use gs_gpu::bytes_of;
 use super::{CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
 use crate::cpu::project::CamParams;
 use crate::{
@@ -92,7 +93,7 @@ impl WgpuRasterizer {
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
-        self.check_binding("the splat buffer", nn * bytes_of::<Splat>())?;
+        self.check_binding("the splat buffer", nn * bytes_of::<Splat>(1))?;
         let bands = self.bands(cam)?;
         self.check_binding("the tile ranges", n_tiles * 8)?;
         if cam.tiles_x > 65535 {
@@ -158,7 +159,7 @@ impl WgpuRasterizer {
         let nn = n32 as u64;
         let nc = coeffs_for_degree(g.sh_degree) as u64;
         let (p, b) = (&mut self.pool, &self.bufs);
-        let (splat, rect) = (bytes_of::<Splat>(), bytes_of::<TileRect>());
+        let (splat, rect) = (bytes_of::<Splat>(1), bytes_of::<TileRect>(1));
         p.ensure(b.splat, (nn + 1) * splat);
         p.ensure(b.proj, (nn + 1) * rect);
         p.ensure(b.radii, nn * 4 + 4);
@@ -173,7 +174,7 @@ impl WgpuRasterizer {
         p.ensure(b.last, npix * 4);
         p.ensure(b.counters, 64);
         p.ensure(b.staging, 64);
-        let (param, sh) = (bytes_of::<ParamRecord>(), bytes_of::<ShCoeff>());
+        let (param, sh) = (bytes_of::<ParamRecord>(1), bytes_of::<ShCoeff>(1));
         let (d, p, k) = (&self.disp, &self.pool, &self.kernels);
         let mut enc = d.encoder();
         enc.encoder.clear_buffer(p.buffer(b.counters), 0, Some(64));

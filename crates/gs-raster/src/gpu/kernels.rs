@@ -5,7 +5,7 @@ use crate::RasterConfig;
 use crate::cpu::project::CamParams;
 use gs_core::Gaussians;
 use gs_core::sh::coeffs_for_degree;
-use gs_gpu::{Binding, GpuContext, Kernel, WgslStruct};
+use gs_gpu::{Binding, GeneratedStruct, GpuContext, Kernel};
 
 gs_gpu::wgsl_struct! {
     /// Camera, config and frame constants of one render / backward (binding 0 of every
@@ -217,11 +217,6 @@ impl ParamRecord {
     }
 }
 
-/// Bytes of one `T` record: buffer sizes and binding offsets come from the types.
-pub(crate) const fn bytes_of<T>() -> u64 {
-    std::mem::size_of::<T>() as u64
-}
-
 /// Every kernel of the rasterizer (the scan and sort live in gs-gpu).
 fn specs() -> Vec<Spec<'static>> {
     use Binding as B;
@@ -362,38 +357,25 @@ pub(crate) struct Kernels {
     pub grad_reduce: Kernel,
 }
 
-/// One struct whose WGSL the kernels take from its Rust definition: the declaration, and the
-/// check of a compiled source's layout of it against the Rust struct.
-struct Generated {
-    decl: fn() -> String,
-    /// Read by the layout test only.
-    #[cfg_attr(not(test), allow(dead_code))]
-    check: fn(&str) -> Result<(), String>,
-}
-
-fn generated<T: WgslStruct>() -> Generated {
-    Generated { decl: T::wgsl_decl, check: gs_gpu::check_layout::<T> }
-}
-
 /// The camera uniform and every storage record: one list, so that every struct the kernels
 /// declare is also the one the layout test checks.
-fn generated_structs() -> [Generated; 9] {
+fn generated_structs() -> [GeneratedStruct; 9] {
     [
-        generated::<CamUniform>(),
-        generated::<ScreenGrad>(),
-        generated::<ParamRecord>(),
-        generated::<ShCoeff>(),
-        generated::<Splat>(),
-        generated::<TileRect>(),
-        generated::<ParamGrad>(),
-        generated::<PixelGrad>(),
-        generated::<BlendState>(),
+        GeneratedStruct::of::<CamUniform>(),
+        GeneratedStruct::of::<ScreenGrad>(),
+        GeneratedStruct::of::<ParamRecord>(),
+        GeneratedStruct::of::<ShCoeff>(),
+        GeneratedStruct::of::<Splat>(),
+        GeneratedStruct::of::<TileRect>(),
+        GeneratedStruct::of::<ParamGrad>(),
+        GeneratedStruct::of::<PixelGrad>(),
+        GeneratedStruct::of::<BlendState>(),
     ]
 }
 
 /// The generated WGSL declarations every kernel starts with.
 fn decls() -> String {
-    generated_structs().iter().map(|g| (g.decl)()).collect()
+    gs_gpu::declarations(&generated_structs())
 }
 
 impl Kernels {
@@ -421,7 +403,7 @@ impl Kernels {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gs_gpu::{PassUniform, check_layout, kernel_source};
+    use gs_gpu::{PassUniform, WgslStruct, bytes_of, check_layout, kernel_source};
 
     /// Every kernel's full source (exactly what the device compiles) parses, and each of its
     /// generated structs has the Rust offsets and sizes (naga's layouter against
@@ -439,10 +421,10 @@ mod tests {
         }
         assert_eq!(std::mem::size_of::<CamUniform>(), 144);
         assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);
-        let sizes = [bytes_of::<ParamRecord>(), bytes_of::<ShCoeff>(), bytes_of::<Splat>()];
+        let sizes = [bytes_of::<ParamRecord>(1), bytes_of::<ShCoeff>(1), bytes_of::<Splat>(1)];
         assert_eq!(sizes, [44, 12, 68]);
-        assert_eq!([bytes_of::<TileRect>(), bytes_of::<ParamGrad>()], [20, 60]);
-        assert_eq!([bytes_of::<PixelGrad>(), bytes_of::<BlendState>()], [36, 36]);
+        assert_eq!([bytes_of::<TileRect>(1), bytes_of::<ParamGrad>(1)], [20, 60]);
+        assert_eq!([bytes_of::<PixelGrad>(1), bytes_of::<BlendState>(1)], [36, 36]);
     }
 
     /// A field added to the WGSL side only (a hand-written `Cam`) is caught.

@@ -43,7 +43,8 @@ use gs_core::sh::coeffs_for_degree;
 use gs_gpu::{
     BufId, BufferPool, Dispatcher, GpuContext, GpuError, GpuOptions, RadixSort, ShrinkPolicy,
 };
-use kernels::{BlendState, CamUniform, Kernels, ParamRecord, PixelGrad, ShCoeff, bytes_of};
+use gs_gpu::bytes_of;
+use kernels::{BlendState, CamUniform, Kernels, ParamRecord, PixelGrad, ShCoeff};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -60,7 +61,7 @@ const FWD_WINDOW: u32 = 32768;
 const BWD_WINDOW: u32 = 256;
 /// Largest per-pixel record bound to one kernel (`pixgrad` / `bstate`; the eight accumulator
 /// planes take 32 bytes a pixel).
-const MAX_PIXEL_BYTES: u64 = max_u64(kernels::bytes_of::<PixelGrad>(), kernels::bytes_of::<BlendState>());
+const MAX_PIXEL_BYTES: u64 = max_u64(bytes_of::<PixelGrad>(1), bytes_of::<BlendState>(1));
 
 const fn max_u64(a: u64, b: u64) -> u64 {
     if a > b { a } else { b }
@@ -376,8 +377,8 @@ fn upload_with<T: bytemuck::Pod>(
     len: usize,
     fill: impl Fn(&mut [T]),
 ) {
-    let bytes = len as u64 * bytes_of::<T>();
-    pool.ensure(id, bytes.max(bytes_of::<T>()));
+    let bytes = len as u64 * bytes_of::<T>(1);
+    pool.ensure(id, bytes.max(bytes_of::<T>(1)));
     ctx.write_with(pool.buffer(id), bytes, |b| match bytemuck::try_cast_slice_mut::<u8, T>(b) {
         Ok(f) => fill(f),
         Err(_) => {
