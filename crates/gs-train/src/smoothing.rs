@@ -345,12 +345,14 @@ mod tests {
 
     #[test]
     fn apply_revert_and_chain_round_trip() {
-        let mut g = Gaussians::default();
-        g.means = vec![[0.0; 3], [0.1, 0.0, 0.2]];
-        g.log_scales = vec![[-3.0, -4.0, -6.0], [-2.0, -2.0, -9.0]];
-        g.rotations = vec![[1.0, 0.0, 0.0, 0.0]; 2];
-        g.opacity_logits = vec![0.5, 3.0];
-        g.sh = vec![[[0.0; 3]; gs_core::sh::SH_COEFFS]; 2];
+        let mut g = Gaussians {
+            means: vec![[0.0; 3], [0.1, 0.0, 0.2]],
+            log_scales: vec![[-3.0, -4.0, -6.0], [-2.0, -2.0, -9.0]],
+            rotations: vec![[1.0, 0.0, 0.0, 0.0]; 2],
+            opacity_logits: vec![0.5, 3.0],
+            sh: vec![[[0.0; 3]; gs_core::sh::SH_COEFFS]; 2],
+            sh_degree: 0,
+        };
         let raw = g.clone();
         let mut s = Smoothing::new(vec![1e-4, 0.0]);
         s.apply(&mut g).unwrap();
@@ -368,8 +370,7 @@ mod tests {
     fn the_variance_follows_the_nearest_view() {
         let cams = gs_core::camera::camera_ring(8);
         let refs: Vec<&Camera> = cams.iter().collect();
-        let mut g = Gaussians::default();
-        g.means = vec![[0.0; 3], [1e6, 1e6, 1e6]];
+        let g = Gaussians { means: vec![[0.0; 3], [1e6, 1e6, 1e6]], ..Gaussians::default() };
         let v = variances(&g, &refs, 0.01, 0.2);
         let nearest = refs.iter().map(|c| c.world_to_camera(Default::default()).z / c.intrinsics.fx.max(c.intrinsics.fy)).fold(f64::MAX, f64::min);
         assert!(((v[0] as f64) - 0.2 * nearest * nearest).abs() < 1e-6 * v[0] as f64);
