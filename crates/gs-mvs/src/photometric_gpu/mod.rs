@@ -14,7 +14,7 @@ use crate::photometric::{
 use crate::visibility::{Visibility, visibility_unchecked};
 use crate::geometry::PairGeometry;
 use rayon::prelude::*;
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, WgslStruct};
+use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
 
 gs_gpu::wgsl_struct! {
     /// Constants of one L_p evaluation (binding 0 of the kernel; WGSL `struct NccFrame`).
@@ -74,20 +74,35 @@ const STATUS_VALID: u32 = 2;
 const BINDINGS: [Binding<'static>; 7] = [
     Binding::read("pairs", "array<NccPair>"),
     Binding::read("entries", "array<vec2<u32>>"),
-    Binding::read("normal", "array<f32>"),
+    Binding::read("normal", "array<PixelNormal>"),
     Binding::read("distance", "array<f32>"),
     Binding::read("greys", "array<f32>"),
     Binding::read("rays", "array<f32>"),
     Binding::write("results", "array<NccResult>"),
 ];
 
+gs_gpu::wgsl_struct! {
+    /// The rendered normal Ñ of one reference pixel (WGSL `struct PixelNormal`): the `[H][W][3]`
+    /// normal image read as records, the same bytes. 12 bytes.
+    pub(crate) struct PixelNormal as "PixelNormal" {
+        n: [f32; 3],
+    }
+}
+
 /// The kernel's whole WGSL source (generated declarations, then `ncc.wgsl`).
 pub fn ncc_kernel_source() -> String {
     gs_gpu::kernel_source(&[&declarations(), include_str!("ncc.wgsl")], &BINDINGS)
 }
 
+/// The frame uniform and the storage records: one list for the kernel's declarations and the
+/// layout test.
+fn generated_structs() -> [gs_gpu::GeneratedStruct; 4] {
+    use gs_gpu::GeneratedStruct as G;
+    [G::of::<NccFrame>(), G::of::<NccPair>(), G::of::<NccResult>(), G::of::<PixelNormal>()]
+}
+
 fn declarations() -> String {
-    [NccFrame::wgsl_decl(), NccPair::wgsl_decl(), NccResult::wgsl_decl()].concat()
+    gs_gpu::declarations(&generated_structs())
 }
 
 struct Buffers {
@@ -358,8 +373,9 @@ mod tests {
     #[test]
     fn records_match_their_wgsl_layout() {
         let src = ncc_kernel_source();
-        gs_gpu::check_layout::<NccFrame>(&src).unwrap();
-        gs_gpu::check_layout::<NccPair>(&src).unwrap();
-        gs_gpu::check_layout::<NccResult>(&src).unwrap();
+        for g in generated_structs() {
+            (g.check)(&src).unwrap();
+        }
+        assert_eq!(gs_gpu::bytes_of::<PixelNormal>(1), 12);
     }
 }

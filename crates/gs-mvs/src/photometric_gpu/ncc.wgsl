@@ -5,7 +5,7 @@
 // the same arithmetic each time, so every pass sees the same values.
 //
 // Generated before this file: `struct NccFrame` (binding 0), `struct NccPair`,
-// `struct NccResult`, and the storage bindings `pairs`, `entries`, `normal`, `distance`,
+// `struct NccResult`, `struct PixelNormal`, and the storage bindings `pairs`, `entries`, `normal`, `distance`,
 // `greys` (the reference grey image at 0, then each source's at its pair's offset), `rays`
 // (the x ray table of the reference grey image's columns, then the y table of its rows) and
 // `results`.
@@ -94,7 +94,8 @@ fn ncc_patch(ids: Ids) {
     let e = entries[pass_.base + t];
     let pr = pairs[e.y];
     let p = e.x;
-    let n = vec3<f32>(normal[3u * p], normal[3u * p + 1u], normal[3u * p + 2u]);
+    let np = normal[p].n;
+    let n = vec3<f32>(np[0], np[1], np[2]);
     let inv_d = 1.0 / distance[p];
     if (!(finite(inv_d) && finite(n.x) && finite(n.y) && finite(n.z))) {
         put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
