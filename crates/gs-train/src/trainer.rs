@@ -164,8 +164,7 @@ impl<'s> Trainer<'s> {
         let exposure = if config.exposure { Some(Exposure::new(train_views.len())?) } else { None };
         let budget = budget_of(scene, &train_views, &config, &gaussians);
         let source_depths = SourceDepths::default();
-        let state =
-            TrainState {
+        let state = TrainState {
             iteration: 0,
             stats: DensifyStats::new(n),
             gaussians,
