@@ -91,6 +91,11 @@ impl Scene {
         self.views.iter().map(|v| &v.camera).collect()
     }
 
+    /// The cameras of `views` (indices into [`Scene::views`]), in that order.
+    pub fn cameras_of(&self, views: &[usize]) -> Vec<&Camera> {
+        views.iter().map(|&i| &self.views[i].camera).collect()
+    }
+
     /// Scene extent r of docs/method.md §Inputs, robust to outlier and coincident cameras
     /// ([`crate::extent`]).
     pub fn extent(&self) -> f64 {
@@ -101,8 +106,7 @@ impl Scene {
     /// scene's sparse points as fallback. The trainer and a reopened run both use it, so they
     /// scale by the same r.
     pub fn extent_of(&self, views: &[usize]) -> f64 {
-        let cams: Vec<&Camera> = views.iter().map(|&i| &self.views[i].camera).collect();
-        extent_report(&cams, &self.points).radius
+        extent_report(&self.cameras_of(views), &self.points).radius
     }
 
     /// The scene extent with what it was computed from and the outlier cameras left out.

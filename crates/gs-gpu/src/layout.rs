@@ -122,6 +122,12 @@ pub fn declarations(structs: &[GeneratedStruct]) -> String {
     structs.iter().map(|g| (g.decl)()).collect()
 }
 
+/// [`check_layout`] of each of `structs` against the whole kernel source `src`: the layout test
+/// of a crate whose kernels declare `structs`.
+pub fn check_layouts(structs: &[GeneratedStruct], src: &str) -> Result<(), String> {
+    structs.iter().try_for_each(|g| (g.check)(src))
+}
+
 /// Bytes of `count` records of `T`: buffer sizes and binding offsets come from the record types,
 /// never from strides written by hand.
 pub const fn bytes_of<T>(count: usize) -> u64 {

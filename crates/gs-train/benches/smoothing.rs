@@ -30,7 +30,7 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("smoothing_3d_150k");
     group.sample_size(20);
     group.bench_function("variances_35_views", |b| b.iter(|| variances(&g, &refs, 0.01, 0.2)));
-    let mut s = Smoothing::new(variances(&g, &refs, 0.01, 0.2));
+    let mut s = Smoothing::new(variances(&g, &refs, 0.01, 0.2)).unwrap();
     let mut grads = gs_raster::GaussianGradients {
         means: vec![[0.0; 3]; N],
         log_scales: vec![[1e-3, -2e-3, 5e-4]; N],

@@ -215,7 +215,7 @@ pub fn encode(config: &TrainConfig, state: &TrainState, elapsed: &Elapsed) -> Ve
         None => w.u32(0),
         Some(s) => {
             w.u32(1);
-            w.f32s(&s.variances);
+            w.f32s(s.variances());
         }
     }
     let crc = crc32(&w.0);
@@ -327,7 +327,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Checkpoint> {
         };
         let source_depths = if version >= 4 { read_source_depths(r)? } else { SourceDepths::default() };
         let smoothing = match version >= 5 && r.u32()? != 0 {
-            true => Some(Smoothing::new(r.f32s("3D smoothing variances")?)),
+            true => Some(Smoothing::new(r.f32s("3D smoothing variances")?).map_err(|e| e.to_string())?),
             false => None,
         };
         if r.pos != r.buf.len() {

@@ -357,7 +357,7 @@ pub fn fuse_mesh(scene: &Scene, views: &[usize], mut source: DepthSource<'_>, op
     let raw = volume.extract_mesh()?;
     let fuse_seconds = t.elapsed().as_secs_f64() - fetch_s;
     let footprint = median(footprints);
-    let cameras: Vec<&Camera> = views.iter().map(|&i| &scene.views[i].camera).collect();
+    let cameras = scene.cameras_of(views);
     let (mesh, components, simplification) = finish(&raw, opts, voxel, &cameras)?;
     let report = MeshReport {
         voxel_size: voxel,

@@ -18,7 +18,7 @@
 use crate::error::{Result, TrainError};
 use crate::mesh::{DepthSource, FetchStats, Fetched, MeshOptions, MeshReport, Setup, finish, integrate, length_text, median, prepare};
 use gs_core::glam::DVec3;
-use gs_core::{Camera, Scene, TriangleMesh};
+use gs_core::{Scene, TriangleMesh};
 use gs_tsdf::{MemoryEstimate, TsdfVolume, block_centre, format_bytes, volume::BLOCK};
 use serde::Serialize;
 use std::collections::{HashMap, HashSet};
@@ -129,7 +129,7 @@ pub fn fuse_mesh_in_pieces(
         });
     }
     let fuse_seconds = t.elapsed().as_secs_f64() - (stats.seconds - render_before);
-    let cameras: Vec<&Camera> = views.iter().map(|&i| &scene.views[i].camera).collect();
+    let cameras = scene.cameras_of(views);
     let (mesh, components, simplification) = finish(&joined.mesh, opts, voxel, &cameras)?;
     let report = MeshReport {
         voxel_size: voxel,

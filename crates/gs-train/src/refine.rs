@@ -10,7 +10,7 @@ use crate::error::Result;
 use crate::executor::RunInputs;
 use crate::plan::StepPlan;
 use crate::trainer::TrainState;
-use gs_core::{Camera, Gaussians};
+use gs_core::Gaussians;
 use gs_raster::{Rasterizer, RenderRequest};
 use serde::Serialize;
 
@@ -89,7 +89,7 @@ pub fn free_space_votes(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, gaussi
         let (depth, alpha) = (out.plane_depth.expect("requested"), out.alpha.expect("requested"));
         votes.add_view(gaussians, camera, &depth, &alpha, run.raster.near, rule)?;
     }
-    let cameras: Vec<&Camera> = run.train_views.iter().map(|&v| &run.scene.views[v].camera).collect();
+    let cameras = run.scene.cameras_of(run.train_views);
     let surface: Vec<gs_core::glam::DVec3> = run.scene.points.iter().map(|p| p.position).collect();
     votes.mark_capture_path(gaussians, &CapturePath::new(&cameras, rule.path_clearance as f64, &surface));
     Ok(votes)

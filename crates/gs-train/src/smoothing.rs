@@ -36,22 +36,31 @@ pub const FRUSTUM_MARGIN: f64 = 1.15;
 /// filtered ones, and which of the two the Gaussians hold.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Smoothing {
-    /// s² per Gaussian (world units²).
-    pub variances: Vec<f32>,
+    /// s² per Gaussian (world units²), each finite and non-negative.
+    variances: Vec<f32>,
     /// While `applied`: the raw log-scales; otherwise scratch.
     spare_log_scales: Vec<[f32; 3]>,
     /// While `applied`: the raw opacity logits; otherwise scratch.
     spare_opacity_logits: Vec<f32>,
     /// While `applied`: each Gaussian's partial derivatives through the filter.
-    partials: Vec<Filtered<f32>>,
+    partials: Vec<Partials<f32>>,
     /// Whether the Gaussians hold the filtered values.
     applied: bool,
 }
 
 impl Smoothing {
-    /// A filter with `variances` (one per Gaussian), not yet applied.
-    pub fn new(variances: Vec<f32>) -> Self {
-        Self { variances, ..Self::default() }
+    /// A filter with `variances` (one per Gaussian), not yet applied. Refuses a variance that
+    /// is not a finite, non-negative number, so that [`Smoothing::apply`] need not scan them.
+    pub fn new(variances: Vec<f32>) -> Result<Self> {
+        if let Some(v) = variances.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            return Err(TrainError::InvalidConfig(format!("3D smoothing: variance {v} is not a finite, non-negative number")));
+        }
+        Ok(Self { variances, ..Self::default() })
+    }
+
+    /// s² per Gaussian (world units²).
+    pub fn variances(&self) -> &[f32] {
+        &self.variances
     }
 
     /// Whether the Gaussians hold the filtered values.
@@ -65,16 +74,20 @@ impl Smoothing {
         if self.applied {
             return Ok(());
         }
-        self.check_rows(g.len())?;
+        let n = g.len();
+        self.check_rows(n)?;
         std::mem::swap(&mut g.log_scales, &mut self.spare_log_scales);
         std::mem::swap(&mut g.opacity_logits, &mut self.spare_opacity_logits);
+        // One pass writes the filtered values in place and keeps only the partial derivatives.
+        g.log_scales.resize(n, [0.0; 3]);
+        g.opacity_logits.resize(n, 0.0);
+        self.partials.resize(n, Partials::default());
         let raw = self.spare_log_scales.par_iter().zip(&self.spare_opacity_logits).zip(&self.variances);
-        let rows: Vec<Filtered<f32>> = raw.map(|((l, &o), &s2)| filter_one(*l, o, s2)).collect();
-        g.log_scales.clear();
-        g.log_scales.extend(rows.iter().map(|f| f.log_scales));
-        g.opacity_logits.clear();
-        g.opacity_logits.extend(rows.iter().map(|f| f.logit));
-        self.partials = rows;
+        let out = g.log_scales.par_iter_mut().zip(g.opacity_logits.par_iter_mut()).zip(self.partials.par_iter_mut());
+        out.zip(raw).for_each(|(((l_out, o_out), p_out), ((l, &o), &s2))| {
+            let f = filter_one(*l, o, s2);
+            (*l_out, *o_out, *p_out) = (f.log_scales, f.logit, f.partials);
+        });
         self.applied = true;
         Ok(())
     }
@@ -96,10 +109,10 @@ impl Smoothing {
             return Err(TrainError::InvalidConfig("3D smoothing: gradients do not match the filtered Gaussians".into()));
         }
         let rows = grads.log_scales.par_iter_mut().zip(grads.opacity_logits.par_iter_mut()).zip(&self.partials);
-        rows.for_each(|((gl, go), f)| {
+        rows.for_each(|((gl, go), p)| {
             let g_logit = *go;
-            *gl = std::array::from_fn(|i| gl[i] * f.scale_scale[i] + g_logit * f.logit_scale[i]);
-            *go = g_logit * f.logit_logit;
+            *gl = std::array::from_fn(|i| gl[i] * p.scale_scale[i] + g_logit * p.logit_scale[i]);
+            *go = g_logit * p.logit_logit;
         });
         Ok(())
     }
@@ -112,13 +125,10 @@ impl Smoothing {
         }
     }
 
-    /// Refuses variances that do not match `n` Gaussians or are not finite and non-negative.
+    /// Refuses variances that do not match `n` Gaussians (their values were checked on entry).
     fn check_rows(&self, n: usize) -> Result<()> {
         if self.variances.len() != n {
             return Err(TrainError::InvalidConfig(format!("3D smoothing: {} variances for {n} Gaussians", self.variances.len())));
-        }
-        if let Some(v) = self.variances.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
-            return Err(TrainError::InvalidConfig(format!("3D smoothing: variance {v} is not a finite, non-negative number")));
         }
         Ok(())
     }
@@ -227,6 +237,14 @@ pub struct Filtered<R> {
     pub log_scales: [R; 3],
     /// logit(σ(o)·c), c = Πᵢ √(σᵢ² / (σᵢ² + s²)).
     pub logit: R,
+    /// The partial derivatives of the filtered values with respect to the raw ones.
+    pub partials: Partials<R>,
+}
+
+/// The partial derivatives of one Gaussian's filtered log-scales l' and logit o' with respect
+/// to its raw l and o (what [`Smoothing::chain`] keeps between the render and the backward).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Partials<R> {
     /// ∂l'ᵢ/∂lᵢ = σᵢ²/(σᵢ² + s²).
     pub scale_scale: [R; 3],
     /// ∂o'/∂lᵢ = s²/((σᵢ² + s²)(1 − σ(o)·c)).
@@ -260,9 +278,11 @@ pub fn filter_one<R: Real>(l: [R; 3], o: R, s2: R) -> Filtered<R> {
     Filtered {
         log_scales: ln_w.map(|x| half * x),
         logit: (o - sp) + ln_c - rest.ln(),
-        scale_scale: std::array::from_fn(|i| v[i] * share(i)),
-        logit_scale: std::array::from_fn(|i| s2 * share(i) * inv),
-        logit_logit: if rest > zero { q * inv } else { one },
+        partials: Partials {
+            scale_scale: std::array::from_fn(|i| v[i] * share(i)),
+            logit_scale: std::array::from_fn(|i| s2 * share(i) * inv),
+            logit_logit: if rest > zero { q * inv } else { one },
+        },
     }
 }
 
@@ -278,8 +298,8 @@ mod tests {
 
     /// ∂L/∂(l, o) of that loss through the partials.
     fn chain_rule(ls: [f64; 3], o: f64, s2: f64, a: [f64; 3], b: f64) -> ([f64; 3], f64) {
-        let f = filter_one(ls, o, s2);
-        (std::array::from_fn(|i| a[i] * f.scale_scale[i] + b * f.logit_scale[i]), b * f.logit_logit)
+        let p = filter_one(ls, o, s2).partials;
+        (std::array::from_fn(|i| a[i] * p.scale_scale[i] + b * p.logit_scale[i]), b * p.logit_logit)
     }
 
     fn filtered(ls: [f64; 3], o: f64, s2: f64) -> ([f64; 3], f64) {
@@ -337,9 +357,9 @@ mod tests {
         for (l, o, s2) in [([-3.0f32, -2.5, -6.0], 0.3f32, 0.01f32), ([-12.0, -11.0, -15.0], 9.0, 1e-7), ([0.5, 0.2, -1.0], -15.0, 3.0)] {
             let (a, b) = (filter_one(l, o, s2), filter_one(l.map(f64::from), f64::from(o), f64::from(s2)));
             let close = |x: f32, y: f64| (f64::from(x) - y).abs() <= 2e-5 * (1.0 + y.abs());
-            assert!((0..3).all(|i| close(a.log_scales[i], b.log_scales[i]) && close(a.scale_scale[i], b.scale_scale[i])));
-            assert!((0..3).all(|i| close(a.logit_scale[i], b.logit_scale[i])), "{a:?} {b:?}");
-            assert!(close(a.logit, b.logit) && close(a.logit_logit, b.logit_logit), "{a:?} {b:?}");
+            assert!((0..3).all(|i| close(a.log_scales[i], b.log_scales[i]) && close(a.partials.scale_scale[i], b.partials.scale_scale[i])));
+            assert!((0..3).all(|i| close(a.partials.logit_scale[i], b.partials.logit_scale[i])), "{a:?} {b:?}");
+            assert!(close(a.logit, b.logit) && close(a.partials.logit_logit, b.partials.logit_logit), "{a:?} {b:?}");
         }
     }
 
@@ -354,7 +374,7 @@ mod tests {
             sh_degree: 0,
         };
         let raw = g.clone();
-        let mut s = Smoothing::new(vec![1e-4, 0.0]);
+        let mut s = Smoothing::new(vec![1e-4, 0.0]).unwrap();
         s.apply(&mut g).unwrap();
         assert!(s.applied() && g.log_scales[0][2] > raw.log_scales[0][2] && g.opacity_logits[0] < raw.opacity_logits[0]);
         assert_eq!(s.raw(&g), (&raw.log_scales[..], &raw.opacity_logits[..]));
@@ -362,8 +382,8 @@ mod tests {
         assert_eq!(s.raw(&g).0, &raw.log_scales[..], "applying twice filters once");
         s.revert(&mut g);
         assert_eq!(g, raw);
-        assert!(Smoothing::new(vec![1.0]).apply(&mut g).is_err(), "rows must match");
-        assert!(Smoothing::new(vec![f32::NAN, 0.0]).apply(&mut g).is_err());
+        assert!(Smoothing::new(vec![1.0]).unwrap().apply(&mut g).is_err(), "rows must match");
+        assert!(Smoothing::new(vec![f32::NAN, 0.0]).is_err() && Smoothing::new(vec![-1e-6]).is_err());
     }
 
     #[test]

@@ -119,7 +119,7 @@ fn check_scene(scene: &Scene, train_views: &[usize]) -> Result<()> {
 
 /// The budget of a run over `train_views` starting from `init`.
 fn budget_of(scene: &Scene, train_views: &[usize], config: &TrainConfig, init: &Gaussians) -> Budget {
-    let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
+    let cams = scene.cameras_of(train_views);
     Budget::of_scene(&cams, init, &config.densify, config.max_gaussians, config.near)
 }
 
@@ -194,7 +194,7 @@ impl<'s> Trainer<'s> {
         if config.source_depth_max_age > 0 && state.source_depths.is_empty() {
             state.source_depths = SourceDepths::new(train_views.len());
         }
-        let cams: Vec<&gs_core::Camera> = train_views.iter().map(|&i| &scene.views[i].camera).collect();
+        let cams = scene.cameras_of(&train_views);
         crate::smoothing::settle(&mut state, &cams, f64::from(config.near), config.smoothing_3d, false)?;
         let extent = scene.extent_of(&train_views).max(1e-9);
         let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), config.source_views, SourceSelection::RandomN)?;
@@ -389,8 +389,10 @@ impl<'s> Trainer<'s> {
         let refined = self.executor.refine(&run, &mut self.state, &plan)?;
         let rows_changed = refined.densify.is_some() || refined.trimmed.is_some() || refined.floaters.is_some();
         let due = rows_changed || plan.iteration % crate::smoothing::RECOMPUTE_EVERY == 0;
-        let cams: Vec<&gs_core::Camera> = self.train_views.iter().map(|&i| &self.scene.views[i].camera).collect();
-        crate::smoothing::settle(&mut self.state, &cams, f64::from(self.config.near), self.config.smoothing_3d, due)?;
+        if self.config.smoothing_3d > 0.0 || self.state.smoothing.is_some() {
+            let cams = self.scene.cameras_of(&self.train_views);
+            crate::smoothing::settle(&mut self.state, &cams, f64::from(self.config.near), self.config.smoothing_3d, due)?;
+        }
         let phase = crate::checkpoint::Elapsed::phase_of(&self.config, plan.iteration);
         self.profile.add(phase, Part::Refine, clock.lap());
         self.profile.finish_iteration(phase, whole.lap());

@@ -25,7 +25,7 @@ fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
 
     let mut trainer = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
     let mut state: TrainState = trainer.state().clone();
-    let cams: Vec<&gs_core::Camera> = train.iter().map(|&i| &scene.views[i].camera).collect();
+    let cams = scene.cameras_of(&train);
     let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), cfg.source_views, SourceSelection::RandomN).unwrap();
     let mut executor = ReferenceExecutor::new(Rasterizer::new(Backend::Cpu).unwrap(), train.len(), cfg.losses.photometric);
     let budget = trainer.budget().clone();

@@ -120,8 +120,8 @@ fn the_3d_filter_resumes_bit_identically_and_rests_filtered() {
     resumed.run(|_, _| true).unwrap();
     assert_eq!(resumed.state(), straight.state(), "parameters, optimiser, statistics and filter must match bit for bit");
     let (g, s) = (straight.gaussians(), straight.state().smoothing.as_ref().unwrap());
-    assert!(s.applied() && s.variances.iter().all(|v| *v > 0.0));
-    for (ls, v) in g.log_scales.iter().zip(&s.variances) {
+    assert!(s.applied() && s.variances().iter().all(|v| *v > 0.0));
+    for (ls, v) in g.log_scales.iter().zip(s.variances()) {
         assert!(ls.iter().all(|l| 2.0 * l >= v.ln() - 1e-4), "{ls:?} thinner than the filter's {v}");
     }
 }
@@ -143,6 +143,25 @@ fn a_source_depth_that_does_not_fill_its_rows_is_refused() {
     bytes[body..].copy_from_slice(&crc.to_le_bytes());
     let e = checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).unwrap_err().to_string();
     assert!(e.contains("ck.bin") && e.contains("source depth of training view 0"), "{e}");
+}
+
+/// A crafted checkpoint (valid checksum) whose 3D-filter variance is NaN is refused when read,
+/// naming the file, not later when training resumes.
+#[test]
+fn a_smoothing_variance_that_is_not_finite_is_refused_naming_the_file() {
+    let scene = small_scene();
+    let t = three_iterations(&scene);
+    let mut state = t.state().clone();
+    state.smoothing = Some(gs_train::smoothing::Smoothing::new(vec![1e-4; state.gaussians.len()]).unwrap());
+    let mut bytes = checkpoint::encode(t.config(), &state, &Elapsed::default());
+    assert!(checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).is_ok(), "the valid file loads");
+    // The last variance is the f32 before the 4-byte checksum.
+    let body = bytes.len() - 4;
+    bytes[body - 4..body].copy_from_slice(&f32::NAN.to_le_bytes());
+    let crc = gs_features::weights::crc32(&bytes[..body]);
+    bytes[body..].copy_from_slice(&crc.to_le_bytes());
+    let e = checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).unwrap_err().to_string();
+    assert!(e.contains("ck.bin") && e.contains("3D smoothing: variance NaN"), "{e}");
 }
 
 /// Found by the `checkpoint` fuzz target: an optimiser group's row width (a u64 of the file)

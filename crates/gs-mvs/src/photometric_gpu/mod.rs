@@ -373,9 +373,7 @@ mod tests {
     #[test]
     fn records_match_their_wgsl_layout() {
         let src = ncc_kernel_source();
-        for g in generated_structs() {
-            (g.check)(&src).unwrap();
-        }
+        gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
         assert_eq!(gs_gpu::bytes_of::<PixelNormal>(1), 12);
     }
 }

@@ -415,9 +415,7 @@ mod tests {
             let src = kernel_source(&sources(&decls, &s), &s.bindings);
             // gs-gpu's prelude declares `Pass`; the rest come from this crate's list.
             check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            for g in generated_structs() {
-                (g.check)(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            }
+            gs_gpu::check_layouts(&generated_structs(), &src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
         }
         assert_eq!(std::mem::size_of::<CamUniform>(), 144);
         assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);
