@@ -23,7 +23,8 @@ pub struct DensifyStats {
     pub grad_sum: Vec<f32>,
     /// Σ over views of the AbsGS norm ‖(Σ|∂L/∂x|, Σ|∂L/∂y|)‖.
     pub abs_grad_sum: Vec<f32>,
-    /// Views in which the Gaussian was visible (radius > 0).
+    /// Views in which the Gaussian was visible (radius > 0); with Pixel-GS's weights
+    /// (`DensifyConfig::pixel_weighted`) the pixels where it was seen in front, summed over views.
     pub visible_count: Vec<u32>,
     /// Largest screen radius seen, pixels.
     pub max_radius: Vec<f32>,
@@ -59,13 +60,17 @@ impl DensifyStats {
     }
 
     /// Adds one view's gradients for the Gaussians visible in it (radius > 0); the view was
-    /// rendered at 1/`scale` of the training size, so its radii count `scale` times.
-    pub fn accumulate(&mut self, radii: &[u32], grads: &GaussianGradients, scale: f32) {
+    /// rendered at 1/`scale` of the training size, so its radii count `scale` times. With
+    /// `pixels` (the render's observed counts: Pixel-GS's weights), each gradient counts as many
+    /// times as the Gaussian has pixels in front, so the means become pixel-weighted means.
+    pub fn accumulate(&mut self, radii: &[u32], pixels: Option<&[u32]>, grads: &GaussianGradients, scale: f32) {
         for (i, &r) in radii.iter().enumerate() {
             if r > 0 {
-                self.grad_sum[i] += grads.mean2d_norm(i);
-                self.abs_grad_sum[i] += grads.mean2d_abs_norm(i);
-                self.visible_count[i] += 1;
+                let weight = pixels.map_or(1, |p| p[i]);
+                let w = weight as f32;
+                self.grad_sum[i] += w * grads.mean2d_norm(i);
+                self.abs_grad_sum[i] += w * grads.mean2d_abs_norm(i);
+                self.visible_count[i] = self.visible_count[i].saturating_add(weight);
                 self.max_radius[i] = self.max_radius[i].max(r as f32 * scale);
             }
         }
@@ -274,6 +279,49 @@ mod tests {
             adam.add_group(p.name(), 1e-3, n, p.row_width()).unwrap();
         }
         (g, adam)
+    }
+
+    /// Gradients whose screen-space norms are `norms` (the same for the AbsGS sum).
+    fn screen_grads(norms: &[f32]) -> GaussianGradients {
+        let n = norms.len();
+        GaussianGradients {
+            means: vec![[0.0; 3]; n],
+            log_scales: vec![[0.0; 3]; n],
+            rotations: vec![[0.0; 4]; n],
+            opacity_logits: vec![0.0; n],
+            sh: vec![[[0.0; 3]; 16]; n],
+            mean2d: norms.iter().map(|&g| [0.6 * g, 0.8 * g]).collect(),
+            mean2d_abs: norms.iter().map(|&g| [0.0, g]).collect(),
+        }
+    }
+
+    /// A Gaussian with a large gradient in the view it covers (100 pixels) and none in three
+    /// views that graze it (1 pixel each) crosses the threshold only with Pixel-GS's weights.
+    #[test]
+    fn pixel_weights_judge_a_gaussian_by_the_views_it_covers() {
+        let cfg = DensifyConfig::default();
+        let (covered, grazing) = (screen_grads(&[5e-4]), screen_grads(&[0.0]));
+        let (mut views, mut pixels) = (DensifyStats::new(1), DensifyStats::new(1));
+        views.accumulate(&[9], None, &covered, 1.0);
+        pixels.accumulate(&[9], Some(&[100]), &covered, 1.0);
+        for _ in 0..3 {
+            views.accumulate(&[2], None, &grazing, 1.0);
+            pixels.accumulate(&[2], Some(&[1]), &grazing, 1.0);
+        }
+        assert_eq!((views.visible_count[0], pixels.visible_count[0]), (4, 103));
+        let mean = |st: &DensifyStats| st.grad_sum[0] / st.visible_count[0] as f32;
+        assert!((mean(&views) - 1.25e-4).abs() < 1e-9 && mean(&views) < cfg.grad_threshold);
+        assert!((mean(&pixels) - 5e-4 * 100.0 / 103.0).abs() < 1e-9 && mean(&pixels) >= cfg.grad_threshold);
+        assert_eq!(pixels.max_radius[0], 9.0);
+        // A view in which no pixel shows it in front adds nothing but its radius.
+        pixels.accumulate(&[30], Some(&[0]), &covered, 1.0);
+        assert_eq!((pixels.visible_count[0], pixels.max_radius[0]), (103, 30.0));
+        // Unit weights are the plain per-view sums, bit for bit.
+        let mut ones = DensifyStats::new(1);
+        ones.accumulate(&[9], Some(&[1]), &covered, 1.0);
+        let mut plain = DensifyStats::new(1);
+        plain.accumulate(&[9], None, &covered, 1.0);
+        assert_eq!(ones, plain);
     }
 
     #[test]

@@ -264,7 +264,7 @@ impl StepExecutor for ReferenceExecutor {
         }
         profile.add(phase, Part::Backward, clock.lap());
         if plan.refine.accumulate {
-            state.stats.accumulate(&out.radii, &g, plan.scale as f32);
+            state.stats.accumulate(&out.radii, out.observed.as_deref(), &g, plan.scale as f32);
         }
         adam_step(&mut state.adam, &mut state.gaussians, &g, it)?;
         profile.add(phase, Part::Optimizer, clock.lap());

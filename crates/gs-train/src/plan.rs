@@ -127,6 +127,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         seed: rng.next_u64(),
     });
     let geometry = phase.needs_geometry();
+    let d = &config.densify;
     let render = RenderRequest {
         color: true,
         alpha: phase.normal_consistency || phase.normal_smoothing,
@@ -134,7 +135,8 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         distance: geometry,
         plane_depth: geometry,
         expected_depth: false,
-        observed: false,
+        // Pixel-GS's weights ([`crate::densify::DensifyStats::accumulate`]) while statistics gather.
+        observed: d.pixel_weighted && it <= d.until,
         geometry_cut: 0.0,
     };
     let w = &config.weights;
@@ -148,7 +150,6 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         tau: w.tau,
         lambda_o: if it > config.warmup_end { w.lambda_o } else { 0.0 },
     };
-    let d = &config.densify;
     let mut refine = if it <= d.until {
         RefinePlan {
             accumulate: true,

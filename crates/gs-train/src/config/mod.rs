@@ -226,6 +226,12 @@ pub struct DensifyConfig {
     /// everywhere.
     #[serde(default)]
     pub region: Option<crate::region::GrowthRegion>,
+    /// Pixel-GS's statistics: each view's screen-space gradient counts in proportion to the
+    /// pixels where the Gaussian is seen in front (transmittance above ½) instead of once per
+    /// view, so that a large Gaussian is judged by the views it covers, not diluted by those
+    /// that graze it (docs/method.md §Densification). Off by default.
+    #[serde(default)]
+    pub pixel_weighted: bool,
 }
 
 fn default_gaussians_per_surface_pixel() -> f32 {
@@ -257,6 +263,7 @@ impl Default for DensifyConfig {
             growth_window: default_growth_window(),
             floaters: crate::floaters::FloaterRule::default(),
             region: None,
+            pixel_weighted: false,
         }
     }
 }
