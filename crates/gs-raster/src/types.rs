@@ -271,7 +271,7 @@ pub struct GaussianGradients {
 
 impl GaussianGradients {
     /// All-zero gradients of `n` Gaussians.
-    pub(crate) fn zeros(n: usize) -> Self {
+    pub fn zeros(n: usize) -> Self {
         Self {
             means: vec![[0.0; 3]; n],
             log_scales: vec![[0.0; 3]; n],

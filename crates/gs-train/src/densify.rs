@@ -283,15 +283,10 @@ mod tests {
 
     /// Gradients whose screen-space norms are `norms` (the same for the AbsGS sum).
     fn screen_grads(norms: &[f32]) -> GaussianGradients {
-        let n = norms.len();
         GaussianGradients {
-            means: vec![[0.0; 3]; n],
-            log_scales: vec![[0.0; 3]; n],
-            rotations: vec![[0.0; 4]; n],
-            opacity_logits: vec![0.0; n],
-            sh: vec![[[0.0; 3]; 16]; n],
             mean2d: norms.iter().map(|&g| [0.6 * g, 0.8 * g]).collect(),
             mean2d_abs: norms.iter().map(|&g| [0.0, g]).collect(),
+            ..GaussianGradients::zeros(norms.len())
         }
     }
 
