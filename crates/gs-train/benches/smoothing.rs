@@ -32,13 +32,9 @@ fn bench(c: &mut Criterion) {
     group.bench_function("variances_35_views", |b| b.iter(|| variances(&g, &refs, 0.01, 0.2)));
     let mut s = Smoothing::new(variances(&g, &refs, 0.01, 0.2)).unwrap();
     let mut grads = gs_raster::GaussianGradients {
-        means: vec![[0.0; 3]; N],
         log_scales: vec![[1e-3, -2e-3, 5e-4]; N],
-        rotations: vec![[0.0; 4]; N],
         opacity_logits: vec![1e-3; N],
-        sh: vec![[[0.0; 3]; 16]; N],
-        mean2d: vec![[0.0; 2]; N],
-        mean2d_abs: vec![[0.0; 2]; N],
+        ..gs_raster::GaussianGradients::zeros(N)
     };
     group.bench_function("apply_chain_revert", |b| {
         b.iter(|| {

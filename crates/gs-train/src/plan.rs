@@ -128,6 +128,8 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
     });
     let geometry = phase.needs_geometry();
     let d = &config.densify;
+    // Density control gathers its statistics up to `until`.
+    let gathering = it <= d.until;
     let render = RenderRequest {
         color: true,
         alpha: phase.normal_consistency || phase.normal_smoothing,
@@ -135,8 +137,8 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         distance: geometry,
         plane_depth: geometry,
         expected_depth: false,
-        // Pixel-GS's weights ([`crate::densify::DensifyStats::accumulate`]) while statistics gather.
-        observed: d.pixel_weighted && it <= d.until,
+        // Pixel-GS's weights ([`crate::densify::DensifyStats::accumulate`]).
+        observed: d.pixel_weighted && gathering,
         geometry_cut: 0.0,
     };
     let w = &config.weights;
@@ -150,7 +152,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         tau: w.tau,
         lambda_o: if it > config.warmup_end { w.lambda_o } else { 0.0 },
     };
-    let mut refine = if it <= d.until {
+    let mut refine = if gathering {
         RefinePlan {
             accumulate: true,
             densify: it > d.from && it % d.interval == 0,
