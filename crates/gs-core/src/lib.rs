@@ -36,7 +36,7 @@ pub use error::{CoreError, Result};
 pub use gaussians::Gaussians;
 pub use image::Image;
 pub use mesh::TriangleMesh;
-pub use optim::{Adam, AdamConfig, ExponentialLr};
+pub use optim::{Adam, AdamConfig, ExponentialLr, GroupStep, Param};
 pub use rng::Rng;
 pub use extent::{ExtentBasis, ExtentReport, extent_report, scene_extent};
 pub use point::ScenePoint;

@@ -42,6 +42,73 @@ pub struct ParamGroup {
     pub v: Vec<f32>,
 }
 
+/// The bias-corrected factors of one Adam step of a group: `p -= step_size·m / (√v / bc2_sqrt
+/// + ε)`. Computed once per group and step (in f64, as PyTorch does), then applied per scalar
+/// by [`Adam::step_strided`] or by a device twin of it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GroupStep {
+    /// lr / (1 − β1^t).
+    pub step_size: f32,
+    /// √(1 − β2^t).
+    pub bc2_sqrt: f32,
+}
+
+impl ParamGroup {
+    /// Counts one more step of this group and returns its bias-corrected factors.
+    pub fn begin_step(&mut self, cfg: &AdamConfig) -> GroupStep {
+        self.step += 1;
+        let t = self.step.min(i32::MAX as u64) as i32;
+        let bc1 = 1.0 - (cfg.beta1 as f64).powi(t);
+        let bc2 = 1.0 - (cfg.beta2 as f64).powi(t);
+        GroupStep { step_size: (self.lr as f64 / bc1) as f32, bc2_sqrt: bc2.sqrt() as f32 }
+    }
+}
+
+/// One optimised parameter array of the Gaussians (an Adam group of a training run): the
+/// typed layout that the trainer, its checkpoints and a device optimiser share.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Param {
+    /// Means μ (3 per Gaussian).
+    Means,
+    /// SH DC coefficients (3).
+    ShDc,
+    /// SH coefficients of degrees 1–3 (45).
+    ShRest,
+    /// Opacity logits (1).
+    Opacity,
+    /// Log-scales (3).
+    LogScales,
+    /// Rotation quaternions (4).
+    Rotations,
+}
+
+impl Param {
+    /// Every parameter, in the order of the optimiser groups (and of checkpoints).
+    pub const ALL: [Param; 6] = [Param::Means, Param::ShDc, Param::ShRest, Param::Opacity, Param::LogScales, Param::Rotations];
+
+    /// The optimiser group's name (stored in checkpoints).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Param::Means => "means",
+            Param::ShDc => "sh_dc",
+            Param::ShRest => "sh_rest",
+            Param::Opacity => "opacity",
+            Param::LogScales => "log_scales",
+            Param::Rotations => "rotations",
+        }
+    }
+
+    /// Scalars per Gaussian.
+    pub const fn row_width(self) -> usize {
+        match self {
+            Param::Means | Param::ShDc | Param::LogScales => 3,
+            Param::ShRest => 3 * (crate::sh::SH_COEFFS - 1),
+            Param::Opacity => 1,
+            Param::Rotations => 4,
+        }
+    }
+}
+
 /// Adam over named parameter groups.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Adam {
@@ -107,11 +174,7 @@ impl Adam {
                 grads.len(),
             )));
         }
-        g.step += 1;
-        let bc1 = 1.0 - (cfg.beta1 as f64).powi(g.step.min(i32::MAX as u64) as i32);
-        let bc2 = 1.0 - (cfg.beta2 as f64).powi(g.step.min(i32::MAX as u64) as i32);
-        let step_size = (g.lr as f64 / bc1) as f32;
-        let bc2_sqrt = bc2.sqrt() as f32;
+        let GroupStep { step_size, bc2_sqrt } = g.begin_step(&cfg);
         // Element-wise, so the parallel split cannot change a single bit of the result.
         const ROWS_PER_TASK: usize = 4096;
         params

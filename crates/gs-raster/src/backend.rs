@@ -114,6 +114,15 @@ impl Rasterizer {
         }
     }
 
+    /// The wgpu rasterizer, when this one runs on wgpu (resident training, timings).
+    #[cfg(feature = "wgpu")]
+    pub fn wgpu_mut(&mut self) -> Option<&mut crate::gpu::WgpuRasterizer> {
+        match &mut self.inner {
+            Inner::Cpu => None,
+            Inner::Wgpu(r) => Some(r),
+        }
+    }
+
     /// Renders like [`crate::render`].
     pub fn render(
         &mut self,

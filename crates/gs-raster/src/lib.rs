@@ -42,7 +42,10 @@
 //!   it keeps its device, pipelines and (geometrically growing) buffers across calls. The
 //!   forward state of its latest render stays on the device (`backward` right after `render`
 //!   is the fast path; an older render's state is rebuilt by one extra forward); mixing
-//!   backends or rasterizers is an [`RasterError::InvalidGradients`].
+//!   backends or rasterizers is an [`RasterError::InvalidGradients`]. A training run can keep
+//!   its model resident ([`WgpuRasterizer::make_resident`]): renders then bind the device's
+//!   parameters without an upload, and [`WgpuRasterizer::backward_and_step`] runs the backward
+//!   and the Adam step (the twin of gs-core's) on the device.
 //!   Parity with the CPU backend (tests/wgpu_parity.rs): images within 1e-4, gradients within
 //!   1e-3 relative (+ a 1e-5·max floor), apart from the rare pixel where an ulp-level
 //!   difference flips a discrete decision (α ≥ 1/255, the transmittance stop, T > 0.5).
@@ -80,12 +83,13 @@ pub use cpu::project::{JACOBIAN_CLAMP, LOW_PASS, MIN_COMPENSATION};
 pub use cpu::{backward, render, render_naive};
 #[cfg(feature = "wgpu")]
 pub use gpu::{
-    CallTimings, GpuTimings, WgpuOptions, WgpuRasterizer, hardware_adapter_available, probe_adapter,
+    CallTimings, DeviceStep, GpuTimings, StepExtras, WgpuOptions, WgpuRasterizer,
+    hardware_adapter_available, probe_adapter,
 };
 pub use types::{
     ALPHA_THRESHOLD, ForwardState, GaussianGradients, MAX_ALPHA, OBSERVE_T, OutputGradients,
     PLANE_DEPTH_EPS, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats,
-    Result, T_STOP, TILE_SIZE,
+    Result, T_STOP, TILE_SIZE, adam_step, screen_norm,
 };
 pub(crate) use types::StateInner;
 

@@ -285,13 +285,33 @@ impl GaussianGradients {
 
     /// ‖∂L/∂mean2d‖ of Gaussian `i` (NDC units).
     pub fn mean2d_norm(&self, i: usize) -> f32 {
-        let [x, y] = self.mean2d[i];
-        (x * x + y * y).sqrt()
+        screen_norm(self.mean2d[i])
     }
 
     /// ‖(Σ|∂L/∂x|, Σ|∂L/∂y|)‖ of Gaussian `i` (AbsGS, NDC units).
     pub fn mean2d_abs_norm(&self, i: usize) -> f32 {
-        let [x, y] = self.mean2d_abs[i];
-        (x * x + y * y).sqrt()
+        screen_norm(self.mean2d_abs[i])
     }
+}
+
+/// One Adam step of every parameter of `g` on the host with the gradients `grads`: the CPU
+/// twin of the wgpu backend's resident step (`WgpuRasterizer::backward_and_step`). `adam` has
+/// one group per [`gs_core::Param`], by name; the SH DC and SH rest groups are updated in
+/// place inside the Gaussians' 48-float SH records.
+pub fn adam_step(adam: &mut gs_core::Adam, g: &mut gs_core::Gaussians, grads: &GaussianGradients) -> gs_core::Result<()> {
+    use gs_core::Param;
+    adam.step(Param::Means.name(), g.means.as_flattened_mut(), grads.means.as_flattened())?;
+    let stride = 3 * gs_core::sh::SH_COEFFS;
+    let (sh, sh_grads) = (g.sh.as_flattened_mut().as_flattened_mut(), grads.sh.as_flattened().as_flattened());
+    adam.step_strided(Param::ShDc.name(), sh, sh_grads, stride, 0)?;
+    adam.step_strided(Param::ShRest.name(), sh, sh_grads, stride, 3)?;
+    adam.step(Param::Opacity.name(), &mut g.opacity_logits, &grads.opacity_logits)?;
+    adam.step(Param::LogScales.name(), g.log_scales.as_flattened_mut(), grads.log_scales.as_flattened())?;
+    adam.step(Param::Rotations.name(), g.rotations.as_flattened_mut(), grads.rotations.as_flattened())
+}
+
+/// The length of a screen-space gradient (x, y): what densification compares with its
+/// thresholds.
+pub fn screen_norm([x, y]: [f32; 2]) -> f32 {
+    (x * x + y * y).sqrt()
 }

@@ -58,13 +58,9 @@ impl RenderRequest {
     }
 }
 
-/// Validates the inputs of a render or backward and returns the f32 camera constants.
-pub(crate) fn check_inputs(
-    g: &Gaussians,
-    camera: &Camera,
-    cfg: &RasterConfig,
-) -> Result<CamParams> {
-    cfg.validate()?;
+/// Checks that the Gaussians' arrays agree in length, fit the u32 index range and have a
+/// supported SH degree.
+pub(crate) fn check_gaussians(g: &Gaussians) -> Result<()> {
     let n = g.means.len();
     let lens = [
         g.log_scales.len(),
@@ -89,6 +85,17 @@ pub(crate) fn check_inputs(
             g.sh_degree
         )));
     }
+    Ok(())
+}
+
+/// Validates the inputs of a render or backward and returns the f32 camera constants.
+pub(crate) fn check_inputs(
+    g: &Gaussians,
+    camera: &Camera,
+    cfg: &RasterConfig,
+) -> Result<CamParams> {
+    cfg.validate()?;
+    check_gaussians(g)?;
     let (w, h) = (camera.width as usize, camera.height as usize);
     if w == 0 || h == 0 {
         return Err(RasterError::InvalidCamera(format!(

@@ -8,7 +8,6 @@ use crate::error::Result;
 use gs_core::gaussians::{inverse_sigmoid, rotation_matrix, sigmoid};
 use gs_core::glam::Vec3;
 use gs_core::{Adam, Gaussians, Rng};
-use gs_raster::GaussianGradients;
 use serde::Serialize;
 
 /// Split factor of the scales: a split Gaussian's children have scales ÷ 1.6 (0.8·2).
@@ -63,13 +62,13 @@ impl DensifyStats {
     /// rendered at 1/`scale` of the training size, so its radii count `scale` times. With
     /// `pixels` (the render's observed counts: Pixel-GS's weights), each gradient counts as many
     /// times as the Gaussian has pixels in front, so the means become pixel-weighted means.
-    pub fn accumulate(&mut self, radii: &[u32], pixels: Option<&[u32]>, grads: &GaussianGradients, scale: f32) {
+    pub fn accumulate(&mut self, radii: &[u32], pixels: Option<&[u32]>, mean2d: &[[f32; 2]], mean2d_abs: &[[f32; 2]], scale: f32) {
         for (i, &r) in radii.iter().enumerate() {
             if r > 0 {
                 let weight = pixels.map_or(1, |p| p[i]);
                 let w = weight as f32;
-                self.grad_sum[i] += w * grads.mean2d_norm(i);
-                self.abs_grad_sum[i] += w * grads.mean2d_abs_norm(i);
+                self.grad_sum[i] += w * gs_raster::screen_norm(mean2d[i]);
+                self.abs_grad_sum[i] += w * gs_raster::screen_norm(mean2d_abs[i]);
                 self.visible_count[i] = self.visible_count[i].saturating_add(weight);
                 self.max_radius[i] = self.max_radius[i].max(r as f32 * scale);
             }
@@ -282,11 +281,11 @@ mod tests {
     }
 
     /// Gradients whose screen-space norms are `norms` (the same for the AbsGS sum).
-    fn screen_grads(norms: &[f32]) -> GaussianGradients {
-        GaussianGradients {
+    fn screen_grads(norms: &[f32]) -> gs_raster::GaussianGradients {
+        gs_raster::GaussianGradients {
             mean2d: norms.iter().map(|&g| [0.6 * g, 0.8 * g]).collect(),
             mean2d_abs: norms.iter().map(|&g| [0.0, g]).collect(),
-            ..GaussianGradients::zeros(norms.len())
+            ..gs_raster::GaussianGradients::zeros(norms.len())
         }
     }
 
@@ -297,11 +296,11 @@ mod tests {
         let cfg = DensifyConfig::default();
         let (covered, grazing) = (screen_grads(&[5e-4]), screen_grads(&[0.0]));
         let (mut views, mut pixels) = (DensifyStats::new(1), DensifyStats::new(1));
-        views.accumulate(&[9], None, &covered, 1.0);
-        pixels.accumulate(&[9], Some(&[100]), &covered, 1.0);
+        views.accumulate(&[9], None, &covered.mean2d, &covered.mean2d_abs, 1.0);
+        pixels.accumulate(&[9], Some(&[100]), &covered.mean2d, &covered.mean2d_abs, 1.0);
         for _ in 0..3 {
-            views.accumulate(&[2], None, &grazing, 1.0);
-            pixels.accumulate(&[2], Some(&[1]), &grazing, 1.0);
+            views.accumulate(&[2], None, &grazing.mean2d, &grazing.mean2d_abs, 1.0);
+            pixels.accumulate(&[2], Some(&[1]), &grazing.mean2d, &grazing.mean2d_abs, 1.0);
         }
         assert_eq!((views.visible_count[0], pixels.visible_count[0]), (4, 103));
         let mean = |st: &DensifyStats| st.grad_sum[0] / st.visible_count[0] as f32;
@@ -309,13 +308,13 @@ mod tests {
         assert!((mean(&pixels) - 5e-4 * 100.0 / 103.0).abs() < 1e-9 && mean(&pixels) >= cfg.grad_threshold);
         assert_eq!(pixels.max_radius[0], 9.0);
         // A view in which no pixel shows it in front adds nothing but its radius.
-        pixels.accumulate(&[30], Some(&[0]), &covered, 1.0);
+        pixels.accumulate(&[30], Some(&[0]), &covered.mean2d, &covered.mean2d_abs, 1.0);
         assert_eq!((pixels.visible_count[0], pixels.max_radius[0]), (103, 30.0));
         // Unit weights are the plain per-view sums, bit for bit.
         let mut ones = DensifyStats::new(1);
-        ones.accumulate(&[9], Some(&[1]), &covered, 1.0);
+        ones.accumulate(&[9], Some(&[1]), &covered.mean2d, &covered.mean2d_abs, 1.0);
         let mut plain = DensifyStats::new(1);
-        plain.accumulate(&[9], None, &covered, 1.0);
+        plain.accumulate(&[9], None, &covered.mean2d, &covered.mean2d_abs, 1.0);
         assert_eq!(ones, plain);
     }
 

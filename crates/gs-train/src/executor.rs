@@ -58,6 +58,11 @@ pub trait StepExecutor {
 
     /// The density control that `plan` schedules after its step ([`crate::refine`]).
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport>;
+
+    /// Brings into `state` whatever the executor keeps on its device (the Adam moments of a
+    /// resident model) and ends the residency, so that the host may read or change the
+    /// state; the next [`StepExecutor::execute`] takes the state up again.
+    fn sync(&mut self, state: &mut TrainState) -> Result<()>;
 }
 
 /// The reference executor: a rasterizer, the per-view caches and the loss terms' device kernels
@@ -71,20 +76,28 @@ pub struct ReferenceExecutor {
     devices: LossDevices,
     /// Why the terms run on the CPU although the rasterizer runs on wgpu, if they do.
     devices_error: Option<String>,
+    /// Whether Adam runs on the rasterizer's device with the model resident there (a wgpu
+    /// rasterizer and no 3D smoothing filter, which works on the host's parameters).
+    adam_on_device: bool,
 }
 
 impl ReferenceExecutor {
     /// An executor on `rasterizer` for `views` training views; the loss terms go to its device
-    /// when it has one (L_p's kernel only when `photometric`).
-    pub fn new(rasterizer: Rasterizer, views: usize, photometric: bool) -> Self {
+    /// when it has one (L_p's kernel only when `photometric`), and Adam too unless `smoothing`
+    /// (the 3D filter) is on.
+    pub fn new(rasterizer: Rasterizer, views: usize, photometric: bool, smoothing: bool) -> Self {
         let (devices, devices_error) = devices_of(&rasterizer, photometric);
-        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error }
+        let adam_on_device = rasterizer.backend() == gs_raster::Backend::Wgpu && !smoothing;
+        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device }
     }
 
-    /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches.
-    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, photometric: bool) {
-        (self.devices, self.devices_error) = devices_of(&rasterizer, photometric);
-        self.rasterizer = rasterizer;
+    /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches; `state`
+    /// first receives what the old rasterizer's device kept ([`StepExecutor::sync`]).
+    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, photometric: bool, smoothing: bool, state: &mut TrainState) -> Result<()> {
+        self.sync(state)?;
+        let caches = std::mem::replace(&mut self.caches, ViewCaches::new(0));
+        *self = Self { caches, ..Self::new(rasterizer, 0, photometric, smoothing) };
+        Ok(())
     }
 
     /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device
@@ -98,14 +111,16 @@ impl ReferenceExecutor {
     }
 
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
-    /// term on its device kernel or the CPU, Adam and density control on the CPU.
+    /// term on its device kernel or the CPU, Adam on the rasterizer's device when the model
+    /// is resident there, density control on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
         let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
         let place = |part: &str, on_device: bool| PartPlace { part: part.into(), on: if on_device { device.clone() } else { cpu.clone() } };
         let mut parts = vec![place("render and backward", true)];
         parts.extend(self.devices.term_parts().into_iter().map(|(part, on_device)| place(part, on_device)));
-        parts.extend(["Adam", "density control"].map(|part| place(part, false)));
+        parts.push(place("Adam", self.adam_on_device));
+        parts.push(place("density control", false));
         parts
     }
 
@@ -176,12 +191,56 @@ impl ReferenceExecutor {
     }
 }
 
+impl ReferenceExecutor {
+    /// Makes the model resident on the rasterizer's device when Adam runs there and it is
+    /// not resident yet (the first step, or the first after a [`StepExecutor::sync`]).
+    fn take_up(&mut self, state: &TrainState) -> Result<()> {
+        #[cfg(feature = "wgpu")]
+        if self.adam_on_device
+            && let Some(r) = self.rasterizer.wgpu_mut()
+            && !r.is_resident()
+        {
+            r.make_resident(&state.gaussians, &state.adam)?;
+        }
+        let _ = state;
+        Ok(())
+    }
+
+    /// The backward and the Adam step on the device ([`gs_raster::WgpuRasterizer::backward_and_step`]),
+    /// with the loss terms' own opacity gradient `extra_opacity`; accumulates the
+    /// densification statistics when the plan says so.
+    #[cfg(feature = "wgpu")]
+    #[allow(clippy::too_many_arguments)]
+    fn device_step(
+        &mut self,
+        run: &RunInputs<'_>,
+        state: &mut TrainState,
+        plan: &StepPlan,
+        camera: &gs_core::Camera,
+        out: &gs_raster::RenderOutput,
+        grads: &gs_raster::OutputGradients,
+        extra_opacity: Option<&[f32]>,
+    ) -> Result<()> {
+        let r = self.rasterizer.wgpu_mut().expect("Adam runs on the device only with a wgpu rasterizer");
+        let extras = gs_raster::StepExtras { extra_opacity, screen: plan.refine.accumulate };
+        let step = r.backward_and_step(&mut state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
+        if !step.means_finite {
+            return Err(TrainError::Diverged { iteration: plan.iteration, problem: "gradient of the means is not finite".into() });
+        }
+        if plan.refine.accumulate {
+            state.stats.accumulate(&out.radii, out.observed.as_deref(), &step.mean2d, &step.mean2d_abs, plan.scale as f32);
+        }
+        Ok(())
+    }
+}
+
 impl StepExecutor for ReferenceExecutor {
     fn execute(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, profile: &mut StepProfile) -> Result<LossValues> {
         let it = plan.iteration;
         let phase = crate::checkpoint::Elapsed::phase_of(run.config, it);
         let mut clock = Clock::start();
         set_lr(&mut state.adam, Param::Means, plan.lr_means)?;
+        self.take_up(state)?;
         self.prepare_caches(run, plan)?;
         let small = downscaled_camera(&run.scene.views[plan.view].camera, plan.scale)?;
         let camera = if plan.scale > 1 { &small } else { &run.scene.views[plan.view].camera };
@@ -252,22 +311,30 @@ impl StepExecutor for ReferenceExecutor {
             }
             None => grad_color,
         };
-        let mut g = self.rasterizer.backward(&state.gaussians, camera, run.raster, &out, &grads.as_output(Some(&grad_color)))?;
-        if let Some(go) = &grads.opacity_logits {
-            g.opacity_logits.iter_mut().zip(go).for_each(|(a, b)| *a += b);
+        let output_grads = grads.as_output(Some(&grad_color));
+        if cfg!(feature = "wgpu") && self.adam_on_device {
+            // Backward and Adam in one device submission: their time is the backward's.
+            #[cfg(feature = "wgpu")]
+            self.device_step(run, state, plan, camera, &out, &output_grads, grads.opacity_logits.as_deref())?;
+            profile.add(phase, Part::Backward, clock.lap());
+        } else {
+            let mut g = self.rasterizer.backward(&state.gaussians, camera, run.raster, &out, &output_grads)?;
+            if let Some(go) = &grads.opacity_logits {
+                g.opacity_logits.iter_mut().zip(go).for_each(|(a, b)| *a += b);
+            }
+            // Rendered through the 3D smoothing filter: back to the raw parameters for Adam
+            // and density control (the trainer applies the filter again after them).
+            if let Some(s) = &mut state.smoothing {
+                s.chain(&mut g)?;
+                s.revert(&mut state.gaussians);
+            }
+            profile.add(phase, Part::Backward, clock.lap());
+            if plan.refine.accumulate {
+                state.stats.accumulate(&out.radii, out.observed.as_deref(), &g.mean2d, &g.mean2d_abs, plan.scale as f32);
+            }
+            adam_step(&mut state.adam, &mut state.gaussians, &g, it)?;
+            profile.add(phase, Part::Optimizer, clock.lap());
         }
-        // Rendered through the 3D smoothing filter: back to the raw parameters for Adam and
-        // density control (the trainer applies the filter again after them).
-        if let Some(s) = &mut state.smoothing {
-            s.chain(&mut g)?;
-            s.revert(&mut state.gaussians);
-        }
-        profile.add(phase, Part::Backward, clock.lap());
-        if plan.refine.accumulate {
-            state.stats.accumulate(&out.radii, out.observed.as_deref(), &g, plan.scale as f32);
-        }
-        adam_step(&mut state.adam, &mut state.gaussians, &g, it)?;
-        profile.add(phase, Part::Optimizer, clock.lap());
         // The reference's plane depth serves later iterations as this view's source depth.
         if max_age > 0
             && plan.scale == 1
@@ -279,7 +346,23 @@ impl StepExecutor for ReferenceExecutor {
     }
 
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
+        let r = plan.refine;
+        if r.densify || r.remove_floaters || r.reset_opacity || r.trim {
+            self.sync(state)?;
+        }
         crate::refine::refine(&mut self.rasterizer, run, state, plan)
+    }
+
+    fn sync(&mut self, state: &mut TrainState) -> Result<()> {
+        #[cfg(feature = "wgpu")]
+        if let Some(r) = self.rasterizer.wgpu_mut()
+            && r.is_resident()
+        {
+            r.read_moments(&mut state.adam)?;
+            r.release_resident();
+        }
+        let _ = state;
+        Ok(())
     }
 }
 

@@ -29,6 +29,38 @@ pub struct ShBandDecision {
     pub degree: u32,
 }
 
+/// What [`update_sh_degree`] does at one iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ShMove {
+    /// The degree stays.
+    Stay,
+    /// The degree becomes this one.
+    Set(u32),
+    /// A scheduled rise past band `band`: judge whether that band pays.
+    Judge(u32),
+}
+
+/// The move from degree `current` at iteration `it`.
+fn sh_move(cfg: &TrainConfig, current: u32, it: u64) -> ShMove {
+    let scheduled = cfg.sh_degree(it);
+    let adaptive = cfg.sh_policy == ShPolicy::Adaptive && cfg.sh_degree_interval > 0 && it > 1;
+    if !adaptive || scheduled <= current {
+        return if scheduled == current { ShMove::Stay } else { ShMove::Set(scheduled) };
+    }
+    if scheduled > current + 1 || current == 0 {
+        // Behind the schedule: an earlier band did not pay, the degree stays. Degree 0 → 1:
+        // band 1 is always tried.
+        return if current == 0 && scheduled == 1 { ShMove::Set(1) } else { ShMove::Stay };
+    }
+    ShMove::Judge(current)
+}
+
+/// Whether [`update_sh_degree`] changes anything at iteration `it` from degree `current`
+/// (another degree, or a band judged and maybe its moments zeroed).
+pub(crate) fn acts(cfg: &TrainConfig, current: u32, it: u64) -> bool {
+    sh_move(cfg, current, it) != ShMove::Stay
+}
+
 /// Sets the SH degree of iteration `it` from the schedule and, under
 /// [`ShPolicy::Adaptive`], judges the newest band at a scheduled rise: `judge_l1(g, degree)`
 /// renders `g` at `degree` and returns the mean L1 of the judged views ([`judge_l1`]). The rule
@@ -41,23 +73,15 @@ pub(crate) fn update_sh_degree(
     it: u64,
     mut judge_l1: impl FnMut(&mut Gaussians, u32) -> Result<f64>,
 ) -> Result<Option<ShBandDecision>> {
-    let scheduled = cfg.sh_degree(it);
-    let current = gaussians.sh_degree;
-    let adaptive = cfg.sh_policy == ShPolicy::Adaptive && cfg.sh_degree_interval > 0 && it > 1;
-    if !adaptive || scheduled <= current {
-        gaussians.sh_degree = scheduled;
-        return Ok(None);
-    }
-    if scheduled > current + 1 || current == 0 {
-        // Behind the schedule: an earlier band did not pay, the degree stays. Degree 0 → 1:
-        // band 1 is always tried.
-        if current == 0 && scheduled == 1 {
-            gaussians.sh_degree = 1;
+    let band = match sh_move(cfg, gaussians.sh_degree, it) {
+        ShMove::Stay => return Ok(None),
+        ShMove::Set(degree) => {
+            gaussians.sh_degree = degree;
+            return Ok(None);
         }
-        return Ok(None);
-    }
+        ShMove::Judge(band) => band,
+    };
     // A scheduled rise from `band` to `band + 1`: does band `band` pay on the training views?
-    let band = current;
     let [l1_without, l1_with] = [judge_l1(gaussians, band - 1)?, judge_l1(gaussians, band)?];
     let gain = if l1_without > 0.0 { (l1_without - l1_with) / l1_without } else { 0.0 };
     let kept = gain >= cfg.sh_min_gain as f64;

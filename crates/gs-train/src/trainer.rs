@@ -123,6 +123,11 @@ fn budget_of(scene: &Scene, train_views: &[usize], config: &TrainConfig, init: &
     Budget::of_scene(&cams, init, &config.densify, config.max_gaussians, config.near)
 }
 
+/// Whether the run uses the 3D smoothing filter (configured, or stored in the resumed state).
+fn smoothing_on(config: &TrainConfig, state: &TrainState) -> bool {
+    config.smoothing_3d > 0.0 || state.smoothing.is_some()
+}
+
 /// Checks that a state fits the configuration and the number of training views.
 fn check_state(config: &TrainConfig, state: &TrainState, views: usize) -> Result<()> {
     state.gaussians.validate()?;
@@ -199,9 +204,10 @@ impl<'s> Trainer<'s> {
         let extent = scene.extent_of(&train_views).max(1e-9);
         let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), config.source_views, SourceSelection::RandomN)?;
         let test_views = (0..scene.views.len()).filter(|i| !train_views.contains(i)).collect();
+        let smoothing = smoothing_on(&config, &state);
         Ok(Self {
             raster: config.raster_config(),
-            executor: ReferenceExecutor::new(Rasterizer::new(Backend::Cpu)?, train_views.len(), config.losses.photometric),
+            executor: ReferenceExecutor::new(Rasterizer::new(Backend::Cpu)?, train_views.len(), config.losses.photometric, smoothing),
             config,
             scene,
             train_views,
@@ -230,7 +236,9 @@ impl<'s> Trainer<'s> {
         &self.config
     }
 
-    /// The current state (parameters, optimiser, statistics).
+    /// The current state (parameters, optimiser, statistics). On wgpu, where Adam runs on the
+    /// device, the Adam moments here are those of the last [`Trainer::sync`]; everything else
+    /// is current after every step.
     pub fn state(&self) -> &TrainState {
         &self.state
     }
@@ -264,16 +272,25 @@ impl<'s> Trainer<'s> {
     }
 
     /// Switches the rasterizer backend (the CPU by default; `Auto` picks wgpu on a hardware
-    /// GPU). Bit-identical resume holds for the CPU backend; wgpu's atomics make its gradient
-    /// sums order-dependent.
+    /// GPU). Bit-identical resume holds for the CPU backend; on wgpu Adam runs on the device
+    /// with the model resident there ([`Trainer::sync`]).
     pub fn set_backend(&mut self, backend: Backend) -> Result<()> {
-        self.set_rasterizer(Rasterizer::new(backend)?);
-        Ok(())
+        self.set_rasterizer(Rasterizer::new(backend)?)
     }
 
-    /// Uses `rasterizer` from now on (see [`Trainer::set_backend`]).
-    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer) {
-        self.executor.set_rasterizer(rasterizer, self.config.losses.photometric);
+    /// Uses `rasterizer` from now on (see [`Trainer::set_backend`]); what the old one kept on
+    /// its device comes back to the state first.
+    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer) -> Result<()> {
+        let smoothing = smoothing_on(&self.config, &self.state);
+        self.executor.set_rasterizer(rasterizer, self.config.losses.photometric, smoothing, &mut self.state)
+    }
+
+    /// Brings the Adam moments that a device executor keeps resident back into the state
+    /// ([`StepExecutor::sync`]; nothing to do on the CPU). Density control, a change of the SH
+    /// degree and the last iteration sync by themselves; a checkpoint taken in between syncs
+    /// first.
+    pub fn sync(&mut self) -> Result<()> {
+        self.executor.sync(&mut self.state)
     }
 
     /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device
@@ -380,6 +397,10 @@ impl<'s> Trainer<'s> {
             raster: &self.raster,
             budget: &self.budget,
         };
+        if sh_policy::acts(run.config, self.state.gaussians.sh_degree, plan.iteration) {
+            // The SH layout and maybe the moments change on the host.
+            self.executor.sync(&mut self.state)?;
+        }
         let (s, rasterizer) = (&mut self.state, &mut self.executor.rasterizer);
         let sh_band = sh_policy::update_sh_degree(run.config, &mut s.gaussians, &mut s.adam, plan.iteration, |g, degree| {
             sh_policy::judge_l1(g, degree, run.scene, run.train_views, rasterizer, run.raster)
@@ -389,7 +410,7 @@ impl<'s> Trainer<'s> {
         let refined = self.executor.refine(&run, &mut self.state, &plan)?;
         let rows_changed = refined.densify.is_some() || refined.trimmed.is_some() || refined.floaters.is_some();
         let due = rows_changed || plan.iteration % crate::smoothing::RECOMPUTE_EVERY == 0;
-        if self.config.smoothing_3d > 0.0 || self.state.smoothing.is_some() {
+        if smoothing_on(&self.config, &self.state) {
             let cams = self.scene.cameras_of(&self.train_views);
             crate::smoothing::settle(&mut self.state, &cams, f64::from(self.config.near), self.config.smoothing_3d, due)?;
         }
@@ -397,6 +418,9 @@ impl<'s> Trainer<'s> {
         self.profile.add(phase, Part::Refine, clock.lap());
         self.profile.finish_iteration(phase, whole.lap());
         self.state.iteration = plan.iteration;
+        if self.finished() {
+            self.executor.sync(&mut self.state)?;
+        }
         Ok(StepReport {
             iteration: plan.iteration,
             view: plan.view,
@@ -413,7 +437,7 @@ impl<'s> Trainer<'s> {
 
     /// Runs until `config.iterations`, calling `on_step` after every iteration; `on_step`
     /// returns `false` to stop early (e.g. on Ctrl-C, after which the caller checkpoints).
-    pub fn run(&mut self, mut on_step: impl FnMut(&Self, &StepReport) -> bool) -> Result<()> {
+    pub fn run(&mut self, mut on_step: impl FnMut(&mut Self, &StepReport) -> bool) -> Result<()> {
         while !self.finished() {
             let r = self.step()?;
             if !on_step(self, &r) {

@@ -412,7 +412,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         Some(state) => Trainer::with_state(&scene, train_idx.clone(), config.clone(), state)?,
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
-    trainer.set_rasterizer(super::rasterizer(args.backend)?);
+    trainer.set_rasterizer(super::rasterizer(args.backend)?)?;
     eprintln!("loss terms: {}", trainer.loss_executors());
     eprintln!("{}", gs_run::budget_check::check_train(&trainer, args.max_memory)?);
     let mesh_track = load_mesh_track(&args.track, gs_run::budget_check::limit(args.max_memory))?;
@@ -443,6 +443,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let train_seconds = elapsed.total();
     let interrupted = !trainer.finished();
     if interrupted || args.checkpoint_every.is_some() {
+        trainer.sync()?;
         checkpoint::save(&work.join("checkpoint.bin"), &config, trainer.state(), &elapsed)?;
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }

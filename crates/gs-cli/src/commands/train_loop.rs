@@ -108,7 +108,7 @@ pub fn train_loop(
             && every > 0
             && r.iteration % every == 0
             && r.iteration < config.iterations
-            && let Err(e) = checkpoint::save(&ckpt_path, config, tr.state(), elapsed)
+            && let Err(e) = tr.sync().and_then(|()| checkpoint::save(&ckpt_path, config, tr.state(), elapsed))
         {
             checkpoint_error = Some(e.into());
             return false;

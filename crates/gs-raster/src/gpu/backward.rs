@@ -30,6 +30,22 @@ impl WgpuRasterizer {
         forward: &RenderOutput,
         grads: &OutputGradients,
     ) -> Result<GaussianGradients> {
+        let Some((cam, st, frame)) = self.checked_frame(gaussians, camera, config, forward, grads)? else {
+            return Ok(GaussianGradients::zeros(gaussians.len()));
+        };
+        self.scoped(|r| r.backward_inner(gaussians, &cam, config, st, grads, frame))
+    }
+
+    /// The backward's checks, and the device state of `forward` (rebuilt when a later render
+    /// overwrote it); `None` when nothing flows back (no intersections or no gradients).
+    pub(super) fn checked_frame<'f>(
+        &mut self,
+        gaussians: &Gaussians,
+        camera: &Camera,
+        config: &RasterConfig,
+        forward: &'f RenderOutput,
+        grads: &OutputGradients,
+    ) -> Result<Option<(CamParams, &'f GpuState, Frame)>> {
         let cam = check_inputs(gaussians, camera, config)?;
         let st = match &forward.state.0 {
             StateInner::Gpu(st) => st,
@@ -67,12 +83,11 @@ impl WgpuRasterizer {
         let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
         let depth = grads.expected_depth.is_some();
         if frame.total == 0 || !(color || geo || depth || grads.alpha.is_some()) {
-            return Ok(GaussianGradients::zeros(gaussians.len()));
+            return Ok(None);
         }
-        self.scoped(|r| r.backward_inner(gaussians, &cam, config, st, grads, frame))
+        Ok(Some((cam, st, frame)))
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn backward_inner(
         &mut self,
         g: &Gaussians,
@@ -86,38 +101,11 @@ impl WgpuRasterizer {
         // The readback: every Gaussian's `ParamGrad`, then its SH gradients.
         let grad_bytes = nn * bytes_of::<ParamGrad>(1);
         let sh_bytes = nn * coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>(1);
-        let npix = cam.width as u64 * cam.height as u64;
-        let flags = grads.color.is_some() as u32
-            | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some())
-                as u32)
-                << 1
-            | (grads.expected_depth.is_some() as u32) << 2;
-        self.disp
-            .write_frame(&CamUniform::new(cam, config, g, flags, 0.0));
-        // The parameters on the device are those of this frame's render (its generation was
-        // checked, or it was just rebuilt): no second upload.
         let t0 = Instant::now();
-        let bands = self.bands(cam)?;
-        let rec = std::mem::size_of::<ScreenGrad>() as u64;
-        let partial_bytes = frame.total as u64 * rec;
-        self.check_binding("the per-intersection gradients", partial_bytes)?;
-        let (p, b) = (&mut self.pool, &self.bufs);
-        p.ensure(b.bstate, npix * bytes_of::<BlendState>(1));
-        p.ensure(b.partials, partial_bytes);
-        p.ensure(b.gacc, nn * rec + 4);
-        p.ensure(b.gout, grad_bytes + bytes_of::<ParamGrad>(1));
-        p.ensure(b.gout_sh, sh_bytes + bytes_of::<ShCoeff>(1));
-        p.ensure(b.staging, grad_bytes + sh_bytes + 4);
-        self.upload_pixel_grads(cam, config, st, grads);
+        let mut enc = self.record_backward(g, cam, config, st, grads, frame)?;
         let t1 = Instant::now();
-        let mut enc = self.disp.encoder();
+        self.pool.ensure(self.bufs.staging, grad_bytes + sh_bytes + 4);
         let (p, b) = (&self.pool, &self.bufs);
-        // Intersections beyond their tile's last contributor get no partial: zeros.
-        enc.encoder
-            .clear_buffer(p.buffer(b.partials), 0, Some(partial_bytes));
-        self.blend_backward(&mut enc, cam, &bands, frame)?;
-        self.reduce_partials(&mut enc, cam, g.len() as u32)?;
-        self.project_backward(&mut enc, g)?;
         let staging = p.buffer(b.staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(b.gout), 0, staging, 0, grad_bytes);
         enc.encoder.copy_buffer_to_buffer(p.buffer(b.gout_sh), 0, staging, grad_bytes, sh_bytes);
@@ -130,6 +118,51 @@ impl WgpuRasterizer {
         })?;
         self.timings.backward = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
         Ok(out)
+    }
+
+    /// Records the backward of `frame` up to every Gaussian's `ParamGrad` and SH gradients
+    /// in `gout` / `gout_sh` (the per-pixel gradients uploaded first); returns the encoder.
+    pub(super) fn record_backward(
+        &mut self,
+        g: &Gaussians,
+        cam: &CamParams,
+        config: &RasterConfig,
+        st: &GpuState,
+        grads: &OutputGradients,
+        frame: Frame,
+    ) -> Result<Encoder> {
+        let nn = g.len() as u64;
+        let npix = cam.width as u64 * cam.height as u64;
+        let flags = grads.color.is_some() as u32
+            | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some())
+                as u32)
+                << 1
+            | (grads.expected_depth.is_some() as u32) << 2;
+        self.disp
+            .write_frame(&CamUniform::new(cam, config, g, flags, 0.0));
+        // The parameters on the device are those of this frame's render (its generation was
+        // checked, or it was just rebuilt): no second upload.
+        let bands = self.bands(cam)?;
+        let rec = std::mem::size_of::<ScreenGrad>() as u64;
+        let partial_bytes = frame.total as u64 * rec;
+        self.check_binding("the per-intersection gradients", partial_bytes)?;
+        let sh_bytes = nn * coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>(1);
+        let (p, b) = (&mut self.pool, &self.bufs);
+        p.ensure(b.bstate, npix * bytes_of::<BlendState>(1));
+        p.ensure(b.partials, partial_bytes);
+        p.ensure(b.gacc, nn * rec + 4);
+        p.ensure(b.gout, nn * bytes_of::<ParamGrad>(1) + bytes_of::<ParamGrad>(1));
+        p.ensure(b.gout_sh, sh_bytes + bytes_of::<ShCoeff>(1));
+        self.upload_pixel_grads(cam, config, st, grads);
+        let mut enc = self.disp.encoder();
+        let (p, b) = (&self.pool, &self.bufs);
+        // Intersections beyond their tile's last contributor get no partial: zeros.
+        enc.encoder
+            .clear_buffer(p.buffer(b.partials), 0, Some(partial_bytes));
+        self.blend_backward(&mut enc, cam, &bands, frame)?;
+        self.reduce_partials(&mut enc, cam, g.len() as u32)?;
+        self.project_backward(&mut enc, g)?;
+        Ok(enc)
     }
 
     /// Per-pixel channel gradients, folded on the host exactly as the CPU backend does (rows
@@ -216,22 +249,22 @@ impl WgpuRasterizer {
 
     /// `project_bwd` per chunk of Gaussians (a `ParamGrad` and the SH gradients of each).
     fn project_backward(&self, enc: &mut Encoder, g: &Gaussians) -> Result<()> {
-        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let (d, p, b, k, m) = (&self.disp, &self.pool, &self.bufs, &self.kernels, &self.model);
         let sh = coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>(1);
         let (param, rect) = (bytes_of::<ParamRecord>(1), bytes_of::<TileRect>(1));
         let (screen, grad) = (bytes_of::<ScreenGrad>(1), bytes_of::<ParamGrad>(1));
-        for (bb, m) in chunks(g.len() as u32) {
+        for (bb, c) in chunks(g.len() as u32) {
             d.make_room(enc, 1);
             let binds = [
-                p.range(b.params, bb * param, m * param),
-                p.range(b.sh, bb * sh, m * sh),
-                p.range(b.proj, bb * rect, m * rect),
-                p.range(b.gacc, bb * screen, m * screen),
-                p.range(b.gout, bb * grad, m * grad),
-                p.range(b.gout_sh, bb * sh, m * sh),
+                m.pool.range(m.params, bb * param, c * param),
+                m.pool.range(m.sh, bb * sh, c * sh),
+                p.range(b.proj, bb * rect, c * rect),
+                p.range(b.gacc, bb * screen, c * screen),
+                p.range(b.gout, bb * grad, c * grad),
+                p.range(b.gout_sh, bb * sh, c * sh),
             ];
             let pass = PassUniform {
-                n: m as u32,
+                n: c as u32,
                 base: bb as u32,
                 ..Default::default()
             };
@@ -242,7 +275,7 @@ impl WgpuRasterizer {
 }
 
 /// Records of type `T` from read-back bytes (copied only where the mapping is misaligned).
-fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> std::borrow::Cow<'_, [T]> {
+pub(super) fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> std::borrow::Cow<'_, [T]> {
     match bytemuck::try_cast_slice::<u8, T>(bytes) {
         Ok(v) => std::borrow::Cow::Borrowed(v),
         Err(_) => std::borrow::Cow::Owned(bytemuck::pod_collect_to_vec(bytes)),

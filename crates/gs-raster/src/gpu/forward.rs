@@ -108,10 +108,11 @@ impl WgpuRasterizer {
             | (request.observed as u32) << 3;
         self.disp
             .write_frame(&CamUniform::new(cam, config, g, flags, request.applied_cut()));
-        // No buffer holds anything needed any more: the pool may shrink now.
+        // No buffer holds anything needed any more: the pool may shrink now (the model's own
+        // pool only when it is not resident).
         self.pool.begin_frame();
         let t0 = Instant::now();
-        self.upload_gaussians(g);
+        self.model.prepare(&self.ctx, g)?;
         let t1 = Instant::now();
         let (visible, total) = self.project_and_count(g, npix, n_tiles)?;
         if total > config.max_intersections as u64 || total > u32::MAX as u64 {
@@ -175,7 +176,7 @@ impl WgpuRasterizer {
         p.ensure(b.counters, 64);
         p.ensure(b.staging, 64);
         let (param, sh) = (bytes_of::<ParamRecord>(1), bytes_of::<ShCoeff>(1));
-        let (d, p, k) = (&self.disp, &self.pool, &self.kernels);
+        let (d, p, k, model) = (&self.disp, &self.pool, &self.kernels, &self.model);
         let mut enc = d.encoder();
         enc.encoder.clear_buffer(p.buffer(b.counters), 0, Some(64));
         for (bb, m) in chunks(n32) {
@@ -185,8 +186,8 @@ impl WgpuRasterizer {
                 ..Default::default()
             };
             let binds = [
-                p.range(b.params, bb * param, m * param),
-                p.range(b.sh, bb * nc * sh, m * nc * sh),
+                model.pool.range(model.params, bb * param, m * param),
+                model.pool.range(model.sh, bb * nc * sh, m * nc * sh),
                 p.range(b.splat, bb * splat, m * splat),
                 p.range(b.proj, bb * rect, m * rect),
                 p.whole(b.keys_a),

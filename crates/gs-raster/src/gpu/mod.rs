@@ -35,17 +35,17 @@
 mod backward;
 mod forward;
 mod kernels;
+mod resident;
+
+pub use resident::{DeviceStep, StepExtras};
 
 use crate::cpu::project::CamParams;
 use crate::{RasterError, RenderRequest, Result};
-use gs_core::Gaussians;
-use gs_core::sh::coeffs_for_degree;
 use gs_gpu::{
     BufId, BufferPool, Dispatcher, GpuContext, GpuError, GpuOptions, RadixSort, ShrinkPolicy,
 };
 use gs_gpu::bytes_of;
-use kernels::{BlendState, CamUniform, Kernels, ParamRecord, PixelGrad, ShCoeff};
-use rayon::prelude::*;
+use kernels::{BlendState, CamUniform, Kernels, PixelGrad};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 pub use gs_gpu::{hardware_adapter_available, probe_adapter};
@@ -100,8 +100,6 @@ pub(crate) struct GpuState {
 
 /// The rasterizer's buffers in its pool.
 struct Buffers {
-    params: BufId,
-    sh: BufId,
     splat: BufId,
     proj: BufId,
     radii: BufId,
@@ -134,8 +132,6 @@ impl Buffers {
     fn new(pool: &mut BufferPool) -> Self {
         let mut b = |l| pool.add_storage(l);
         Self {
-            params: b("params"),
-            sh: b("sh"),
             splat: b("splat"),
             proj: b("proj"),
             radii: b("radii"),
@@ -193,6 +189,8 @@ pub struct WgpuRasterizer {
     generation: u64,
     frame: Option<Frame>,
     timings: CallTimings,
+    /// The parameters the kernels read, resident between iterations in a training run.
+    model: resident::Model,
 }
 
 /// Host-measured wall time of the phases of one call (see [`WgpuRasterizer::timings`]).
@@ -263,6 +261,7 @@ impl WgpuRasterizer {
         let sort = RadixSort::new(&ctx, &mut pool)?;
         let bufs = Buffers::new(&mut pool);
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<CamUniform>() as u64);
+        let model = resident::Model::new(&ctx)?;
         Ok(Self {
             ctx,
             disp,
@@ -274,6 +273,7 @@ impl WgpuRasterizer {
             generation: 0,
             frame: None,
             timings: CallTimings::default(),
+            model,
         })
     }
 
@@ -348,23 +348,6 @@ impl WgpuRasterizer {
             r0 += r;
         }
         Ok(out)
-    }
-
-    /// Uploads parameters and SH (packed, only the active degree's coefficients), written in
-    /// parallel straight into the queue's staging memory.
-    fn upload_gaussians(&mut self, g: &Gaussians) {
-        let n = g.len();
-        let nc = coeffs_for_degree(g.sh_degree);
-        upload_with(&self.ctx, &mut self.pool, self.bufs.params, n, |out: &mut [ParamRecord]| {
-            out.par_iter_mut().enumerate().for_each(|(i, r)| *r = ParamRecord::of(g, i))
-        });
-        upload_with(&self.ctx, &mut self.pool, self.bufs.sh, n * nc, |out: &mut [ShCoeff]| {
-            if nc > 0 {
-                out.par_chunks_mut(nc).zip(&g.sh).for_each(|(r, c)| {
-                    r.iter_mut().zip(c).for_each(|(r, v)| r.rgb = *v);
-                })
-            }
-        });
     }
 }
 

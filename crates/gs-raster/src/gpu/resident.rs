@@ -1,0 +1,492 @@
+//! The model on the device: the parameter records and SH the kernels read, and, while a
+//! training run keeps them resident, the Adam moments and the device twin of
+//! [`gs_core::Adam`] (adam.wgsl; docs/architecture.md §GPU).
+//!
+//! Without residency every render uploads the host's Gaussians, as before. A resident model
+//! is uploaded once ([`WgpuRasterizer::make_resident`]); from then on renders bind it as it
+//! is, and [`WgpuRasterizer::backward_and_step`] runs the backward and the Adam step on the
+//! device and reads back only the new parameters (the host's copy, which every other reader
+//! of the model uses) and, when asked, the screen-space gradients of the densification
+//! statistics. The moments come back only when asked ([`WgpuRasterizer::read_moments`]).
+//! Whoever changes the host's Gaussians or moments in between (density control, an SH
+//! degree change) ends the residency first ([`WgpuRasterizer::release_resident`]); a
+//! resident render of Gaussians of another size or SH degree is an error, never a silent
+//! mix.
+
+use super::kernels::{ParamGrad, ParamRecord, ShCoeff};
+use super::backward::pod_vec;
+use super::{GpuTimings, WgpuRasterizer, chunks, upload_with};
+use crate::{OutputGradients, RasterConfig, RasterError, RenderOutput, Result};
+use gs_core::sh::coeffs_for_degree;
+use gs_core::{Adam, Camera, Gaussians, GroupStep, Param};
+use gs_gpu::{
+    Binding, BufId, BufferPool, Dispatcher, Encoder, GeneratedStruct, GpuContext, Kernel,
+    PassUniform, ShrinkPolicy, bytes_of,
+};
+use rayon::prelude::*;
+use std::time::Instant;
+
+gs_gpu::wgsl_struct! {
+    /// The constants of one device Adam step (binding 0 of the Adam kernels; WGSL
+    /// `struct AdamStep`): each group's bias-corrected factors ([`gs_core::GroupStep`]).
+    pub(crate) struct AdamUniform as "AdamStep" {
+        /// SH coefficients per Gaussian on the device (the active degree's).
+        nc: u32,
+        /// 1 when a loss term adds its own opacity-logit gradient (binding `extra_opacity`).
+        extra_opacity: u32,
+        beta1: f32,
+        beta2: f32,
+        eps: f32,
+        step_means: f32,
+        bc2_means: f32,
+        step_sh_dc: f32,
+        bc2_sh_dc: f32,
+        step_sh_rest: f32,
+        bc2_sh_rest: f32,
+        step_opacity: f32,
+        bc2_opacity: f32,
+        step_log_scales: f32,
+        bc2_log_scales: f32,
+        step_rotations: f32,
+        bc2_rotations: f32,
+    }
+}
+
+/// What a device step read back besides the parameters.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DeviceStep {
+    /// Whether every gradient of the means was finite (the host's step refuses a non-finite
+    /// one before stepping; here the step has run and the caller stops the run).
+    pub means_finite: bool,
+    /// ∂L/∂ of the projected centres in NDC, when asked (else empty).
+    pub mean2d: Vec<[f32; 2]>,
+    /// Σ |∂L/∂x|, Σ |∂L/∂y| in NDC, when asked (else empty).
+    pub mean2d_abs: Vec<[f32; 2]>,
+}
+
+/// What a device step takes besides the render and its gradients.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepExtras<'a> {
+    /// A loss term's own ∂L/∂ opacity logit per Gaussian, added to the rasterizer's.
+    pub extra_opacity: Option<&'a [f32]>,
+    /// Read back the screen-space gradients (the densification statistics).
+    pub screen: bool,
+}
+
+/// The size of a resident model: renders of other Gaussians are refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Residency {
+    n: usize,
+    sh_degree: u32,
+}
+
+/// The model's buffers (their own pool: a resident model must never be reallocated by the
+/// shrink policy of a render's frame), the Adam kernels and their dispatcher.
+pub(super) struct Model {
+    pub(super) pool: BufferPool,
+    pub(super) params: BufId,
+    pub(super) sh: BufId,
+    m_params: BufId,
+    v_params: BufId,
+    m_sh: BufId,
+    v_sh: BufId,
+    extra: BufId,
+    flags: BufId,
+    resident: Option<Residency>,
+    disp: Dispatcher,
+    adam_params: Kernel,
+    adam_sh: Kernel,
+}
+
+/// The structs of the Adam kernels (declarations and layout test).
+fn adam_structs() -> [GeneratedStruct; 4] {
+    [
+        GeneratedStruct::of::<AdamUniform>(),
+        GeneratedStruct::of::<ParamRecord>(),
+        GeneratedStruct::of::<ShCoeff>(),
+        GeneratedStruct::of::<ParamGrad>(),
+    ]
+}
+
+/// The Adam kernels' entry points and storage bindings.
+fn adam_specs() -> [(&'static str, Vec<Binding<'static>>); 2] {
+    use Binding as B;
+    let (par, sh) = ("array<ParamRecord>", "array<ShCoeff>");
+    [
+        (
+            "adam_params",
+            vec![
+                B::write("params", par),
+                B::write("m_params", par),
+                B::write("v_params", par),
+                B::read("grads", "array<ParamGrad>"),
+                B::read("extra_opacity", "array<f32>"),
+                B::write("flags", "array<atomic<u32>>"),
+            ],
+        ),
+        (
+            "adam_sh",
+            vec![B::write("sh", sh), B::write("m_sh", sh), B::write("v_sh", sh), B::read("grads_sh", sh)],
+        ),
+    ]
+}
+
+/// The step of one scalar (both kernels), then each kernel's own source.
+const ADAM: &str = include_str!("adam.wgsl");
+const ADAM_PARAMS: &str = include_str!("adam_params.wgsl");
+const ADAM_SH: &str = include_str!("adam_sh.wgsl");
+
+impl Model {
+    pub(super) fn new(ctx: &GpuContext) -> gs_gpu::Result<Self> {
+        let mut pool = BufferPool::new(ctx, ShrinkPolicy::default());
+        let mut b = |l| pool.add_storage(l);
+        let (params, sh, m_params, v_params) = (b("params"), b("sh"), b("m_params"), b("v_params"));
+        let (m_sh, v_sh, extra, flags) = (b("m_sh"), b("v_sh"), b("extra_opacity"), b("adam_flags"));
+        let decls = gs_gpu::declarations(&adam_structs());
+        let [(e0, b0), (e1, b1)] = adam_specs();
+        Ok(Self {
+            adam_params: Kernel::new(ctx, e0, &[&decls, ADAM, ADAM_PARAMS], &b0)?,
+            adam_sh: Kernel::new(ctx, e1, &[&decls, ADAM, ADAM_SH], &b1)?,
+            disp: Dispatcher::new(ctx, std::mem::size_of::<AdamUniform>() as u64),
+            pool,
+            params,
+            sh,
+            m_params,
+            v_params,
+            m_sh,
+            v_sh,
+            extra,
+            flags,
+            resident: None,
+        })
+    }
+
+    /// Makes the parameter buffers hold `g` for a render: uploaded when not resident (a new
+    /// pool frame first), bound as they are when resident and of `g`'s size and degree.
+    pub(super) fn prepare(&mut self, ctx: &GpuContext, g: &Gaussians) -> Result<()> {
+        match self.resident {
+            Some(r) if r == Residency::of(g) => Ok(()),
+            Some(r) => Err(RasterError::Gpu(format!(
+                "the resident model holds {} Gaussians of SH degree {}, the render was given {} of degree {}: release the residency after changing the model",
+                r.n,
+                r.sh_degree,
+                g.len(),
+                g.sh_degree
+            ))),
+            None => {
+                self.pool.begin_frame();
+                self.upload(ctx, g);
+                Ok(())
+            }
+        }
+    }
+
+    /// Uploads parameters and SH (packed, only the active degree's coefficients), written in
+    /// parallel straight into the queue's staging memory.
+    fn upload(&mut self, ctx: &GpuContext, g: &Gaussians) {
+        let n = g.len();
+        let nc = coeffs_for_degree(g.sh_degree);
+        upload_with(ctx, &mut self.pool, self.params, n, |out: &mut [ParamRecord]| {
+            out.par_iter_mut().enumerate().for_each(|(i, r)| *r = ParamRecord::of(g, i))
+        });
+        upload_with(ctx, &mut self.pool, self.sh, n * nc, |out: &mut [ShCoeff]| {
+            if nc > 0 {
+                out.par_chunks_mut(nc).zip(&g.sh).for_each(|(r, c)| {
+                    r.iter_mut().zip(c).for_each(|(r, v)| r.rgb = *v);
+                })
+            }
+        });
+    }
+}
+
+impl Residency {
+    fn of(g: &Gaussians) -> Self {
+        Self { n: g.len(), sh_degree: g.sh_degree }
+    }
+}
+
+/// The moment buffers (m or v) of `adam`'s groups, one `ParamRecord` and `nc` `ShCoeff` per
+/// Gaussian: `pick` takes a group's m or v.
+fn moment_records(adam: &Adam, n: usize, nc: usize, pick: fn(&gs_core::optim::ParamGroup) -> &[f32]) -> Result<(Vec<ParamRecord>, Vec<ShCoeff>)> {
+    let group = |p: Param| -> Result<&[f32]> {
+        let g = adam.groups.iter().find(|g| g.name == p.name()).ok_or_else(|| RasterError::Gpu(format!("the optimiser has no group '{}'", p.name())))?;
+        if g.row_width != p.row_width() || g.m.len() != n * p.row_width() {
+            return Err(RasterError::Gpu(format!("the optimiser's group '{}' holds {} moments, not {} rows of {}", p.name(), g.m.len(), n, p.row_width())));
+        }
+        Ok(pick(g))
+    };
+    let [means, dc, rest, opacity, scales, rot] = Param::ALL.map(group);
+    let (means, dc, rest, opacity, scales, rot) = (means?, dc?, rest?, opacity?, scales?, rot?);
+    let params = (0..n)
+        .into_par_iter()
+        .map(|i| ParamRecord {
+            mean: means[3 * i..3 * i + 3].try_into().expect("3"),
+            log_scale: scales[3 * i..3 * i + 3].try_into().expect("3"),
+            rot_w: rot[4 * i],
+            rot_x: rot[4 * i + 1],
+            rot_y: rot[4 * i + 2],
+            rot_z: rot[4 * i + 3],
+            opacity_logit: opacity[i],
+        })
+        .collect();
+    let w = Param::ShRest.row_width();
+    let sh = (0..n * nc)
+        .into_par_iter()
+        .map(|r| {
+            let (i, k) = (r / nc, r % nc);
+            let rgb = if k == 0 { &dc[3 * i..3 * i + 3] } else { &rest[w * i + 3 * (k - 1)..w * i + 3 * k] };
+            ShCoeff { rgb: rgb.try_into().expect("3") }
+        })
+        .collect();
+    Ok((params, sh))
+}
+
+/// Writes device moment records back into one moment array (m or v) of each of `adam`'s
+/// groups; SH coefficients above the active degree keep their host values.
+fn store_moments(adam: &mut Adam, params: &[ParamRecord], sh: &[ShCoeff], nc: usize, pick: fn(&mut gs_core::optim::ParamGroup) -> &mut [f32]) -> Result<()> {
+    let w = Param::ShRest.row_width();
+    for p in Param::ALL {
+        let g = adam.group_mut(p.name()).map_err(|e| RasterError::Gpu(e.to_string()))?;
+        let rows = pick(g).par_chunks_mut(p.row_width()).enumerate();
+        match p {
+            Param::Means => rows.for_each(|(i, r)| r.copy_from_slice(&params[i].mean)),
+            Param::LogScales => rows.for_each(|(i, r)| r.copy_from_slice(&params[i].log_scale)),
+            Param::Rotations => rows.for_each(|(i, r)| r.copy_from_slice(&params[i].rotation())),
+            Param::Opacity => rows.for_each(|(i, r)| r[0] = params[i].opacity_logit),
+            Param::ShDc => rows.for_each(|(i, r)| r.copy_from_slice(&sh[i * nc].rgb)),
+            Param::ShRest => rows.for_each(|(i, r)| {
+                for k in 1..nc {
+                    r[3 * (k - 1)..3 * k].copy_from_slice(&sh[i * nc + k].rgb);
+                }
+                debug_assert_eq!(r.len(), w);
+            }),
+        }
+    }
+    Ok(())
+}
+
+impl WgpuRasterizer {
+    /// Keeps `g` and the moments of `adam` (one group per [`Param`], by name) on the device
+    /// from now on: renders bind them without an upload and
+    /// [`backward_and_step`](Self::backward_and_step) steps them there.
+    pub fn make_resident(&mut self, g: &Gaussians, adam: &Adam) -> Result<()> {
+        crate::validate::check_gaussians(g)?;
+        let (n, nc) = (g.len(), coeffs_for_degree(g.sh_degree));
+        let (m_par, m_sh) = moment_records(adam, n, nc, |g| &g.m)?;
+        let (v_par, v_sh) = moment_records(adam, n, nc, |g| &g.v)?;
+        let m = &mut self.model;
+        m.resident = None;
+        m.pool.begin_frame();
+        m.upload(&self.ctx, g);
+        for (id, recs) in [(m.m_params, &m_par), (m.v_params, &v_par)] {
+            upload_with(&self.ctx, &mut m.pool, id, n, |out: &mut [ParamRecord]| out.copy_from_slice(recs));
+        }
+        for (id, recs) in [(m.m_sh, &m_sh), (m.v_sh, &v_sh)] {
+            upload_with(&self.ctx, &mut m.pool, id, n * nc, |out: &mut [ShCoeff]| out.copy_from_slice(recs));
+        }
+        m.resident = Some(Residency::of(g));
+        Ok(())
+    }
+
+    /// Whether a model is resident.
+    pub fn is_resident(&self) -> bool {
+        self.model.resident.is_some()
+    }
+
+    /// Ends the residency: the next render uploads its Gaussians again. The device moments
+    /// are dropped; read them first ([`read_moments`](Self::read_moments)) to keep them.
+    pub fn release_resident(&mut self) {
+        self.model.resident = None;
+    }
+
+    /// Copies the resident moments into `adam` (the residency goes on).
+    pub fn read_moments(&mut self, adam: &mut Adam) -> Result<()> {
+        let Some(r) = self.model.resident else {
+            return Err(RasterError::Gpu("no model is resident".into()));
+        };
+        let nc = coeffs_for_degree(r.sh_degree);
+        let (pb, sb) = (bytes_of::<ParamRecord>(r.n), bytes_of::<ShCoeff>(r.n * nc));
+        let m = &self.model;
+        self.pool.ensure(self.bufs.staging, 2 * (pb + sb) + 4);
+        let staging = self.pool.buffer(self.bufs.staging);
+        let mut enc = m.disp.encoder();
+        let mut at = 0;
+        for (id, bytes) in [(m.m_params, pb), (m.v_params, pb), (m.m_sh, sb), (m.v_sh, sb)] {
+            enc.encoder.copy_buffer_to_buffer(m.pool.buffer(id), 0, staging, at, bytes);
+            at += bytes;
+        }
+        m.disp.submit(enc);
+        let (params, sh) = self.ctx.read_mapped(staging, at, |bytes| {
+            let (par, sh) = bytes.split_at(2 * pb as usize);
+            (bytemuck::pod_collect_to_vec::<u8, ParamRecord>(par), bytemuck::pod_collect_to_vec::<u8, ShCoeff>(sh))
+        })?;
+        let (mp, vp) = params.split_at(r.n);
+        let (ms, vs) = sh.split_at(r.n * nc);
+        store_moments(adam, mp, ms, nc, |g| &mut g.m)?;
+        store_moments(adam, vp, vs, nc, |g| &mut g.v)
+    }
+}
+
+impl AdamUniform {
+    /// The uniform of one step: each group of `adam` counts the step ([`GroupStep`]).
+    fn begin_step(adam: &mut Adam, nc: usize, extra_opacity: bool) -> Result<Self> {
+        let cfg = adam.config;
+        let mut step = |p: Param| -> Result<GroupStep> {
+            Ok(adam.group_mut(p.name()).map_err(|e| RasterError::Gpu(e.to_string()))?.begin_step(&cfg))
+        };
+        let [means, dc, rest, opacity, scales, rot] = Param::ALL.map(&mut step);
+        let (means, dc, rest, opacity, scales, rot) = (means?, dc?, rest?, opacity?, scales?, rot?);
+        Ok(Self {
+            nc: nc as u32,
+            extra_opacity: extra_opacity as u32,
+            beta1: cfg.beta1,
+            beta2: cfg.beta2,
+            eps: cfg.eps,
+            step_means: means.step_size,
+            bc2_means: means.bc2_sqrt,
+            step_sh_dc: dc.step_size,
+            bc2_sh_dc: dc.bc2_sqrt,
+            step_sh_rest: rest.step_size,
+            bc2_sh_rest: rest.bc2_sqrt,
+            step_opacity: opacity.step_size,
+            bc2_opacity: opacity.bc2_sqrt,
+            step_log_scales: scales.step_size,
+            bc2_log_scales: scales.bc2_sqrt,
+            step_rotations: rot.step_size,
+            bc2_rotations: rot.bc2_sqrt,
+        })
+    }
+}
+
+impl WgpuRasterizer {
+    /// The backward of `forward` (a render of the resident model `g`) and one Adam step of
+    /// every group of `adam` on the device, the twin of [`crate::backward`] followed by
+    /// [`gs_core::Adam::step_strided`] on each group. `g` receives the new parameters; `adam`'s
+    /// groups count the step while their moments stay on the device. A render without
+    /// intersections or gradients steps with zero gradients, as the host does.
+    pub fn backward_and_step(
+        &mut self,
+        g: &mut Gaussians,
+        camera: &Camera,
+        config: &RasterConfig,
+        forward: &RenderOutput,
+        grads: &OutputGradients,
+        adam: &mut Adam,
+        extras: StepExtras<'_>,
+    ) -> Result<DeviceStep> {
+        match self.model.resident {
+            Some(r) if r == Residency::of(g) => {}
+            _ => return Err(RasterError::Gpu("a device step needs the model resident (make_resident) with these Gaussians".into())),
+        }
+        if let Some(x) = extras.extra_opacity
+            && x.len() != g.len()
+        {
+            return Err(RasterError::InvalidGradients(format!("{} extra opacity gradients for {} Gaussians", x.len(), g.len())));
+        }
+        let checked = self.checked_frame(g, camera, config, forward, grads)?;
+        let t0 = Instant::now();
+        let out = self.scoped(|r| {
+            let nc = coeffs_for_degree(g.sh_degree);
+            let enc = match checked {
+                Some((cam, st, frame)) => r.record_backward(g, &cam, config, st, grads, frame)?,
+                None => r.zero_gradients(g.len(), nc),
+            };
+            r.disp.submit(enc);
+            let uniform = AdamUniform::begin_step(adam, nc, extras.extra_opacity.is_some())?;
+            r.step_on_device(g, &uniform, extras)
+        });
+        // The device's parameters moved: the last render's state is no longer theirs.
+        self.frame = None;
+        let t1 = Instant::now();
+        self.timings.backward = GpuTimings { upload: std::time::Duration::ZERO, device: t1 - t0, unpack: std::time::Duration::ZERO };
+        out
+    }
+
+    /// An encoder that zeroes the gradient buffers of `n` Gaussians with `nc` SH coefficients.
+    fn zero_gradients(&mut self, n: usize, nc: usize) -> Encoder {
+        let (pb, sb) = (bytes_of::<ParamGrad>(n), bytes_of::<ShCoeff>(n * nc));
+        let (p, b) = (&mut self.pool, &self.bufs);
+        p.ensure(b.gout, pb + bytes_of::<ParamGrad>(1));
+        p.ensure(b.gout_sh, sb + bytes_of::<ShCoeff>(1));
+        let mut enc = self.disp.encoder();
+        enc.encoder.clear_buffer(self.pool.buffer(b.gout), 0, Some(pb));
+        enc.encoder.clear_buffer(self.pool.buffer(b.gout_sh), 0, Some(sb));
+        enc
+    }
+
+    /// Runs the Adam kernels on the gradients in `gout` / `gout_sh` and reads back the new
+    /// parameters (into `g`), the divergence flag and, when asked, the screen gradients.
+    fn step_on_device(&mut self, g: &mut Gaussians, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<DeviceStep> {
+        let (n, nc) = (g.len(), uniform.nc as usize);
+        let m = &mut self.model;
+        match extras.extra_opacity {
+            Some(x) => upload_with(&self.ctx, &mut m.pool, m.extra, n, |out: &mut [f32]| out.copy_from_slice(x)),
+            None => m.pool.ensure(m.extra, 4),
+        }
+        m.pool.ensure(m.flags, 4);
+        m.disp.write_frame(uniform);
+        let (pb, sb) = (bytes_of::<ParamRecord>(n), bytes_of::<ShCoeff>(n * nc));
+        let gb = if extras.screen { bytes_of::<ParamGrad>(n) } else { 0 };
+        self.pool.ensure(self.bufs.staging, pb + sb + 4 + gb);
+        let (m, p, b) = (&self.model, &self.pool, &self.bufs);
+        let mut enc = m.disp.encoder();
+        enc.encoder.clear_buffer(m.pool.buffer(m.flags), 0, Some(4));
+        let (rec, shr, grad) = (bytes_of::<ParamRecord>(1), nc as u64 * bytes_of::<ShCoeff>(1), bytes_of::<ParamGrad>(1));
+        for (bb, c) in chunks(n as u32) {
+            m.disp.make_room(&mut enc, 2);
+            let pass = PassUniform { n: c as u32, base: bb as u32, ..Default::default() };
+            let extra = match extras.extra_opacity {
+                Some(_) => m.pool.range(m.extra, bb * 4, c * 4),
+                None => m.pool.whole(m.extra),
+            };
+            let binds = [
+                m.pool.range(m.params, bb * rec, c * rec),
+                m.pool.range(m.m_params, bb * rec, c * rec),
+                m.pool.range(m.v_params, bb * rec, c * rec),
+                p.range(b.gout, bb * grad, c * grad),
+                extra,
+                m.pool.whole(m.flags),
+            ];
+            m.disp.dispatch_1d(&mut enc, &m.adam_params, &binds, pass)?;
+            let binds = [
+                m.pool.range(m.sh, bb * shr, c * shr),
+                m.pool.range(m.m_sh, bb * shr, c * shr),
+                m.pool.range(m.v_sh, bb * shr, c * shr),
+                p.range(b.gout_sh, bb * shr, c * shr),
+            ];
+            m.disp.dispatch_1d(&mut enc, &m.adam_sh, &binds, pass)?;
+        }
+        let staging = p.buffer(b.staging);
+        enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.params), 0, staging, 0, pb);
+        enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.sh), 0, staging, pb, sb);
+        enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.flags), 0, staging, pb + sb, 4);
+        if extras.screen {
+            enc.encoder.copy_buffer_to_buffer(p.buffer(b.gout), 0, staging, pb + sb + 4, gb);
+        }
+        m.disp.submit(enc);
+        self.ctx.read_mapped(staging, pb + sb + 4 + gb, |bytes| {
+            let (par, rest) = bytes.split_at(pb as usize);
+            let (sh, rest) = rest.split_at(sb as usize);
+            let (flags, screen) = rest.split_at(4);
+            store_parameters(g, &pod_vec::<ParamRecord>(par), &pod_vec::<ShCoeff>(sh), nc);
+            let grads = pod_vec::<ParamGrad>(screen);
+            DeviceStep {
+                means_finite: u32::from_le_bytes(flags.try_into().expect("4 bytes")) == 0,
+                mean2d: grads.par_iter().map(|r| [r.mean2d_x, r.mean2d_y]).collect(),
+                mean2d_abs: grads.par_iter().map(|r| [r.mean2d_abs_x, r.mean2d_abs_y]).collect(),
+            }
+        })
+        .map_err(RasterError::from)
+    }
+}
+
+/// The host's copy of the parameters from the device's records (SH above the active degree
+/// untouched).
+fn store_parameters(g: &mut Gaussians, params: &[ParamRecord], sh: &[ShCoeff], nc: usize) {
+    let rec = |i: usize| &params[i];
+    g.means.par_iter_mut().enumerate().for_each(|(i, v)| *v = rec(i).mean);
+    g.log_scales.par_iter_mut().enumerate().for_each(|(i, v)| *v = rec(i).log_scale);
+    g.rotations.par_iter_mut().enumerate().for_each(|(i, v)| *v = rec(i).rotation());
+    g.opacity_logits.par_iter_mut().enumerate().for_each(|(i, v)| *v = rec(i).opacity_logit);
+    g.sh.par_iter_mut().zip(sh.par_chunks(nc)).for_each(|(c, s)| c.iter_mut().zip(s).for_each(|(c, s)| *c = s.rgb));
+}

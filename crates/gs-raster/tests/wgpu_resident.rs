@@ -1,0 +1,164 @@
+#![cfg(feature = "wgpu")]
+//! The resident model on wgpu against the host: the device's Adam step
+//! (`WgpuRasterizer::backward_and_step`) against `gs_raster::adam_step` on the same device
+//! gradients, over several steps with moving cameras, the SH groups at degrees 1 and 3, and a
+//! loss term's own opacity gradient; moments read back; the residency's guards.
+//!
+//! Tolerance: parameters and moments within 1e-6 relative (+ 1e-12 absolute). Element-wise
+//! f32 arithmetic in the same order as the host; a compiler may still fuse a multiply-add,
+//! so bit equality is reported, not required.
+//!
+//! Without any wgpu adapter the tests print a SKIPPED line and return, except in CI.
+
+#[allow(dead_code)] // the helpers the parity tests use and these do not
+mod parity;
+
+use gs_core::{Adam, AdamConfig, Gaussians, Param};
+use gs_raster::{OutputGradients, RasterConfig, RenderRequest, StepExtras, WgpuOptions};
+use parity::scenes::*;
+
+/// Adam with a group per parameter for `n` Gaussians, each at its own learning rate.
+fn optimiser(n: usize) -> Adam {
+    let mut adam = Adam::new(AdamConfig::default());
+    for (k, p) in Param::ALL.into_iter().enumerate() {
+        adam.add_group(p.name(), 1e-3 * (k + 1) as f32, n, p.row_width()).unwrap();
+    }
+    adam
+}
+
+/// Largest |a − b| / (|a| + |b| + 1e-12) over two arrays, and how many differ in any bit.
+fn difference(a: &[f32], b: &[f32]) -> (f64, usize) {
+    assert_eq!(a.len(), b.len());
+    let rel = |(x, y): (&f32, &f32)| ((x - y).abs() as f64) / ((x.abs() + y.abs()) as f64 + 1e-12);
+    let worst = a.iter().zip(b).map(rel).fold(0.0, f64::max);
+    (worst, a.iter().zip(b).filter(|(x, y)| x.to_bits() != y.to_bits()).count())
+}
+
+fn parameters(g: &Gaussians) -> [(&'static str, Vec<f32>); 5] {
+    [
+        ("means", g.means.as_flattened().to_vec()),
+        ("log-scales", g.log_scales.as_flattened().to_vec()),
+        ("rotations", g.rotations.as_flattened().to_vec()),
+        ("opacity", g.opacity_logits.clone()),
+        ("sh", g.sh.as_flattened().as_flattened().to_vec()),
+    ]
+}
+
+fn assert_close(label: &str, what: &str, a: &[f32], b: &[f32]) {
+    let (worst, differ) = difference(a, b);
+    eprintln!("{label} {what}: {differ} of {} values differ in a bit, largest relative difference {worst:.2e}", a.len());
+    assert!(worst <= 1e-6, "{label} {what}: relative difference {worst:.3e} > 1e-6");
+}
+
+/// `steps` training steps of one model on the host (backward read back, host Adam) and on the
+/// device (resident, device Adam), with the same per-pixel gradients; both on wgpu.
+fn host_and_device(degree: u32, steps: usize, extra: bool) {
+    let (Some(mut host), Some(mut dev)) = (gpu(WgpuOptions::default()), gpu(WgpuOptions::default())) else { return };
+    let label = format!("degree {degree}, {steps} steps{}", if extra { ", extra opacity gradient" } else { "" });
+    let cfg = RasterConfig { antialiased: true, low_pass: 0.1, ..RasterConfig::default() };
+    let (w, h) = (64, 48);
+    let cams = cameras(w, h);
+    let mut gh = random_scene(400, degree, 11 + degree as u64, 1.0, (-3.5, -2.0));
+    let mut gd = gh.clone();
+    let n = gh.len();
+    let (mut ah, mut ad) = (optimiser(n), optimiser(n));
+    let req = RenderRequest::all();
+    dev.make_resident(&gd, &ad).unwrap();
+    for s in 0..steps {
+        let cam = &cams[s % cams.len()];
+        let grads = Grads::new(w, h, 3 + s as u64);
+        let extra_opacity: Option<Vec<f32>> = extra.then(|| (0..n).map(|i| ((i % 7) as f32 - 3.0) * 1e-3).collect());
+        // Host: the wgpu backward, read back, then the host's Adam.
+        let out = host.render(&gh, cam, &req, &cfg).unwrap();
+        let mut g = host.backward(&gh, cam, &cfg, &out, &grads.all()).unwrap();
+        if let Some(x) = &extra_opacity {
+            g.opacity_logits.iter_mut().zip(x).for_each(|(a, b)| *a += b);
+        }
+        gs_raster::adam_step(&mut ah, &mut gh, &g).unwrap();
+        // Device: the same render of the resident model, backward and Adam there.
+        let out = dev.render(&gd, cam, &req, &cfg).unwrap();
+        let extras = StepExtras { extra_opacity: extra_opacity.as_deref(), screen: true };
+        let step = dev.backward_and_step(&mut gd, cam, &cfg, &out, &grads.all(), &mut ad, extras).unwrap();
+        assert!(step.means_finite);
+        assert_eq!(step.mean2d, g.mean2d, "{label}: the screen gradients are the backward's");
+        assert_eq!(step.mean2d_abs, g.mean2d_abs, "{label}: the absolute screen gradients are the backward's");
+    }
+    for ((what, a), (_, b)) in parameters(&gh).iter().zip(parameters(&gd).iter()) {
+        assert_close(&label, what, a, b);
+    }
+    dev.read_moments(&mut ad).unwrap();
+    for (x, y) in ah.groups.iter().zip(&ad.groups) {
+        assert_eq!((x.step, x.lr), (y.step, y.lr), "{label} {}", x.name);
+        assert_close(&label, &format!("{} m", x.name), &x.m, &y.m);
+        assert_close(&label, &format!("{} v", x.name), &x.v, &y.v);
+    }
+}
+
+#[test]
+fn the_device_step_matches_the_host_at_sh_degree_3() {
+    host_and_device(3, 4, false);
+}
+
+#[test]
+fn the_device_step_matches_the_host_at_sh_degree_1_with_an_opacity_term() {
+    host_and_device(1, 3, true);
+}
+
+/// A step without any gradient (the camera sees nothing) still moves the model by its
+/// momentum, as the host's Adam does.
+#[test]
+fn a_step_without_gradients_keeps_the_momentum() {
+    let (Some(mut host), Some(mut dev)) = (gpu(WgpuOptions::default()), gpu(WgpuOptions::default())) else { return };
+    let cfg = RasterConfig::default();
+    let cams = cameras(32, 24);
+    let mut gh = random_scene(50, 0, 5, 1.0, (-3.0, -2.0));
+    let mut gd = gh.clone();
+    let (mut ah, mut ad) = (optimiser(gh.len()), optimiser(gh.len()));
+    dev.make_resident(&gd, &ad).unwrap();
+    let req = RenderRequest::default();
+    let grads = Grads::new(32, 24, 1);
+    let color = OutputGradients { color: Some(&grads.color), ..Default::default() };
+    // One step with gradients, then one with every Gaussian beyond the far plane.
+    for (s, far) in [(0, cfg.far), (1, 0.02)] {
+        let cfg = RasterConfig { far, ..cfg };
+        let out = host.render(&gh, &cams[s], &req, &cfg).unwrap();
+        let g = host.backward(&gh, &cams[s], &cfg, &out, &color).unwrap();
+        gs_raster::adam_step(&mut ah, &mut gh, &g).unwrap();
+        let out = dev.render(&gd, &cams[s], &req, &cfg).unwrap();
+        dev.backward_and_step(&mut gd, &cams[s], &cfg, &out, &color, &mut ad, StepExtras::default()).unwrap();
+    }
+    for ((what, a), (_, b)) in parameters(&gh).iter().zip(parameters(&gd).iter()) {
+        assert_close("no gradients", what, a, b);
+    }
+}
+
+/// While resident, a render of another model size or SH degree is refused instead of
+/// drawing the device's parameters; released, the rasterizer uploads again.
+#[test]
+fn the_residency_refuses_other_models_until_released() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cfg = RasterConfig::default();
+    let cam = &cameras(32, 24)[0];
+    let g = random_scene(30, 2, 9, 1.0, (-3.0, -2.0));
+    let adam = optimiser(g.len());
+    assert!(!r.is_resident());
+    r.make_resident(&g, &adam).unwrap();
+    assert!(r.is_resident());
+    let req = RenderRequest::default();
+    let first = r.render(&g, cam, &req, &cfg).unwrap();
+    let mut other = g.clone();
+    other.sh_degree = 1;
+    let err = r.render(&other, cam, &req, &cfg).unwrap_err().to_string();
+    assert!(err.contains("resident model holds 30 Gaussians of SH degree 2"), "{err}");
+    let fewer = random_scene(20, 2, 9, 1.0, (-3.0, -2.0));
+    assert!(r.render(&fewer, cam, &req, &cfg).is_err());
+    // Moments of the wrong size are refused before anything is uploaded.
+    let err = r.make_resident(&fewer, &adam).unwrap_err().to_string();
+    assert!(err.contains("holds 90 moments, not 20 rows of 3"), "{err}");
+    r.release_resident();
+    let again = r.render(&g, cam, &req, &cfg).unwrap();
+    assert_eq!(first.color, again.color, "the resident render is the uploaded one");
+    assert!(r.render(&other, cam, &req, &cfg).is_ok());
+    let mut moments = adam.clone();
+    assert!(r.read_moments(&mut moments).is_err(), "nothing is resident");
+}
