@@ -108,13 +108,17 @@ fn adam_structs() -> [GeneratedStruct; 4] {
     ]
 }
 
-/// The Adam kernels' entry points and storage bindings.
-fn adam_specs() -> [(&'static str, Vec<Binding<'static>>); 2] {
+/// The step of one scalar (both kernels), then each kernel's own source.
+const ADAM: &str = include_str!("adam.wgsl");
+
+/// The Adam kernels: entry point, own source and storage bindings.
+fn adam_specs() -> [(&'static str, &'static str, Vec<Binding<'static>>); 2] {
     use Binding as B;
     let (par, sh) = ("array<ParamRecord>", "array<ShCoeff>");
     [
         (
             "adam_params",
+            include_str!("adam_params.wgsl"),
             vec![
                 B::write("params", par),
                 B::write("m_params", par),
@@ -126,15 +130,11 @@ fn adam_specs() -> [(&'static str, Vec<Binding<'static>>); 2] {
         ),
         (
             "adam_sh",
+            include_str!("adam_sh.wgsl"),
             vec![B::write("sh", sh), B::write("m_sh", sh), B::write("v_sh", sh), B::read("grads_sh", sh)],
         ),
     ]
 }
-
-/// The step of one scalar (both kernels), then each kernel's own source.
-const ADAM: &str = include_str!("adam.wgsl");
-const ADAM_PARAMS: &str = include_str!("adam_params.wgsl");
-const ADAM_SH: &str = include_str!("adam_sh.wgsl");
 
 impl Model {
     pub(super) fn new(ctx: &GpuContext) -> gs_gpu::Result<Self> {
@@ -143,10 +143,10 @@ impl Model {
         let (params, sh, m_params, v_params) = (b("params"), b("sh"), b("m_params"), b("v_params"));
         let (m_sh, v_sh, extra, flags) = (b("m_sh"), b("v_sh"), b("extra_opacity"), b("adam_flags"));
         let decls = gs_gpu::declarations(&adam_structs());
-        let [(e0, b0), (e1, b1)] = adam_specs();
+        let [(e0, s0, b0), (e1, s1, b1)] = adam_specs();
         Ok(Self {
-            adam_params: Kernel::new(ctx, e0, &[&decls, ADAM, ADAM_PARAMS], &b0)?,
-            adam_sh: Kernel::new(ctx, e1, &[&decls, ADAM, ADAM_SH], &b1)?,
+            adam_params: Kernel::new(ctx, e0, &[&decls, ADAM, s0], &b0)?,
+            adam_sh: Kernel::new(ctx, e1, &[&decls, ADAM, s1], &b1)?,
             disp: Dispatcher::new(ctx, std::mem::size_of::<AdamUniform>() as u64),
             pool,
             params,
@@ -364,6 +364,8 @@ impl WgpuRasterizer {
     /// [`gs_core::Adam::step_strided`] on each group. `g` receives the new parameters; `adam`'s
     /// groups count the step while their moments stay on the device. A render without
     /// intersections or gradients steps with zero gradients, as the host does.
+    // The backward's five inputs, the optimiser and the step's extras.
+    #[allow(clippy::too_many_arguments)]
     pub fn backward_and_step(
         &mut self,
         g: &mut Gaussians,
@@ -489,4 +491,23 @@ fn store_parameters(g: &mut Gaussians, params: &[ParamRecord], sh: &[ShCoeff], n
     g.rotations.par_iter_mut().enumerate().for_each(|(i, v)| *v = rec(i).rotation());
     g.opacity_logits.par_iter_mut().enumerate().for_each(|(i, v)| *v = rec(i).opacity_logit);
     g.sh.par_iter_mut().zip(sh.par_chunks(nc)).for_each(|(c, s)| c.iter_mut().zip(s).for_each(|(c, s)| *c = s.rgb));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gs_gpu::{check_layout, kernel_source};
+
+    /// Both Adam kernels' full sources parse, and their generated structs have the Rust
+    /// offsets and sizes (naga's layouter against `offset_of!` / `size_of`).
+    #[test]
+    fn the_adam_kernels_parse_with_the_hosts_layouts() {
+        let decls = gs_gpu::declarations(&adam_structs());
+        for (entry, own, bindings) in adam_specs() {
+            let src = kernel_source(&[&decls, ADAM, own], &bindings);
+            check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{entry}: {e}"));
+            gs_gpu::check_layouts(&adam_structs(), &src).unwrap_or_else(|e| panic!("{entry}: {e}"));
+        }
+        assert_eq!(std::mem::size_of::<AdamUniform>(), 4 * 17);
+    }
 }
