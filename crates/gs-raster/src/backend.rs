@@ -2,10 +2,10 @@
 //! object with the same `render` / `backward` signatures.
 
 use crate::{
-    GaussianGradients, OutputGradients, RasterConfig, RenderOutput, RenderRequest,
-    Result,
+    DeviceStep, GaussianGradients, OutputGradients, RasterConfig, RenderOutput, RenderRequest,
+    Result, StepExtras,
 };
-use gs_core::{Camera, Gaussians};
+use gs_core::{Adam, Camera, Gaussians};
 
 /// Which rasterizer backend to use (`"cpu" | "wgpu" | "auto"` via [`std::str::FromStr`], in any
 /// letter case; `"gpu"` also names wgpu).
@@ -114,12 +114,66 @@ impl Rasterizer {
         }
     }
 
-    /// The wgpu rasterizer, when this one runs on wgpu (resident training, timings).
-    #[cfg(feature = "wgpu")]
-    pub fn wgpu_mut(&mut self) -> Option<&mut crate::gpu::WgpuRasterizer> {
+    /// Whether a model is resident on this rasterizer's device (never on the CPU backend).
+    pub fn is_resident(&self) -> bool {
+        match &self.inner {
+            Inner::Cpu => false,
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.is_resident(),
+        }
+    }
+
+    /// Keeps `gaussians` and the moments of `adam` on the device for training
+    /// ([`crate::WgpuRasterizer::make_resident`]). The CPU backend has no device and refuses.
+    pub fn make_resident(&mut self, gaussians: &Gaussians, adam: &Adam) -> Result<()> {
         match &mut self.inner {
-            Inner::Cpu => None,
-            Inner::Wgpu(r) => Some(r),
+            Inner::Cpu => {
+                let _ = (gaussians, adam);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident; it steps on the host (gs_raster::adam_step)".into()))
+            }
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.make_resident(gaussians, adam),
+        }
+    }
+
+    /// Ends a residency, bringing the device's moments into `adam` first; nothing to do when
+    /// no model is resident.
+    pub fn release_into(&mut self, adam: &mut Adam) -> Result<()> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) if r.is_resident() => {
+                r.read_moments(adam)?;
+                r.release_resident();
+                Ok(())
+            }
+            _ => {
+                let _ = adam;
+                Ok(())
+            }
+        }
+    }
+
+    /// The backward of `forward` and one Adam step on the resident model
+    /// ([`crate::WgpuRasterizer::backward_and_step`]). The CPU backend has no resident model
+    /// and refuses.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward_and_step(
+        &mut self,
+        gaussians: &mut Gaussians,
+        camera: &Camera,
+        config: &RasterConfig,
+        forward: &RenderOutput,
+        grads: &OutputGradients,
+        adam: &mut Adam,
+        extras: StepExtras<'_>,
+    ) -> Result<DeviceStep> {
+        match &mut self.inner {
+            Inner::Cpu => {
+                let _ = (gaussians, camera, config, forward, grads, adam, extras);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident; use gs_raster::backward and gs_raster::adam_step".into()))
+            }
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.backward_and_step(gaussians, camera, config, forward, grads, adam, extras),
         }
     }
 

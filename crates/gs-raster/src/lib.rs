@@ -83,13 +83,13 @@ pub use cpu::project::{JACOBIAN_CLAMP, LOW_PASS, MIN_COMPENSATION};
 pub use cpu::{backward, render, render_naive};
 #[cfg(feature = "wgpu")]
 pub use gpu::{
-    CallTimings, DeviceStep, GpuTimings, StepExtras, WgpuOptions, WgpuRasterizer,
+    CallTimings, GpuTimings, WgpuOptions, WgpuRasterizer,
     hardware_adapter_available, probe_adapter,
 };
 pub use types::{
-    ALPHA_THRESHOLD, ForwardState, GaussianGradients, MAX_ALPHA, OBSERVE_T, OutputGradients,
+    ALPHA_THRESHOLD, DeviceStep, ForwardState, GaussianGradients, MAX_ALPHA, OBSERVE_T, OutputGradients,
     PLANE_DEPTH_EPS, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats,
-    Result, T_STOP, TILE_SIZE, adam_step, screen_norm,
+    Result, StepExtras, T_STOP, TILE_SIZE, adam_step, screen_norm,
 };
 pub(crate) use types::StateInner;
 

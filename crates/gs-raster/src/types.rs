@@ -294,6 +294,27 @@ impl GaussianGradients {
     }
 }
 
+/// What a device step (`WgpuRasterizer::backward_and_step`) read back besides the parameters.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DeviceStep {
+    /// Whether every gradient of the means was finite (the host's step refuses a non-finite
+    /// one before stepping; here the step has run and the caller stops the run).
+    pub means_finite: bool,
+    /// ∂L/∂ of the projected centres in NDC, when asked (else empty).
+    pub mean2d: Vec<[f32; 2]>,
+    /// Σ |∂L/∂x|, Σ |∂L/∂y| in NDC, when asked (else empty).
+    pub mean2d_abs: Vec<[f32; 2]>,
+}
+
+/// What a device step takes besides the render and its gradients.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepExtras<'a> {
+    /// A loss term's own ∂L/∂ opacity logit per Gaussian, added to the rasterizer's.
+    pub extra_opacity: Option<&'a [f32]>,
+    /// Read back the screen-space gradients (the densification statistics).
+    pub screen: bool,
+}
+
 /// One Adam step of every parameter of `g` on the host with the gradients `grads`: the CPU
 /// twin of the wgpu backend's resident step (`WgpuRasterizer::backward_and_step`). `adam` has
 /// one group per [`gs_core::Param`], by name; the SH DC and SH rest groups are updated in

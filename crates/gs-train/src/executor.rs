@@ -5,7 +5,9 @@
 //! [`ReferenceExecutor`] renders the view on its rasterizer (CPU or wgpu), evaluates the plan's
 //! loss terms through the [`crate::LossTerm`] contract (on the CPU, or on the rasterizer's device
 //! where [`LossDevices`] has a kernel), back-propagates through exposure and rasterizer and takes
-//! the Adam step; density control follows in [`crate::refine`]. With the CPU rasterizer it is the
+//! the Adam step (on a wgpu rasterizer both on the device, on the model kept resident there
+//! between [`StepExecutor::sync`]s: docs/architecture.md §GPU); density control follows in
+//! [`crate::refine`]. With the CPU rasterizer it is the
 //! numerical reference that any other executor of the same plan must match.
 
 use crate::budget::Budget;
@@ -195,21 +197,15 @@ impl ReferenceExecutor {
     /// Makes the model resident on the rasterizer's device when Adam runs there and it is
     /// not resident yet (the first step, or the first after a [`StepExecutor::sync`]).
     fn take_up(&mut self, state: &TrainState) -> Result<()> {
-        #[cfg(feature = "wgpu")]
-        if self.adam_on_device
-            && let Some(r) = self.rasterizer.wgpu_mut()
-            && !r.is_resident()
-        {
-            r.make_resident(&state.gaussians, &state.adam)?;
+        if self.adam_on_device && !self.rasterizer.is_resident() {
+            self.rasterizer.make_resident(&state.gaussians, &state.adam)?;
         }
-        let _ = state;
         Ok(())
     }
 
-    /// The backward and the Adam step on the device ([`gs_raster::WgpuRasterizer::backward_and_step`]),
-    /// with the loss terms' own opacity gradient `extra_opacity`; accumulates the
-    /// densification statistics when the plan says so.
-    #[cfg(feature = "wgpu")]
+    /// The backward and the Adam step on the device ([`Rasterizer::backward_and_step`]), with
+    /// the loss terms' own opacity gradient `extra_opacity`; accumulates the densification
+    /// statistics when the plan says so.
     #[allow(clippy::too_many_arguments)]
     fn device_step(
         &mut self,
@@ -221,9 +217,8 @@ impl ReferenceExecutor {
         grads: &gs_raster::OutputGradients,
         extra_opacity: Option<&[f32]>,
     ) -> Result<()> {
-        let r = self.rasterizer.wgpu_mut().expect("Adam runs on the device only with a wgpu rasterizer");
         let extras = gs_raster::StepExtras { extra_opacity, screen: plan.refine.accumulate };
-        let step = r.backward_and_step(&mut state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
+        let step = self.rasterizer.backward_and_step(&mut state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
         if !step.means_finite {
             return Err(TrainError::Diverged { iteration: plan.iteration, problem: "gradient of the means is not finite".into() });
         }
@@ -312,9 +307,8 @@ impl StepExecutor for ReferenceExecutor {
             None => grad_color,
         };
         let output_grads = grads.as_output(Some(&grad_color));
-        if cfg!(feature = "wgpu") && self.adam_on_device {
+        if self.adam_on_device {
             // Backward and Adam in one device submission: their time is the backward's.
-            #[cfg(feature = "wgpu")]
             self.device_step(run, state, plan, camera, &out, &output_grads, grads.opacity_logits.as_deref())?;
             profile.add(phase, Part::Backward, clock.lap());
         } else {
@@ -354,15 +348,7 @@ impl StepExecutor for ReferenceExecutor {
     }
 
     fn sync(&mut self, state: &mut TrainState) -> Result<()> {
-        #[cfg(feature = "wgpu")]
-        if let Some(r) = self.rasterizer.wgpu_mut()
-            && r.is_resident()
-        {
-            r.read_moments(&mut state.adam)?;
-            r.release_resident();
-        }
-        let _ = state;
-        Ok(())
+        Ok(self.rasterizer.release_into(&mut state.adam)?)
     }
 }
 

@@ -37,8 +37,6 @@ mod forward;
 mod kernels;
 mod resident;
 
-pub use resident::{DeviceStep, StepExtras};
-
 use crate::cpu::project::CamParams;
 use crate::{RasterError, RenderRequest, Result};
 use gs_gpu::{

@@ -16,7 +16,7 @@
 use super::kernels::{ParamGrad, ParamRecord, ShCoeff};
 use super::backward::pod_vec;
 use super::{GpuTimings, WgpuRasterizer, chunks, upload_with};
-use crate::{OutputGradients, RasterConfig, RasterError, RenderOutput, Result};
+use crate::{DeviceStep, OutputGradients, RasterConfig, RasterError, RenderOutput, Result, StepExtras};
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Adam, Camera, Gaussians, GroupStep, Param};
 use gs_gpu::{
@@ -50,27 +50,6 @@ gs_gpu::wgsl_struct! {
         step_rotations: f32,
         bc2_rotations: f32,
     }
-}
-
-/// What a device step read back besides the parameters.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct DeviceStep {
-    /// Whether every gradient of the means was finite (the host's step refuses a non-finite
-    /// one before stepping; here the step has run and the caller stops the run).
-    pub means_finite: bool,
-    /// ∂L/∂ of the projected centres in NDC, when asked (else empty).
-    pub mean2d: Vec<[f32; 2]>,
-    /// Σ |∂L/∂x|, Σ |∂L/∂y| in NDC, when asked (else empty).
-    pub mean2d_abs: Vec<[f32; 2]>,
-}
-
-/// What a device step takes besides the render and its gradients.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct StepExtras<'a> {
-    /// A loss term's own ∂L/∂ opacity logit per Gaussian, added to the rasterizer's.
-    pub extra_opacity: Option<&'a [f32]>,
-    /// Read back the screen-space gradients (the densification statistics).
-    pub screen: bool,
 }
 
 /// The size of a resident model: renders of other Gaussians are refused.
