@@ -372,15 +372,24 @@ fn bench_wgpu(
                 drop(r.backward(&g, cam, cfg, &o, &og).unwrap())
             });
             // Where the last call's time went (host clock): uploads, device, unpacking.
-            let t = r.timings();
-            for (name, p) in [("render", t.render), ("backward", t.backward)] {
-                eprintln!(
-                    "wgpu n={n} last {name}: upload {:.1} ms, device {:.1} ms, unpack {:.1} ms",
-                    p.upload.as_secs_f64() * 1e3,
-                    p.device.as_secs_f64() * 1e3,
-                    p.unpack.as_secs_f64() * 1e3
-                );
-            }
+            print_timings(n, "", r.timings());
+            // One training step (render, geometry backward, Adam): the parameters uploaded and
+            // the gradients read back for the host's Adam, against the resident model with
+            // Adam on the device (only the new parameters come back).
+            let (mut gh, mut adam) = (g.clone(), optimiser(&g));
+            time("train_step_host_adam", st.backward_pairs, &mut || {
+                let o = r.render(&gh, cam, req, cfg).unwrap();
+                let grads = r.backward(&gh, cam, cfg, &o, &og).unwrap();
+                gs_raster::adam_step(&mut adam, &mut gh, &grads).unwrap();
+            });
+            let (mut gd, mut adam) = (g.clone(), optimiser(&g));
+            r.make_resident(&gd, &adam).unwrap();
+            time("train_step_resident", st.backward_pairs, &mut || {
+                let o = r.render(&gd, cam, req, cfg).unwrap();
+                r.backward_and_step(&mut gd, cam, cfg, &o, &og, &mut adam, gs_raster::StepExtras::default()).unwrap();
+            });
+            print_timings(n, "resident ", r.timings());
+            r.release_resident();
             continue;
         }
         group.throughput(Throughput::Elements(st.forward_pairs));
@@ -400,6 +409,29 @@ fn bench_wgpu(
         });
     }
     group.finish();
+}
+
+/// Prints where the latest render and backward of `n` Gaussians spent their time.
+#[cfg(feature = "wgpu")]
+fn print_timings(n: usize, label: &str, t: gs_raster::CallTimings) {
+    for (name, p) in [("render", t.render), ("backward", t.backward)] {
+        eprintln!(
+            "wgpu n={n} last {label}{name}: upload {:.1} ms, device {:.1} ms, unpack {:.1} ms",
+            p.upload.as_secs_f64() * 1e3,
+            p.device.as_secs_f64() * 1e3,
+            p.unpack.as_secs_f64() * 1e3
+        );
+    }
+}
+
+/// Adam with one group per parameter of `g` (gs-train's learning rates do not matter here).
+#[cfg(feature = "wgpu")]
+fn optimiser(g: &Gaussians) -> gs_core::Adam {
+    let mut adam = gs_core::Adam::new(gs_core::AdamConfig::default());
+    for p in gs_core::Param::ALL {
+        adam.add_group(p.name(), 1e-4, g.len(), p.row_width()).unwrap();
+    }
+    adam
 }
 
 criterion_group!(benches, bench);

@@ -372,14 +372,15 @@ impl WgpuRasterizer {
                 Some((cam, st, frame)) => r.record_backward(g, &cam, config, st, grads, frame)?,
                 None => r.zero_gradients(g.len(), nc),
             };
+            let t1 = Instant::now();
             r.disp.submit(enc);
             let uniform = AdamUniform::begin_step(adam, nc, extras.extra_opacity.is_some())?;
-            r.step_on_device(g, &uniform, extras)
+            let (step, t2) = r.step_on_device(g, &uniform, extras)?;
+            r.timings.backward = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
+            Ok(step)
         });
         // The device's parameters moved: the last render's state is no longer theirs.
         self.frame = None;
-        let t1 = Instant::now();
-        self.timings.backward = GpuTimings { upload: std::time::Duration::ZERO, device: t1 - t0, unpack: std::time::Duration::ZERO };
         out
     }
 
@@ -396,8 +397,9 @@ impl WgpuRasterizer {
     }
 
     /// Runs the Adam kernels on the gradients in `gout` / `gout_sh` and reads back the new
-    /// parameters (into `g`), the divergence flag and, when asked, the screen gradients.
-    fn step_on_device(&mut self, g: &mut Gaussians, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<DeviceStep> {
+    /// parameters (into `g`), the divergence flag and, when asked, the screen gradients;
+    /// also returns when the readback arrived.
+    fn step_on_device(&mut self, g: &mut Gaussians, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<(DeviceStep, Instant)> {
         let (n, nc) = (g.len(), uniform.nc as usize);
         let m = &mut self.model;
         match extras.extra_opacity {
@@ -446,16 +448,18 @@ impl WgpuRasterizer {
         }
         m.disp.submit(enc);
         self.ctx.read_mapped(staging, pb + sb + 4 + gb, |bytes| {
+            let arrived = Instant::now();
             let (par, rest) = bytes.split_at(pb as usize);
             let (sh, rest) = rest.split_at(sb as usize);
             let (flags, screen) = rest.split_at(4);
             store_parameters(g, &pod_vec::<ParamRecord>(par), &pod_vec::<ShCoeff>(sh), nc);
             let grads = pod_vec::<ParamGrad>(screen);
-            DeviceStep {
+            let step = DeviceStep {
                 means_finite: u32::from_le_bytes(flags.try_into().expect("4 bytes")) == 0,
                 mean2d: grads.par_iter().map(|r| [r.mean2d_x, r.mean2d_y]).collect(),
                 mean2d_abs: grads.par_iter().map(|r| [r.mean2d_abs_x, r.mean2d_abs_y]).collect(),
-            }
+            };
+            (step, arrived)
         })
         .map_err(RasterError::from)
     }
