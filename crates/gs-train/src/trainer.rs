@@ -82,6 +82,8 @@ pub struct Trainer<'s> {
     config: TrainConfig,
     scene: &'s Scene,
     train_views: Vec<usize>,
+    /// The training views' cameras, in `train_views` order (the 3D filter's sampling rates).
+    train_cameras: Vec<&'s gs_core::Camera>,
     test_views: Vec<usize>,
     extent: f64,
     raster: RasterConfig,
@@ -211,6 +213,7 @@ impl<'s> Trainer<'s> {
             config,
             scene,
             train_views,
+            train_cameras: cams,
             test_views,
             extent,
             selector,
@@ -410,10 +413,7 @@ impl<'s> Trainer<'s> {
         let refined = self.executor.refine(&run, &mut self.state, &plan)?;
         let rows_changed = refined.densify.is_some() || refined.trimmed.is_some() || refined.floaters.is_some();
         let due = rows_changed || plan.iteration % crate::smoothing::RECOMPUTE_EVERY == 0;
-        if smoothing_on(&self.config, &self.state) {
-            let cams = self.scene.cameras_of(&self.train_views);
-            crate::smoothing::settle(&mut self.state, &cams, f64::from(self.config.near), self.config.smoothing_3d, due)?;
-        }
+        crate::smoothing::settle(&mut self.state, &self.train_cameras, f64::from(self.config.near), self.config.smoothing_3d, due)?;
         let phase = crate::checkpoint::Elapsed::phase_of(&self.config, plan.iteration);
         self.profile.add(phase, Part::Refine, clock.lap());
         self.profile.finish_iteration(phase, whole.lap());
