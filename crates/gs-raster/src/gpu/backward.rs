@@ -18,6 +18,14 @@ use gs_gpu::{Encoder, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
+/// The inputs of a backward once checked: the camera constants, the forward render's state
+/// and the device frame that holds it.
+pub(super) struct Checked<'f> {
+    pub(super) cam: CamParams,
+    pub(super) st: &'f GpuState,
+    pub(super) frame: Frame,
+}
+
 impl WgpuRasterizer {
     /// Backward like [`crate::backward`] (same inputs as the render of `forward`, which must
     /// come from this rasterizer). Fastest right after that render; for an older render the
@@ -30,10 +38,10 @@ impl WgpuRasterizer {
         forward: &RenderOutput,
         grads: &OutputGradients,
     ) -> Result<GaussianGradients> {
-        let Some((cam, st, frame)) = self.checked_frame(gaussians, camera, config, forward, grads)? else {
+        let Some(checked) = self.checked_frame(gaussians, camera, config, forward, grads)? else {
             return Ok(GaussianGradients::zeros(gaussians.len()));
         };
-        self.scoped(|r| r.backward_inner(gaussians, &cam, config, st, grads, frame))
+        self.scoped(|r| r.backward_inner(gaussians, config, grads, &checked))
     }
 
     /// The backward's checks, and the device state of `forward` (rebuilt when a later render
@@ -45,7 +53,7 @@ impl WgpuRasterizer {
         config: &RasterConfig,
         forward: &'f RenderOutput,
         grads: &OutputGradients,
-    ) -> Result<Option<(CamParams, &'f GpuState, Frame)>> {
+    ) -> Result<Option<Checked<'f>>> {
         let cam = check_inputs(gaussians, camera, config)?;
         let st = match &forward.state.0 {
             StateInner::Gpu(st) => st,
@@ -85,24 +93,22 @@ impl WgpuRasterizer {
         if frame.total == 0 || !(color || geo || depth || grads.alpha.is_some()) {
             return Ok(None);
         }
-        Ok(Some((cam, st, frame)))
+        Ok(Some(Checked { cam, st, frame }))
     }
 
     fn backward_inner(
         &mut self,
         g: &Gaussians,
-        cam: &CamParams,
         config: &RasterConfig,
-        st: &GpuState,
         grads: &OutputGradients,
-        frame: Frame,
+        checked: &Checked<'_>,
     ) -> Result<GaussianGradients> {
         let nn = g.len() as u64;
         // The readback: every Gaussian's `ParamGrad`, then its SH gradients.
         let grad_bytes = nn * bytes_of::<ParamGrad>(1);
         let sh_bytes = nn * coeffs_for_degree(g.sh_degree) as u64 * bytes_of::<ShCoeff>(1);
         let t0 = Instant::now();
-        let mut enc = self.record_backward(g, cam, config, st, grads, frame)?;
+        let mut enc = self.record_backward(g, config, grads, checked)?;
         let t1 = Instant::now();
         self.pool.ensure(self.bufs.staging, grad_bytes + sh_bytes + 4);
         let (p, b) = (&self.pool, &self.bufs);
@@ -125,12 +131,11 @@ impl WgpuRasterizer {
     pub(super) fn record_backward(
         &mut self,
         g: &Gaussians,
-        cam: &CamParams,
         config: &RasterConfig,
-        st: &GpuState,
         grads: &OutputGradients,
-        frame: Frame,
+        checked: &Checked<'_>,
     ) -> Result<Encoder> {
+        let (cam, st, frame) = (&checked.cam, checked.st, checked.frame);
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
         let flags = grads.color.is_some() as u32

@@ -369,7 +369,7 @@ impl WgpuRasterizer {
         let out = self.scoped(|r| {
             let nc = coeffs_for_degree(g.sh_degree);
             let enc = match checked {
-                Some((cam, st, frame)) => r.record_backward(g, &cam, config, st, grads, frame)?,
+                Some(checked) => r.record_backward(g, config, grads, &checked)?,
                 None => r.zero_gradients(g.len(), nc),
             };
             let t1 = Instant::now();
