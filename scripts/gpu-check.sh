@@ -2,9 +2,9 @@
 # The whole GPU measurement in one call, from the prebuilt binaries that scripts/gpu-pack.sh
 # put in .gpu/ (the GPU machine reaches no registry and builds nothing). In order of value:
 #   1. the machine: GPU name, memory, driver; the wgpu adapter;
-#   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests and
-#      the loss kernels' tests: gs-mvs photometric_gpu (L_p), gs-losses image_gpu (L_I) and
-#      normal_gpu (L_nc / L_ns));
+#   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests, the
+#      loss kernels' tests: gs-mvs photometric_gpu (L_p), gs-losses image_gpu (L_I) and
+#      normal_gpu (L_nc / L_ns), and the resident model's Adam: gs-raster wgpu_resident);
 #   3. the rasterizer bench at 1920×1080 with 100k and 1M Gaussians, wgpu and 16 CPU threads;
 #   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
 #      on the CPU, with per-phase times, held-out PSNR and veils;
@@ -69,9 +69,9 @@ if [ -f "$OUT/parity.log" ]; then
   note ""; note "## wgpu parity: $r ($(grep -E '^test result' "$OUT/parity.log" | tail -1))"
 fi
 
-# The loss kernels against their CPU twins (gs-mvs photometric_gpu, gs-losses image_gpu and
-# normal_gpu).
-for t in lp image normal; do
+# The loss kernels and the resident model's Adam against their CPU twins (gs-mvs
+# photometric_gpu, gs-losses image_gpu and normal_gpu, gs-raster wgpu_resident).
+for t in lp image normal resident; do
   step ${t}_parity 30 env CI=true "$B/$t-parity" --test-threads 1 --nocapture; r=$?
   if [ -f "$OUT/${t}_parity.log" ]; then
     if [ $r = 0 ]; then r=passed; else r=FAILED; fi

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Packs what scripts/gpu-check.sh needs on a GPU machine that reaches no registry: stripped
 # release binaries (vagsl, the rasterizer bench, the wgpu parity tests of the rasterizer, L_p,
-# L_I and L_nc/L_ns), the synth-bunny scene without its GT depth maps, and the Vulkan
+# L_I, L_nc/L_ns and the resident model's Adam), the synth-bunny scene without its GT depth maps, and the Vulkan
 # loader's Debian packages. Run it here, in the repository root; it fills the ignored folders .gpu/ and .gl/, which travel with `carry`.
 #
 #   scripts/gpu-pack.sh [--baseline PATH_TO_OLD_VAGSL] [--baseline-bench OLD_RASTER_BENCH NAME]
@@ -39,12 +39,14 @@ parity=$(exe test --release --test wgpu_parity --no-run)
 lp_parity=$(exe test --release --test photometric_gpu --no-run)
 image_parity=$(exe test --release --test image_gpu --no-run)
 normal_parity=$(exe test --release --test normal_gpu --no-run)
+resident_parity=$(exe test --release --test wgpu_resident --no-run)
 strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
 strip -o .gpu/bin/lp-parity "$lp_parity"
 strip -o .gpu/bin/image-parity "$image_parity"
 strip -o .gpu/bin/normal-parity "$normal_parity"
+strip -o .gpu/bin/resident-parity "$resident_parity"
 [ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
 if [ -n "$bench_base" ]; then
   case "$bench_base" in *.gz) gunzip -c "$bench_base" > .gpu/bin/raster-bench-baseline ;; *) strip -o .gpu/bin/raster-bench-baseline "$bench_base" ;; esac
