@@ -225,6 +225,16 @@ fn internals(g: &Gaussians, i: usize, cam: &CamParams, cfg: &RasterConfig) -> Op
     Some(Internals { geo, app })
 }
 
+/// The tiles `[first, end)` along one axis of `tiles` whose pixels have centres within `half`
+/// of `c`: pixel i (centre i + 0.5) is inside when |i + 0.5 − c| ≤ half (empty when none).
+/// The twin of project.wgsl's `tile_span`.
+fn tile_span(c: f32, half: f32, tiles: u32) -> (u32, u32) {
+    let ts = TILE_SIZE as f32;
+    let first = ((c - half - 0.5) / ts).floor().clamp(0.0, tiles as f32) as u32;
+    let end = ((c + half - 0.5) / ts).floor().clamp(-1.0, tiles as f32 - 1.0) as i64 + 1;
+    (first, end.max(0) as u32)
+}
+
 /// Projects Gaussian `i`; `None` when it is culled (behind/near/far, degenerate, transparent,
 /// non-finite or off-image).
 pub(crate) fn project(
@@ -255,27 +265,23 @@ pub(crate) fn project(
     if !finite {
         return None;
     }
-    // Tile rectangle of the pixels whose centres lie within the radius: pixel i (centre
-    // i + 0.5) is inside when |i + 0.5 − x| ≤ r.
-    let ts = TILE_SIZE as f32;
-    let tx0 = ((x - radius_f - 0.5) / ts)
-        .floor()
-        .clamp(0.0, cam.tiles_x as f32) as u32;
-    let tx1 = ((x + radius_f - 0.5) / ts)
-        .floor()
-        .clamp(-1.0, cam.tiles_x as f32 - 1.0) as i64
-        + 1;
-    let ty0 = ((y - radius_f - 0.5) / ts)
-        .floor()
-        .clamp(0.0, cam.tiles_y as f32) as u32;
-    let ty1 = ((y + radius_f - 0.5) / ts)
-        .floor()
-        .clamp(-1.0, cam.tiles_y as f32 - 1.0) as i64
-        + 1;
-    let (tx1, ty1) = (tx1.max(0) as u32, ty1.max(0) as u32);
+    // A Gaussian is visible when the square of its radius reaches a tile (the culling rule,
+    // which the densification statistics count on). Its tile list holds only the tiles of
+    // its α-threshold box, one pixel wider than the box the blend clips each tile to, so no
+    // rounding of that clip can reach a tile left out: the same pixels blend, fewer tiles are
+    // listed (docs/method.md §Rendering).
+    let (tx0, tx1) = tile_span(x, radius_f, cam.tiles_x);
+    let (ty0, ty1) = tile_span(y, radius_f, cam.tiles_y);
     if tx0 >= tx1 || ty0 >= ty1 {
         return None;
     }
+    let tight = |c: f32, ext: f32, lo: u32, hi: u32, tiles: u32| {
+        let (a, b) = tile_span(c, ext + 1.0, tiles);
+        let a = a.max(lo);
+        (a, b.min(hi).max(a))
+    };
+    let (tx0, tx1) = tight(x, ext_x, tx0, tx1, cam.tiles_x);
+    let (ty0, ty1) = tight(y, ext_y, ty0, ty1, cam.tiles_y);
     // Only now, for a Gaussian that reaches the image, the view-dependent appearance.
     let app = appearance(g, i, cam, &geo);
     let features = [app.color[0], app.color[1], app.color[2], app.n_c.x, app.n_c.y, app.n_c.z, app.dist, t.z];

@@ -1,6 +1,15 @@
 // Projection of one Gaussian per thread (chunked over Gaussians: the per-Gaussian arrays are
 // bound from `pass_.base` on, keys/vals/counters whole).
 
+// The tiles [first, end) along one axis of `tiles` whose pixels have centres within `half`
+// of `c` (the twin of project.rs's `tile_span`).
+fn tile_span(c: f32, half: f32, tiles: u32) -> vec2<u32> {
+    let ts = f32(TILE);
+    let first = u32(clamp(floor((c - half - 0.5) / ts), 0.0, f32(tiles)));
+    let end = max(i32(clamp(floor((c + half - 0.5) / ts), -1.0, f32(tiles) - 1.0)) + 1, 0);
+    return vec2<u32>(first, u32(end));
+}
+
 @compute @workgroup_size(256)
 fn project(ids: Ids) {
     let i = thread_1d(ids);
@@ -34,20 +43,25 @@ fn project(ids: Ids) {
     if (!finite) {
         return;
     }
-    let ts = f32(TILE);
-    let tx0 = u32(clamp(floor((x - radius_f - 0.5) / ts), 0.0, f32(cam.tiles_x)));
-    let tx1 = max(i32(clamp(floor((x + radius_f - 0.5) / ts), -1.0, f32(cam.tiles_x) - 1.0)) + 1, 0);
-    let ty0 = u32(clamp(floor((y - radius_f - 0.5) / ts), 0.0, f32(cam.tiles_y)));
-    let ty1 = max(i32(clamp(floor((y + radius_f - 0.5) / ts), -1.0, f32(cam.tiles_y) - 1.0)) + 1, 0);
-    if (tx0 >= u32(tx1) || ty0 >= u32(ty1)) {
+    // Visible when the square of the radius reaches a tile; listed only in the tiles of the
+    // α-threshold box one pixel wider (the twin of project.rs).
+    let sx = tile_span(x, radius_f, cam.tiles_x);
+    let sy = tile_span(y, radius_f, cam.tiles_y);
+    if (sx.x >= sx.y || sy.x >= sy.y) {
         return;
     }
+    let bx = tile_span(x, ext_x + 1.0, cam.tiles_x);
+    let by = tile_span(y, ext_y + 1.0, cam.tiles_y);
+    let tx0 = max(bx.x, sx.x);
+    let tx1 = max(min(bx.y, sx.y), tx0);
+    let ty0 = max(by.x, sy.x);
+    let ty1 = max(min(by.y, sy.y), ty0);
     let channels = array<f32, 8>(
         it.color.x, it.color.y, it.color.z, it.n_c.x, it.n_c.y, it.n_c.z, it.dist, t.z,
     );
     splat[i] = Splat(x, y, it.conic.x, it.conic.y, it.conic.z, it.opacity, sigma_max, ext_x, ext_y, channels);
     let radius = u32(min(radius_f, 4294967040.0));
-    proj[i] = TileRect(tx0, ty0, u32(tx1), u32(ty1), radius);
+    proj[i] = TileRect(tx0, ty0, tx1, ty1, radius);
     radii[i] = radius;
     keys[gi] = bitcast<u32>(t.z);
     atomicAdd(&counters[0], 1u);
