@@ -1,12 +1,15 @@
 // The parameters other than SH: means, log-scales, rotation and opacity logit, each with its
-// group's step, plus the extra opacity-logit gradient of a loss term when `adam.extra_opacity`.
+// group's step, plus the extra opacity-logit gradient of a loss term when `adam.extra_opacity`;
+// copies the screen-space gradients into `screen` for a compact readback.
 @compute @workgroup_size(256)
 fn adam_params(ids: Ids) {
     let i = thread_1d(ids);
     if (i >= pass_.n) {
         return;
     }
-    let g = grads[i].param;
+    let gr = grads[i];
+    screen[i] = ScreenStat(array<f32, 2>(gr.mean2d_x, gr.mean2d_y), array<f32, 2>(gr.mean2d_abs_x, gr.mean2d_abs_y));
+    let g = gr.param;
     if (!(is_finite(g.mean[0]) && is_finite(g.mean[1]) && is_finite(g.mean[2]))) {
         atomicOr(&flags[0], 1u);
     }

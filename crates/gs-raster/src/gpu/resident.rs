@@ -7,7 +7,7 @@
 //! is, and [`WgpuRasterizer::backward_and_step`] runs the backward and the Adam step on the
 //! device and reads back only the new parameters (the host's copy, which every other reader
 //! of the model uses) and, when asked, the screen-space gradients of the densification
-//! statistics. The moments come back only when asked ([`WgpuRasterizer::read_moments`]).
+//! statistics (16 bytes a Gaussian). The moments come back only when asked ([`WgpuRasterizer::read_moments`]).
 //! Whoever changes the host's Gaussians or moments in between (density control, an SH
 //! degree change) ends the residency first ([`WgpuRasterizer::release_resident`]); a
 //! resident render of Gaussians of another size or SH degree is an error, never a silent
@@ -52,6 +52,18 @@ gs_gpu::wgsl_struct! {
     }
 }
 
+gs_gpu::wgsl_struct! {
+    /// One Gaussian's screen-space gradients as a device step reads them back (WGSL
+    /// `struct ScreenStat`, written by `adam_params` from its `ParamGrad`): 16 of the
+    /// record's 60 bytes, for the densification statistics.
+    pub(crate) struct ScreenStat as "ScreenStat" {
+        /// ∂L/∂ of the projected centre in NDC (x, y).
+        mean2d: [f32; 2],
+        /// Σ |∂L/∂x|, Σ |∂L/∂y| in NDC.
+        mean2d_abs: [f32; 2],
+    }
+}
+
 /// The size of a resident model: renders of other Gaussians are refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Residency {
@@ -71,6 +83,7 @@ pub(super) struct Model {
     v_sh: BufId,
     extra: BufId,
     flags: BufId,
+    screen: BufId,
     resident: Option<Residency>,
     disp: Dispatcher,
     adam_params: Kernel,
@@ -78,12 +91,13 @@ pub(super) struct Model {
 }
 
 /// The structs of the Adam kernels (declarations and layout test).
-fn adam_structs() -> [GeneratedStruct; 4] {
+fn adam_structs() -> [GeneratedStruct; 5] {
     [
         GeneratedStruct::of::<AdamUniform>(),
         GeneratedStruct::of::<ParamRecord>(),
         GeneratedStruct::of::<ShCoeff>(),
         GeneratedStruct::of::<ParamGrad>(),
+        GeneratedStruct::of::<ScreenStat>(),
     ]
 }
 
@@ -105,6 +119,7 @@ fn adam_specs() -> [(&'static str, &'static str, Vec<Binding<'static>>); 2] {
                 B::read("grads", "array<ParamGrad>"),
                 B::read("extra_opacity", "array<f32>"),
                 B::write("flags", "array<atomic<u32>>"),
+                B::write("screen", "array<ScreenStat>"),
             ],
         ),
         (
@@ -121,6 +136,7 @@ impl Model {
         let mut b = |l| pool.add_storage(l);
         let (params, sh, m_params, v_params) = (b("params"), b("sh"), b("m_params"), b("v_params"));
         let (m_sh, v_sh, extra, flags) = (b("m_sh"), b("v_sh"), b("extra_opacity"), b("adam_flags"));
+        let screen = b("screen_stats");
         let decls = gs_gpu::declarations(&adam_structs());
         let [(e0, s0, b0), (e1, s1, b1)] = adam_specs();
         Ok(Self {
@@ -136,6 +152,7 @@ impl Model {
             v_sh,
             extra,
             flags,
+            screen,
             resident: None,
         })
     }
@@ -407,14 +424,16 @@ impl WgpuRasterizer {
             None => m.pool.ensure(m.extra, 4),
         }
         m.pool.ensure(m.flags, 4);
+        m.pool.ensure(m.screen, bytes_of::<ScreenStat>(n.max(1)));
         m.disp.write_frame(uniform);
         let (pb, sb) = (bytes_of::<ParamRecord>(n), bytes_of::<ShCoeff>(n * nc));
-        let gb = if extras.screen { bytes_of::<ParamGrad>(n) } else { 0 };
+        let gb = if extras.screen { bytes_of::<ScreenStat>(n) } else { 0 };
         self.pool.ensure(self.bufs.staging, pb + sb + 4 + gb);
         let (m, p, b) = (&self.model, &self.pool, &self.bufs);
         let mut enc = m.disp.encoder();
         enc.encoder.clear_buffer(m.pool.buffer(m.flags), 0, Some(4));
         let (rec, shr, grad) = (bytes_of::<ParamRecord>(1), nc as u64 * bytes_of::<ShCoeff>(1), bytes_of::<ParamGrad>(1));
+        let stat = bytes_of::<ScreenStat>(1);
         for (bb, c) in chunks(n as u32) {
             m.disp.make_room(&mut enc, 2);
             let pass = PassUniform { n: c as u32, base: bb as u32, ..Default::default() };
@@ -429,6 +448,7 @@ impl WgpuRasterizer {
                 p.range(b.gout, bb * grad, c * grad),
                 extra,
                 m.pool.whole(m.flags),
+                m.pool.range(m.screen, bb * stat, c * stat),
             ];
             m.disp.dispatch_1d(&mut enc, &m.adam_params, &binds, pass)?;
             let binds = [
@@ -444,7 +464,7 @@ impl WgpuRasterizer {
         enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.sh), 0, staging, pb, sb);
         enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.flags), 0, staging, pb + sb, 4);
         if extras.screen {
-            enc.encoder.copy_buffer_to_buffer(p.buffer(b.gout), 0, staging, pb + sb + 4, gb);
+            enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.screen), 0, staging, pb + sb + 4, gb);
         }
         m.disp.submit(enc);
         self.ctx.read_mapped(staging, pb + sb + 4 + gb, |bytes| {
@@ -453,11 +473,11 @@ impl WgpuRasterizer {
             let (sh, rest) = rest.split_at(sb as usize);
             let (flags, screen) = rest.split_at(4);
             store_parameters(g, &pod_vec::<ParamRecord>(par), &pod_vec::<ShCoeff>(sh), nc);
-            let grads = pod_vec::<ParamGrad>(screen);
+            let stats = pod_vec::<ScreenStat>(screen);
             let step = DeviceStep {
                 means_finite: u32::from_le_bytes(flags.try_into().expect("4 bytes")) == 0,
-                mean2d: grads.par_iter().map(|r| [r.mean2d_x, r.mean2d_y]).collect(),
-                mean2d_abs: grads.par_iter().map(|r| [r.mean2d_abs_x, r.mean2d_abs_y]).collect(),
+                mean2d: stats.par_iter().map(|r| r.mean2d).collect(),
+                mean2d_abs: stats.par_iter().map(|r| r.mean2d_abs).collect(),
             };
             (step, arrived)
         })
