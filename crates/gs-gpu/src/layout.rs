@@ -134,6 +134,18 @@ pub const fn bytes_of<T>(count: usize) -> u64 {
     (count * std::mem::size_of::<T>()) as u64
 }
 
+/// Parses and validates a whole kernel source with naga, as the device's shader compiler
+/// would: type errors that parsing alone lets through (a constructor of the wrong type, a
+/// binding used as another type) fail here, in a test that needs no adapter.
+pub fn validate_kernel(source: &str) -> Result<(), String> {
+    use wgpu::naga;
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string(source))?;
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+        .validate(&module)
+        .map(|_| ())
+        .map_err(|e| e.emit_to_string(source))
+}
+
 /// Checks the WGSL struct `T::WGSL_NAME` in `source` (a whole module, e.g. a composed kernel
 /// source) against the Rust struct `T`: the same member names in the same order, each at the
 /// Rust offset, and the same size. Any struct written or edited by hand on one side only

@@ -60,7 +60,7 @@ mod sort;
 pub use context::{GpuContext, GpuOptions, hardware_adapter_available, probe_adapter};
 pub use dispatch::{Dispatcher, Encoder, MAX_SLOTS, SLOT, grid};
 pub use kernel::{Binding, Kernel, PassUniform, kernel_source};
-pub use layout::{GeneratedStruct, WgslField, WgslStruct, WgslType, bytes_of, check_layout, check_layouts, declarations};
+pub use layout::{GeneratedStruct, WgslField, WgslStruct, WgslType, bytes_of, check_layout, check_layouts, declarations, validate_kernel};
 pub use pool::{Bind, BufId, BufferPool, ShrinkPolicy};
 pub use scan::PrefixScan;
 pub use sort::RadixSort;

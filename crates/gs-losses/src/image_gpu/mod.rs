@@ -289,13 +289,14 @@ impl ImageLossGpu {
 mod tests {
     use super::*;
 
-    /// The whole source (what the device compiles) parses, and each generated struct has the
+    /// The whole source (what the device compiles) parses and validates, and each generated struct has the
     /// Rust offsets and sizes (naga's layouter against `offset_of!` / `size_of`).
     #[test]
     fn host_and_wgsl_struct_layouts_agree() {
         let src = image_kernel_source();
         gs_gpu::check_layout::<PassUniform>(&src).unwrap();
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
+        gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!([bytes_of::<EdgeTexel>(1), bytes_of::<EdgeRange>(1)], [16, 8]);
     }
 }

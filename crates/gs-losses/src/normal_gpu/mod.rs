@@ -241,13 +241,14 @@ fn term_sums(values: &[PixelTerms], w: usize) -> (f64, f64, usize) {
 mod tests {
     use super::*;
 
-    /// The whole source (what the device compiles) parses, and each generated struct has the
+    /// The whole source (what the device compiles) parses and validates, and each generated struct has the
     /// Rust offsets and sizes (naga's layouter against `offset_of!` / `size_of`).
     #[test]
     fn host_and_wgsl_struct_layouts_agree() {
         let src = normal_kernel_source();
         gs_gpu::check_layout::<PassUniform>(&src).unwrap();
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
+        gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
         let sizes = [bytes_of::<PixelInput>(1), bytes_of::<PixelVec3>(1), bytes_of::<PixelTerms>(1), bytes_of::<DiffGrad>(1)];
         assert_eq!(sizes, [24, 12, 16, 24]);
     }

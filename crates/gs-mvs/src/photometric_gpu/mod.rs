@@ -374,6 +374,7 @@ mod tests {
     fn records_match_their_wgsl_layout() {
         let src = ncc_kernel_source();
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
+        gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(gs_gpu::bytes_of::<PixelNormal>(1), 12);
     }
 }

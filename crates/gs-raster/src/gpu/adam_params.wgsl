@@ -8,7 +8,7 @@ fn adam_params(ids: Ids) {
         return;
     }
     let gr = grads[i];
-    screen[i] = ScreenStat(array<f32, 2>(gr.mean2d_x, gr.mean2d_y), array<f32, 2>(gr.mean2d_abs_x, gr.mean2d_abs_y));
+    screen[i] = ScreenStat(vec2<f32>(gr.mean2d_x, gr.mean2d_y), vec2<f32>(gr.mean2d_abs_x, gr.mean2d_abs_y));
     let g = gr.param;
     if (!(is_finite(g.mean[0]) && is_finite(g.mean[1]) && is_finite(g.mean[2]))) {
         atomicOr(&flags[0], 1u);

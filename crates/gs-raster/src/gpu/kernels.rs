@@ -405,7 +405,7 @@ mod tests {
     use super::*;
     use gs_gpu::{PassUniform, WgslStruct, bytes_of, check_layout, kernel_source};
 
-    /// Every kernel's full source (exactly what the device compiles) parses, and each of its
+    /// Every kernel's full source (exactly what the device compiles) parses and validates, and each of its
     /// generated structs has the Rust offsets and sizes (naga's layouter against
     /// `offset_of!` / `size_of`).
     #[test]
@@ -416,6 +416,7 @@ mod tests {
             // gs-gpu's prelude declares `Pass`; the rest come from this crate's list.
             check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
             gs_gpu::check_layouts(&generated_structs(), &src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+            gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
         }
         assert_eq!(std::mem::size_of::<CamUniform>(), 144);
         assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);

@@ -501,8 +501,8 @@ mod tests {
     use super::*;
     use gs_gpu::{check_layout, kernel_source};
 
-    /// Both Adam kernels' full sources parse, and their generated structs have the Rust
-    /// offsets and sizes (naga's layouter against `offset_of!` / `size_of`).
+    /// Both Adam kernels' full sources parse and validate, and their generated structs have
+    /// the Rust offsets and sizes (naga's layouter against `offset_of!` / `size_of`).
     #[test]
     fn the_adam_kernels_parse_with_the_hosts_layouts() {
         let decls = gs_gpu::declarations(&adam_structs());
@@ -510,6 +510,7 @@ mod tests {
             let src = kernel_source(&[&decls, ADAM, own], &bindings);
             check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{entry}: {e}"));
             gs_gpu::check_layouts(&adam_structs(), &src).unwrap_or_else(|e| panic!("{entry}: {e}"));
+            gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{entry}: {e}"));
         }
         assert_eq!(std::mem::size_of::<AdamUniform>(), 4 * 17);
     }
