@@ -18,6 +18,7 @@ use super::backward::pod_vec;
 use super::{GpuTimings, WgpuRasterizer, chunks, upload_with};
 use crate::{DeviceStep, OutputGradients, RasterConfig, RasterError, RenderOutput, Result, StepExtras};
 use gs_core::sh::coeffs_for_degree;
+use gs_core::optim::ParamGroup;
 use gs_core::{Adam, Camera, Gaussians, GroupStep, Param};
 use gs_gpu::{
     Binding, BufId, BufferPool, Dispatcher, Encoder, GeneratedStruct, GpuContext, Kernel,
@@ -161,7 +162,7 @@ impl Model {
     /// pool frame first), bound as they are when resident and of `g`'s size and degree.
     pub(super) fn prepare(&mut self, ctx: &GpuContext, g: &Gaussians) -> Result<()> {
         match self.resident {
-            Some(r) if r == Residency::of(g) => Ok(()),
+            _ if self.holds(g) => Ok(()),
             Some(r) => Err(RasterError::Gpu(format!(
                 "the resident model holds {} Gaussians of SH degree {}, the render was given {} of degree {}: release the residency after changing the model",
                 r.n,
@@ -175,6 +176,11 @@ impl Model {
                 Ok(())
             }
         }
+    }
+
+    /// Whether the resident model is one of `g`'s size and SH degree.
+    fn holds(&self, g: &Gaussians) -> bool {
+        self.resident == Some(Residency::of(g))
     }
 
     /// Uploads parameters and SH (packed, only the active degree's coefficients), written in
@@ -201,21 +207,28 @@ impl Residency {
     }
 }
 
-/// The moment buffers (m or v) of `adam`'s groups, one `ParamRecord` and `nc` `ShCoeff` per
-/// Gaussian: `pick` takes a group's m or v.
-fn moment_records(adam: &Adam, n: usize, nc: usize, pick: fn(&gs_core::optim::ParamGroup) -> &[f32]) -> Result<(Vec<ParamRecord>, Vec<ShCoeff>)> {
-    let group = |p: Param| -> Result<&[f32]> {
+/// Picks one moment array (m or v) of a group.
+type Moment = fn(&ParamGroup) -> &[f32];
+
+/// The six groups of `adam` in [`Param::ALL`] order, each checked to hold `n` rows.
+fn groups_of(adam: &Adam, n: usize) -> Result<[&ParamGroup; 6]> {
+    let group = |p: Param| -> Result<&ParamGroup> {
         let g = adam.groups.iter().find(|g| g.name == p.name()).ok_or_else(|| RasterError::Gpu(format!("the optimiser has no group '{}'", p.name())))?;
         if g.row_width != p.row_width() || g.m.len() != n * p.row_width() {
             return Err(RasterError::Gpu(format!("the optimiser's group '{}' holds {} moments, not {} rows of {}", p.name(), g.m.len(), n, p.row_width())));
         }
-        Ok(pick(g))
+        Ok(g)
     };
     let [means, dc, rest, opacity, scales, rot] = Param::ALL.map(group);
-    let (means, dc, rest, opacity, scales, rot) = (means?, dc?, rest?, opacity?, scales?, rot?);
-    let params = (0..n)
-        .into_par_iter()
-        .map(|i| ParamRecord {
+    Ok([means?, dc?, rest?, opacity?, scales?, rot?])
+}
+
+/// Fills `out` with one moment (m or v, `pick`) of the non-SH groups, a `ParamRecord` per
+/// Gaussian.
+fn fill_param_moments(out: &mut [ParamRecord], groups: &[&ParamGroup; 6], pick: Moment) {
+    let [means, _, _, opacity, scales, rot] = groups.map(pick);
+    out.par_iter_mut().enumerate().for_each(|(i, r)| {
+        *r = ParamRecord {
             mean: means[3 * i..3 * i + 3].try_into().expect("3"),
             log_scale: scales[3 * i..3 * i + 3].try_into().expect("3"),
             rot_w: rot[4 * i],
@@ -223,24 +236,25 @@ fn moment_records(adam: &Adam, n: usize, nc: usize, pick: fn(&gs_core::optim::Pa
             rot_y: rot[4 * i + 2],
             rot_z: rot[4 * i + 3],
             opacity_logit: opacity[i],
-        })
-        .collect();
-    let w = Param::ShRest.row_width();
-    let sh = (0..n * nc)
-        .into_par_iter()
-        .map(|r| {
-            let (i, k) = (r / nc, r % nc);
+        }
+    });
+}
+
+/// Fills `out` with one moment (m or v, `pick`) of the SH groups, `nc` `ShCoeff` per Gaussian:
+/// coefficient 0 from SH DC, the others from SH rest.
+fn fill_sh_moments(out: &mut [ShCoeff], groups: &[&ParamGroup; 6], nc: usize, pick: Moment) {
+    let (dc, rest, w) = (pick(groups[1]), pick(groups[2]), Param::ShRest.row_width());
+    out.par_chunks_mut(nc).enumerate().for_each(|(i, coeffs)| {
+        for (k, c) in coeffs.iter_mut().enumerate() {
             let rgb = if k == 0 { &dc[3 * i..3 * i + 3] } else { &rest[w * i + 3 * (k - 1)..w * i + 3 * k] };
-            ShCoeff { rgb: rgb.try_into().expect("3") }
-        })
-        .collect();
-    Ok((params, sh))
+            c.rgb = rgb.try_into().expect("3");
+        }
+    });
 }
 
 /// Writes device moment records back into one moment array (m or v) of each of `adam`'s
 /// groups; SH coefficients above the active degree keep their host values.
-fn store_moments(adam: &mut Adam, params: &[ParamRecord], sh: &[ShCoeff], nc: usize, pick: fn(&mut gs_core::optim::ParamGroup) -> &mut [f32]) -> Result<()> {
-    let w = Param::ShRest.row_width();
+fn store_moments(adam: &mut Adam, params: &[ParamRecord], sh: &[ShCoeff], nc: usize, pick: fn(&mut ParamGroup) -> &mut [f32]) -> Result<()> {
     for p in Param::ALL {
         let g = adam.group_mut(p.name()).map_err(|e| RasterError::Gpu(e.to_string()))?;
         let rows = pick(g).par_chunks_mut(p.row_width()).enumerate();
@@ -254,7 +268,6 @@ fn store_moments(adam: &mut Adam, params: &[ParamRecord], sh: &[ShCoeff], nc: us
                 for k in 1..nc {
                     r[3 * (k - 1)..3 * k].copy_from_slice(&sh[i * nc + k].rgb);
                 }
-                debug_assert_eq!(r.len(), w);
             }),
         }
     }
@@ -268,17 +281,15 @@ impl WgpuRasterizer {
     pub fn make_resident(&mut self, g: &Gaussians, adam: &Adam) -> Result<()> {
         crate::validate::check_gaussians(g)?;
         let (n, nc) = (g.len(), coeffs_for_degree(g.sh_degree));
-        let (m_par, m_sh) = moment_records(adam, n, nc, |g| &g.m)?;
-        let (v_par, v_sh) = moment_records(adam, n, nc, |g| &g.v)?;
+        let groups = groups_of(adam, n)?;
         let m = &mut self.model;
         m.resident = None;
-        m.pool.begin_frame();
-        m.upload(&self.ctx, g);
-        for (id, recs) in [(m.m_params, &m_par), (m.v_params, &v_par)] {
-            upload_with(&self.ctx, &mut m.pool, id, n, |out: &mut [ParamRecord]| out.copy_from_slice(recs));
-        }
-        for (id, recs) in [(m.m_sh, &m_sh), (m.v_sh, &v_sh)] {
-            upload_with(&self.ctx, &mut m.pool, id, n * nc, |out: &mut [ShCoeff]| out.copy_from_slice(recs));
+        m.prepare(&self.ctx, g)?;
+        // Written in parallel straight into the queue's staging memory, like the parameters.
+        let moments: [(BufId, BufId, Moment); 2] = [(m.m_params, m.m_sh, |g| &g.m), (m.v_params, m.v_sh, |g| &g.v)];
+        for (par, sh, pick) in moments {
+            upload_with(&self.ctx, &mut m.pool, par, n, |out: &mut [ParamRecord]| fill_param_moments(out, &groups, pick));
+            upload_with(&self.ctx, &mut m.pool, sh, n * nc, |out: &mut [ShCoeff]| fill_sh_moments(out, &groups, nc, pick));
         }
         m.resident = Some(Residency::of(g));
         Ok(())
@@ -312,14 +323,13 @@ impl WgpuRasterizer {
             at += bytes;
         }
         m.disp.submit(enc);
-        let (params, sh) = self.ctx.read_mapped(staging, at, |bytes| {
+        self.ctx.read_mapped(staging, at, |bytes| {
             let (par, sh) = bytes.split_at(2 * pb as usize);
-            (bytemuck::pod_collect_to_vec::<u8, ParamRecord>(par), bytemuck::pod_collect_to_vec::<u8, ShCoeff>(sh))
-        })?;
-        let (mp, vp) = params.split_at(r.n);
-        let (ms, vs) = sh.split_at(r.n * nc);
-        store_moments(adam, mp, ms, nc, |g| &mut g.m)?;
-        store_moments(adam, vp, vs, nc, |g| &mut g.v)
+            let (par, sh) = (pod_vec::<ParamRecord>(par), pod_vec::<ShCoeff>(sh));
+            let ((mp, vp), (ms, vs)) = (par.split_at(r.n), sh.split_at(r.n * nc));
+            store_moments(adam, mp, ms, nc, |g| &mut g.m)?;
+            store_moments(adam, vp, vs, nc, |g| &mut g.v)
+        })?
     }
 }
 
@@ -372,9 +382,8 @@ impl WgpuRasterizer {
         adam: &mut Adam,
         extras: StepExtras<'_>,
     ) -> Result<DeviceStep> {
-        match self.model.resident {
-            Some(r) if r == Residency::of(g) => {}
-            _ => return Err(RasterError::Gpu("a device step needs the model resident (make_resident) with these Gaussians".into())),
+        if !self.model.holds(g) {
+            return Err(RasterError::Gpu("a device step needs the model resident (make_resident) with these Gaussians".into()));
         }
         if let Some(x) = extras.extra_opacity
             && x.len() != g.len()
