@@ -43,8 +43,9 @@ fn train_colour(scene: &gs_core::Scene, train: &[usize], test: &[usize], exposur
     let mut trainer = Trainer::new(scene, train.to_vec(), config).unwrap();
     trainer.run(|_, _| true).unwrap();
     let m = trainer.evaluate_images(test, None).unwrap();
-    let fitted = psnr_after_gain_fit(trainer.gaussians(), scene, test, trainer.raster_config());
-    let gains = trainer.state().exposure.as_ref().map(|e| e.params.iter().map(|p| [p[0], p[1], p[2]]).collect()).unwrap_or_default();
+    let state = trainer.state().unwrap().clone();
+    let fitted = psnr_after_gain_fit(&state.gaussians, scene, test, trainer.raster_config());
+    let gains = state.exposure.as_ref().map(|e| e.params.iter().map(|p| [p[0], p[1], p[2]]).collect()).unwrap_or_default();
     (m.psnr, fitted, gains)
 }
 

@@ -21,7 +21,7 @@ fn train_and_mesh(scene: &Scene, train: &[usize], config: TrainConfig) -> (Trian
     let mut trainer = Trainer::new(scene, train.to_vec(), config).unwrap();
     trainer.run(|_, _| true).unwrap();
     let (mesh, report) = trainer.extract_mesh(&MeshOptions::default()).unwrap();
-    (mesh, report, trainer.gaussians().len(), t0.elapsed().as_secs_f64())
+    (mesh, report, trainer.gaussian_count(), t0.elapsed().as_secs_f64())
 }
 
 #[test]

@@ -136,20 +136,28 @@ impl Rasterizer {
         }
     }
 
-    /// Ends a residency, bringing the device's moments into `adam` first; nothing to do when
-    /// no model is resident.
-    pub fn release_into(&mut self, adam: &mut Adam) -> Result<()> {
+    /// Brings the resident model into `gaussians` (the host's copy, of the resident size and
+    /// degree) and, when given, its moments into `adam`; the residency goes on
+    /// ([`crate::WgpuRasterizer::read_resident`]). Nothing to do when no model is resident
+    /// (always on the CPU backend, whose model is the host's).
+    pub fn read_resident(&mut self, gaussians: &mut Gaussians, adam: Option<&mut Adam>) -> Result<()> {
         match &mut self.inner {
             #[cfg(feature = "wgpu")]
-            Inner::Wgpu(r) if r.is_resident() => {
-                r.read_moments(adam)?;
-                r.release_resident();
-                Ok(())
-            }
+            Inner::Wgpu(r) if r.is_resident() => r.read_resident(gaussians, adam),
             _ => {
-                let _ = adam;
+                let _ = (gaussians, adam);
                 Ok(())
             }
+        }
+    }
+
+    /// Ends a residency: the device's parameters and moments are dropped (read them first,
+    /// [`Rasterizer::read_resident`], to keep them) and the next render uploads again.
+    /// Nothing to do when no model is resident.
+    pub fn release_resident(&mut self) {
+        #[cfg(feature = "wgpu")]
+        if let Inner::Wgpu(r) = &mut self.inner {
+            r.release_resident();
         }
     }
 
@@ -159,7 +167,7 @@ impl Rasterizer {
     #[allow(clippy::too_many_arguments)]
     pub fn backward_and_step(
         &mut self,
-        gaussians: &mut Gaussians,
+        gaussians: &Gaussians,
         camera: &Camera,
         config: &RasterConfig,
         forward: &RenderOutput,

@@ -60,6 +60,7 @@ fn host_and_device(degree: u32, steps: usize, extra: bool) {
     let cams = cameras(w, h);
     let mut gh = random_scene(400, degree, 11 + degree as u64, 1.0, (-3.5, -2.0));
     let mut gd = gh.clone();
+    let start = gh.clone();
     let n = gh.len();
     let (mut ah, mut ad) = (optimiser(n), optimiser(n));
     let req = RenderRequest::all();
@@ -78,15 +79,16 @@ fn host_and_device(degree: u32, steps: usize, extra: bool) {
         // Device: the same render of the resident model, backward and Adam there.
         let out = dev.render(&gd, cam, &req, &cfg).unwrap();
         let extras = StepExtras { extra_opacity: extra_opacity.as_deref(), screen: true };
-        let step = dev.backward_and_step(&mut gd, cam, &cfg, &out, &grads.all(), &mut ad, extras).unwrap();
+        let step = dev.backward_and_step(&gd, cam, &cfg, &out, &grads.all(), &mut ad, extras).unwrap();
         assert!(step.means_finite);
         assert_eq!(step.mean2d, g.mean2d, "{label}: the screen gradients are the backward's");
         assert_eq!(step.mean2d_abs, g.mean2d_abs, "{label}: the absolute screen gradients are the backward's");
     }
+    assert_eq!(gd, start, "{label}: the steps read nothing back into the host's copy");
+    dev.read_resident(&mut gd, Some(&mut ad)).unwrap();
     for ((what, a), (_, b)) in parameters(&gh).iter().zip(parameters(&gd).iter()) {
         assert_close(&label, what, a, b);
     }
-    dev.read_moments(&mut ad).unwrap();
     for (x, y) in ah.groups.iter().zip(&ad.groups) {
         assert_eq!((x.step, x.lr), (y.step, y.lr), "{label} {}", x.name);
         assert_close(&label, &format!("{} m", x.name), &x.m, &y.m);
@@ -125,8 +127,9 @@ fn a_step_without_gradients_keeps_the_momentum() {
         let g = host.backward(&gh, &cams[s], &cfg, &out, &color).unwrap();
         gs_raster::adam_step(&mut ah, &mut gh, &g).unwrap();
         let out = dev.render(&gd, &cams[s], &req, &cfg).unwrap();
-        dev.backward_and_step(&mut gd, &cams[s], &cfg, &out, &color, &mut ad, StepExtras::default()).unwrap();
+        dev.backward_and_step(&gd, &cams[s], &cfg, &out, &color, &mut ad, StepExtras::default()).unwrap();
     }
+    dev.read_resident(&mut gd, None).unwrap();
     for ((what, a), (_, b)) in parameters(&gh).iter().zip(parameters(&gd).iter()) {
         assert_close("no gradients", what, a, b);
     }
@@ -155,10 +158,12 @@ fn the_residency_refuses_other_models_until_released() {
     // Moments of the wrong size are refused before anything is uploaded.
     let err = r.make_resident(&fewer, &adam).unwrap_err().to_string();
     assert!(err.contains("holds 90 moments, not 20 rows of 3"), "{err}");
+    let err = r.read_resident(&mut fewer.clone(), None).unwrap_err().to_string();
+    assert!(err.contains("not the 20 of degree 2 given to read it into"), "{err}");
     r.release_resident();
     let again = r.render(&g, cam, &req, &cfg).unwrap();
     assert_eq!(first.color, again.color, "the resident render is the uploaded one");
     assert!(r.render(&other, cam, &req, &cfg).is_ok());
     let mut moments = adam.clone();
-    assert!(r.read_moments(&mut moments).is_err(), "nothing is resident");
+    assert!(r.read_resident(&mut g.clone(), Some(&mut moments)).is_err(), "nothing is resident");
 }

@@ -93,8 +93,8 @@ impl MeshTrack {
     }
 
     /// Meshes the trainer's model and scores it: the fields of one curve line.
-    fn score(&self, tr: &Trainer, rasterizer: &mut gs_raster::Rasterizer) -> Result<Value> {
-        let (mesh, report) = extract_mesh(&tr.model(), rasterizer, &self.mesh)?;
+    fn score(&self, tr: &mut Trainer, rasterizer: &mut gs_raster::Rasterizer) -> Result<Value> {
+        let (mesh, report) = extract_mesh(&tr.model()?, rasterizer, &self.mesh)?;
         let m = evaluate_meshes(&mesh, &self.gt, &self.eval)?.metrics;
         Ok(json!({ "chamfer": m.chamfer, "f1": m.f1, "accuracy": m.accuracy, "completeness": m.completeness, "triangles": report.triangles }))
     }
@@ -142,7 +142,7 @@ impl MetricsLog {
 
     /// Records iteration `r` at `seconds` of training; scores the held-out views `test` when
     /// one is due. Returns the time the scoring took (to leave out of the training time).
-    pub fn record(&mut self, tr: &Trainer, r: &StepReport, seconds: f64, test: &[usize], last: bool) -> Result<Duration> {
+    pub fn record(&mut self, tr: &mut Trainer, r: &StepReport, seconds: f64, test: &[usize], last: bool) -> Result<Duration> {
         self.sums.add(r);
         if r.iteration % LOSS_EVERY == 0 || last {
             let line = json!({ "iteration": r.iteration, "seconds": seconds, "gaussians": r.gaussians, "loss": self.sums.means() });
@@ -163,7 +163,7 @@ impl MetricsLog {
         {
             let mut lines = Vec::new();
             if !test.is_empty() {
-                let m = gs_train::evaluate_images(&tr.model(), rasterizer, test, None, gs_train::PixelMasks::None)?;
+                let m = gs_train::evaluate_images(&tr.model()?, rasterizer, test, None, gs_train::PixelMasks::None)?;
                 lines.push(json!({ "iteration": r.iteration, "seconds": seconds, "heldout_psnr": m.psnr, "heldout_ssim": m.ssim }));
             }
             if let Some(track) = &self.mesh_track {

@@ -54,9 +54,9 @@ fn train_run(out: &Path, iterations: u64) -> RunConfig {
         })
         .unwrap();
     drop(log);
-    let report = Report { made_from: MadeFrom::of(&run_config, trainer.gaussians()), iterations: trainer.iteration() };
+    let report = Report { made_from: MadeFrom::of(&run_config, trainer.gaussians().unwrap()), iterations: trainer.iteration() };
     write_json(&folder.work.join("report.json"), &report).unwrap();
-    gs_io::write_gaussian_ply(&folder.work.join("point_cloud.ply"), trainer.gaussians()).unwrap();
+    gs_io::write_gaussian_ply(&folder.work.join("point_cloud.ply"), trainer.gaussians().unwrap()).unwrap();
     assert!(folder.commit().unwrap().is_none(), "a new folder is not staged");
     run_config
 }

@@ -21,7 +21,7 @@ fn bench(c: &mut Criterion) {
         let mut cfg = TrainConfig::default();
         cfg.densify.until = 0; // fixed Gaussian count
         let mut trainer = Trainer::new(&scene, train.clone(), cfg.clone()).expect("trainer");
-        let mut state = trainer.state().clone();
+        let mut state = trainer.state().unwrap().clone();
         state.iteration = start;
         trainer = Trainer::with_state(&scene, train.clone(), cfg, state).expect("trainer");
         // Warm the per-view caches (guides, grey images, features) outside the measurement.
@@ -53,8 +53,8 @@ fn bench(c: &mut Criterion) {
     for (name, start) in [("warmup_colour_only", 0u64), ("photometric_phase", 7_000)] {
         let mut cfg = TrainConfig::default();
         cfg.densify.until = 0;
-        let trainer = Trainer::new(&big, train.clone(), cfg.clone()).expect("trainer");
-        let mut state = trainer.state().clone();
+        let mut trainer = Trainer::new(&big, train.clone(), cfg.clone()).expect("trainer");
+        let mut state = trainer.state().unwrap().clone();
         state.iteration = start;
         let mut trainer = Trainer::with_state(&big, train.clone(), cfg, state).expect("trainer");
         for _ in 0..if start == 0 { 3 } else { train.len() } {

@@ -10,7 +10,7 @@ fn main() {
     let t0 = std::time::Instant::now();
     t.run(|tr, r| {
         if r.densify.is_some() || r.iteration % 50 == 0 {
-            let st = &tr.state().stats;
+            let st = &tr.state().unwrap().stats;
             let _ = st;
             println!("{} {:.1}s L {:.4} l1 {:.4} G {} {:?} trim {:?}", r.iteration, t0.elapsed().as_secs_f64(), r.losses.total, r.losses.l1, r.gaussians, r.densify, r.trimmed);
         }

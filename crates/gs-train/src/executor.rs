@@ -61,10 +61,17 @@ pub trait StepExecutor {
     /// The density control that `plan` schedules after its step ([`crate::refine`]).
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport>;
 
-    /// Brings into `state` whatever the executor keeps on its device (the Adam moments of a
-    /// resident model) and ends the residency, so that the host may read or change the
-    /// state; the next [`StepExecutor::execute`] takes the state up again.
-    fn sync(&mut self, state: &mut TrainState) -> Result<()>;
+    /// Brings into `state` what the executor keeps on its device (the parameters and Adam
+    /// moments of a resident model), so that the host may read it; the residency goes on.
+    fn pull(&mut self, state: &mut TrainState) -> Result<()>;
+
+    /// [`StepExecutor::pull`], then ends the residency, so that the host may change the
+    /// state; the next [`StepExecutor::execute`] takes it up again.
+    fn release(&mut self, state: &mut TrainState) -> Result<()>;
+
+    /// Whether `state` holds everything the executor's device holds (always on the CPU; on a
+    /// resident model, until the next step).
+    fn host_current(&self) -> bool;
 }
 
 /// The reference executor: a rasterizer, the per-view caches and the loss terms' device kernels
@@ -81,6 +88,18 @@ pub struct ReferenceExecutor {
     /// Whether Adam runs on the rasterizer's device with the model resident there (a wgpu
     /// rasterizer and no 3D smoothing filter, which works on the host's parameters).
     adam_on_device: bool,
+    /// What the state's host copy misses of the resident model since its last step.
+    behind: Behind,
+}
+
+/// What of a resident model the host's [`TrainState`] lacks: a device step moves the
+/// parameters and moments on the device only.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Behind {
+    /// The parameters (L_o reads them back alone: 236 bytes a Gaussian at SH degree 3).
+    parameters: bool,
+    /// The Adam moments.
+    moments: bool,
 }
 
 impl ReferenceExecutor {
@@ -90,13 +109,13 @@ impl ReferenceExecutor {
     pub fn new(rasterizer: Rasterizer, views: usize, photometric: bool, smoothing: bool) -> Self {
         let (devices, devices_error) = devices_of(&rasterizer, photometric);
         let adam_on_device = rasterizer.backend() == gs_raster::Backend::Wgpu && !smoothing;
-        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device }
+        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device, behind: Behind::default() }
     }
 
     /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches; `state`
-    /// first receives what the old rasterizer's device kept ([`StepExecutor::sync`]).
+    /// first receives what the old rasterizer's device kept ([`StepExecutor::release`]).
     pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, photometric: bool, smoothing: bool, state: &mut TrainState) -> Result<()> {
-        self.sync(state)?;
+        self.release(state)?;
         let caches = std::mem::replace(&mut self.caches, ViewCaches::new(0));
         *self = Self { caches, ..Self::new(rasterizer, 0, photometric, smoothing) };
         Ok(())
@@ -195,7 +214,7 @@ impl ReferenceExecutor {
 
 impl ReferenceExecutor {
     /// Makes the model resident on the rasterizer's device when Adam runs there and it is
-    /// not resident yet (the first step, or the first after a [`StepExecutor::sync`]).
+    /// not resident yet (the first step, or the first after a [`StepExecutor::release`]).
     fn take_up(&mut self, state: &TrainState) -> Result<()> {
         if self.adam_on_device && !self.rasterizer.is_resident() {
             self.rasterizer.make_resident(&state.gaussians, &state.adam)?;
@@ -218,7 +237,8 @@ impl ReferenceExecutor {
         extra_opacity: Option<&[f32]>,
     ) -> Result<()> {
         let extras = gs_raster::StepExtras { extra_opacity, screen: plan.refine.accumulate };
-        let step = self.rasterizer.backward_and_step(&mut state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
+        let step = self.rasterizer.backward_and_step(&state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
+        self.behind = Behind { parameters: true, moments: true };
         if !step.means_finite {
             return Err(TrainError::Diverged { iteration: plan.iteration, problem: "gradient of the means is not finite".into() });
         }
@@ -258,6 +278,11 @@ impl StepExecutor for ReferenceExecutor {
             None => None,
         };
         profile.add(phase, Part::Render, clock.lap());
+        if plan.weights.lambda_o > 0.0 && self.behind.parameters {
+            // L_o reads the opacity logits, which moved on the device only.
+            self.rasterizer.read_resident(&mut state.gaussians, None)?;
+            self.behind.parameters = false;
+        }
         let memo = &state.source_depths;
         let depths: Vec<&Image> = match max_age {
             0 => rendered_depths.iter().collect(),
@@ -342,13 +367,27 @@ impl StepExecutor for ReferenceExecutor {
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
         let r = plan.refine;
         if r.densify || r.remove_floaters || r.reset_opacity || r.trim {
-            self.sync(state)?;
+            self.release(state)?;
         }
         crate::refine::refine(&mut self.rasterizer, run, state, plan)
     }
 
-    fn sync(&mut self, state: &mut TrainState) -> Result<()> {
-        Ok(self.rasterizer.release_into(&mut state.adam)?)
+    fn pull(&mut self, state: &mut TrainState) -> Result<()> {
+        if self.behind != Behind::default() {
+            self.rasterizer.read_resident(&mut state.gaussians, Some(&mut state.adam))?;
+            self.behind = Behind::default();
+        }
+        Ok(())
+    }
+
+    fn release(&mut self, state: &mut TrainState) -> Result<()> {
+        self.pull(state)?;
+        self.rasterizer.release_resident();
+        Ok(())
+    }
+
+    fn host_current(&self) -> bool {
+        self.behind == Behind::default()
     }
 }
 

@@ -239,29 +239,54 @@ impl<'s> Trainer<'s> {
         &self.config
     }
 
-    /// The current state (parameters, optimiser, statistics). On wgpu, where Adam runs on the
-    /// device, the Adam moments here are those of the last [`Trainer::sync`]; everything else
-    /// is current after every step.
-    pub fn state(&self) -> &TrainState {
-        &self.state
+    /// The current state (parameters, optimiser, statistics), brought back from the device
+    /// first where a resident model moved on there ([`StepExecutor::pull`]; the residency
+    /// goes on). The host's copy is never handed out behind the device's.
+    pub fn state(&mut self) -> Result<&TrainState> {
+        self.executor.pull(&mut self.state)?;
+        Ok(&self.state)
     }
 
-    /// The current model.
-    pub fn gaussians(&self) -> &Gaussians {
-        &self.state.gaussians
+    /// The current model (as [`Trainer::state`]).
+    pub fn gaussians(&mut self) -> Result<&Gaussians> {
+        Ok(&self.state()?.gaussians)
+    }
+
+    /// How many Gaussians the model has (current without a readback: only density control
+    /// changes it, on the host).
+    pub fn gaussian_count(&self) -> usize {
+        self.state.gaussians.len()
+    }
+
+    /// The model's active SH degree (current without a readback, like the count).
+    pub fn sh_degree(&self) -> u32 {
+        self.state.gaussians.sh_degree
+    }
+
+    /// Whether the host's state holds the whole current model, so that [`Trainer::state`]
+    /// needs no readback (always on the CPU).
+    pub fn host_current(&self) -> bool {
+        self.executor.host_current()
     }
 
     /// The current model with its scene, split and settings (for meshing, rendering and
-    /// evaluating it).
-    pub fn model(&self) -> TrainedModel<'_> {
-        TrainedModel {
-            scene: self.scene,
-            train: &self.train_views,
-            test: &self.test_views,
-            raster: &self.raster,
-            extent: self.extent,
-            gaussians: &self.state.gaussians,
-        }
+    /// evaluating it), brought back from the device first (as [`Trainer::state`]).
+    pub fn model(&mut self) -> Result<TrainedModel<'_>> {
+        Ok(self.model_and_rasterizer()?.0)
+    }
+
+    /// The checkpoint of the current state ([`crate::checkpoint::encode`]), brought back from
+    /// the device first.
+    pub fn checkpoint(&mut self, elapsed: &crate::checkpoint::Elapsed) -> Result<Vec<u8>> {
+        self.executor.pull(&mut self.state)?;
+        Ok(crate::checkpoint::encode(&self.config, &self.state, elapsed))
+    }
+
+    /// Writes the checkpoint of the current state to `path` ([`crate::checkpoint::save`]),
+    /// brought back from the device first.
+    pub fn save_checkpoint(&mut self, path: &std::path::Path, elapsed: &crate::checkpoint::Elapsed) -> Result<()> {
+        self.executor.pull(&mut self.state)?;
+        crate::checkpoint::save(path, &self.config, &self.state, elapsed)
     }
 
     /// Iterations completed.
@@ -275,8 +300,8 @@ impl<'s> Trainer<'s> {
     }
 
     /// Switches the rasterizer backend (the CPU by default; `Auto` picks wgpu on a hardware
-    /// GPU). Bit-identical resume holds for the CPU backend; on wgpu Adam runs on the device
-    /// with the model resident there ([`Trainer::sync`]).
+    /// GPU). On wgpu Adam runs on the device with the model resident there; whatever reads
+    /// the model reads it back first ([`Trainer::state`]).
     pub fn set_backend(&mut self, backend: Backend) -> Result<()> {
         self.set_rasterizer(Rasterizer::new(backend)?)
     }
@@ -286,14 +311,6 @@ impl<'s> Trainer<'s> {
     pub fn set_rasterizer(&mut self, rasterizer: Rasterizer) -> Result<()> {
         let smoothing = smoothing_on(&self.config, &self.state);
         self.executor.set_rasterizer(rasterizer, self.config.losses.photometric, smoothing, &mut self.state)
-    }
-
-    /// Brings the Adam moments that a device executor keeps resident back into the state
-    /// ([`StepExecutor::sync`]; nothing to do on the CPU). Density control, a change of the SH
-    /// degree and the last iteration sync by themselves; a checkpoint taken in between syncs
-    /// first.
-    pub fn sync(&mut self) -> Result<()> {
-        self.executor.sync(&mut self.state)
     }
 
     /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device
@@ -312,8 +329,9 @@ impl<'s> Trainer<'s> {
         self.executor.rasterizer()
     }
 
-    /// The current model and the rasterizer, borrowed together.
-    fn model_and_rasterizer(&mut self) -> (TrainedModel<'_>, &mut Rasterizer) {
+    /// The current model (brought back from the device) and the rasterizer, borrowed together.
+    fn model_and_rasterizer(&mut self) -> Result<(TrainedModel<'_>, &mut Rasterizer)> {
+        self.executor.pull(&mut self.state)?;
         let model = TrainedModel {
             scene: self.scene,
             train: &self.train_views,
@@ -322,19 +340,19 @@ impl<'s> Trainer<'s> {
             extent: self.extent,
             gaussians: &self.state.gaussians,
         };
-        (model, &mut self.executor.rasterizer)
+        Ok((model, &mut self.executor.rasterizer))
     }
 
     /// [`crate::extract_mesh`] of the current model with this trainer's rasterizer.
     pub fn extract_mesh(&mut self, opts: &crate::MeshOptions) -> Result<(gs_core::TriangleMesh, crate::MeshReport)> {
-        let (model, rasterizer) = self.model_and_rasterizer();
+        let (model, rasterizer) = self.model_and_rasterizer()?;
         crate::mesh::extract_mesh(&model, rasterizer, opts)
     }
 
     /// [`crate::evaluate_images`] of the current model on `views` (indices into the scene), on
     /// the whole images, with this trainer's rasterizer.
     pub fn evaluate_images(&mut self, views: &[usize], lpips: Option<&gs_losses::Lpips>) -> Result<crate::ImageMetrics> {
-        let (model, rasterizer) = self.model_and_rasterizer();
+        let (model, rasterizer) = self.model_and_rasterizer()?;
         crate::evaluate::evaluate_images(&model, rasterizer, views, lpips, crate::PixelMasks::None)
     }
 
@@ -402,7 +420,7 @@ impl<'s> Trainer<'s> {
         };
         if sh_policy::acts(run.config, self.state.gaussians.sh_degree, plan.iteration) {
             // The SH layout and maybe the moments change on the host.
-            self.executor.sync(&mut self.state)?;
+            self.executor.release(&mut self.state)?;
         }
         let (s, rasterizer) = (&mut self.state, &mut self.executor.rasterizer);
         let sh_band = sh_policy::update_sh_degree(run.config, &mut s.gaussians, &mut s.adam, plan.iteration, |g, degree| {
@@ -419,7 +437,7 @@ impl<'s> Trainer<'s> {
         self.profile.finish_iteration(phase, whole.lap());
         self.state.iteration = plan.iteration;
         if self.finished() {
-            self.executor.sync(&mut self.state)?;
+            self.executor.release(&mut self.state)?;
         }
         Ok(StepReport {
             iteration: plan.iteration,
@@ -452,8 +470,9 @@ impl<'s> Trainer<'s> {
         &self.profile
     }
 
-    /// Consumes the trainer, returning its state.
-    pub fn into_state(self) -> TrainState {
-        self.state
+    /// Consumes the trainer, returning its state (brought back from the device first).
+    pub fn into_state(mut self) -> Result<TrainState> {
+        self.executor.release(&mut self.state)?;
+        Ok(self.state)
     }
 }

@@ -24,7 +24,7 @@ fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
     assert!(cfg.warmup_end < cfg.photometric_end && cfg.photometric_end < cfg.iterations);
 
     let mut trainer = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
-    let mut state: TrainState = trainer.state().clone();
+    let mut state: TrainState = trainer.state().unwrap().clone();
     let cams = scene.cameras_of(&train);
     let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), cfg.source_views, SourceSelection::RandomN).unwrap();
     let mut executor = ReferenceExecutor::new(Rasterizer::new(Backend::Cpu).unwrap(), train.len(), cfg.losses.photometric, false);
@@ -44,7 +44,7 @@ fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
         densified += refined.densify.is_some() as u32;
         trimmed += refined.trimmed.is_some() as u32;
         reset += refined.opacity_reset as u32;
-        assert!(state == *trainer.state(), "the states part at iteration {}", plan.iteration);
+        assert!(state == *trainer.state().unwrap(), "the states part at iteration {}", plan.iteration);
     }
     assert!(densified > 0 && trimmed > 0 && reset > 0, "the run covers the density control: {densified} {trimmed} {reset}");
     assert_ne!(state.gaussians.len(), 0);

@@ -24,7 +24,7 @@ fn run(scene: &gs_core::Scene, lambda_o: f32) -> (Vec<LossValues>, f64, u64) {
         true
     })
     .unwrap();
-    let logits = &t.gaussians().opacity_logits;
+    let logits = &t.gaussians().unwrap().opacity_logits;
     let mean_entropy = logits.iter().map(|x| entropy_of_logit(*x as f64)).sum::<f64>() / logits.len() as f64;
     (losses, mean_entropy, warmup_end)
 }

@@ -33,7 +33,7 @@ fn resume_continues_bit_identically() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("ckpt.bin");
     let spent = Elapsed { phase_seconds: [12.5, 3.25, 0.0, 0.0] };
-    checkpoint::save(&path, first.config(), first.state(), &spent).unwrap();
+    first.save_checkpoint(&path, &spent).unwrap();
     drop(first);
     let ck = checkpoint::load(&path).unwrap();
     assert_eq!(ck.config, cfg);
@@ -43,18 +43,18 @@ fn resume_continues_bit_identically() {
     resumed.run(|_, _| true).unwrap();
 
     assert_eq!(resumed.iteration(), straight.iteration());
-    assert_eq!(resumed.state(), straight.state(), "parameters, optimiser and statistics must match bit for bit");
-    assert!(straight.gaussians().len() != 400, "densification ran");
-    assert!(straight.state().exposure.as_ref().unwrap().params.iter().any(|p| p[0] != 0.0), "exposure was learned");
-    let memo = &straight.state().source_depths;
+    assert_eq!(resumed.state().unwrap(), straight.state().unwrap(), "parameters, optimiser and statistics must match bit for bit");
+    assert!(straight.gaussians().unwrap().len() != 400, "densification ran");
+    assert!(straight.state().unwrap().exposure.as_ref().unwrap().params.iter().any(|p| p[0] != 0.0), "exposure was learned");
+    let memo = &straight.state().unwrap().source_depths;
     assert!(memo.entries().iter().flatten().count() > 1, "the geometry phases stored plane depths");
 }
 
 #[test]
 fn corrupt_checkpoints_are_named_errors() {
     let scene = small_scene();
-    let t = three_iterations(&scene);
-    let bytes = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
+    let mut t = three_iterations(&scene);
+    let bytes = t.checkpoint(&Elapsed::default()).unwrap();
     let p = std::path::Path::new("run/checkpoint.bin");
     let err = |b: &[u8]| checkpoint::decode(b, p).unwrap_err().to_string();
     assert!(err(&bytes[..bytes.len() / 2]).contains("checksum"));
@@ -68,7 +68,7 @@ fn corrupt_checkpoints_are_named_errors() {
     assert!(missing.contains("/nonexistent/ckpt.bin"), "{missing}");
     assert!(checkpoint::decode(&bytes, p).is_ok());
     // A NaN elapsed time (with a valid checksum) is refused, not summed into the report.
-    let bad = checkpoint::encode(t.config(), t.state(), &Elapsed { phase_seconds: [f64::NAN, 0.0, 0.0, 0.0] });
+    let bad = t.checkpoint(&Elapsed { phase_seconds: [f64::NAN, 0.0, 0.0, 0.0] }).unwrap();
     assert!(err(&bad).contains("elapsed time"), "{}", err(&bad));
 }
 
@@ -78,7 +78,7 @@ fn version_2_to_4_checkpoints_still_load() {
     let (train, _) = scene.split(false);
     let mut t = Trainer::new(&scene, train, TrainConfig { source_depth_max_age: 0, ..config() }).unwrap();
     t.run(|_, r| r.iteration < 3).unwrap();
-    let v5 = checkpoint::encode(t.config(), t.state(), &Elapsed::default());
+    let v5 = t.checkpoint(&Elapsed::default()).unwrap();
     // A version-4 file is the version-5 body without the trailing 3D-filter flag (4 bytes, 0);
     // a version-3 file also lacks the (empty) source-depth memo before it (a 4-byte slot
     // count); a version-2 file also lacks the elapsed record (8-byte count + 4 × 8 bytes).
@@ -91,11 +91,11 @@ fn version_2_to_4_checkpoints_still_load() {
         checkpoint::decode(&b, std::path::Path::new("old.bin")).unwrap()
     };
     let v4 = old(4, 4);
-    assert_eq!((v4.elapsed, &v4.state), (Some(Elapsed::default()), t.state()));
+    assert_eq!((v4.elapsed, &v4.state), (Some(Elapsed::default()), t.state().unwrap()));
     let v3 = old(3, 8);
-    assert_eq!((v3.elapsed, &v3.state), (Some(Elapsed::default()), t.state()));
+    assert_eq!((v3.elapsed, &v3.state), (Some(Elapsed::default()), t.state().unwrap()));
     let v2 = old(2, 8 + 40);
-    assert_eq!((v2.elapsed, &v2.state), (None, t.state()));
+    assert_eq!((v2.elapsed, &v2.state), (None, t.state().unwrap()));
 }
 
 /// The 3D smoothing filter (`smoothing_3d`): a run checkpointed between two computations of
@@ -111,15 +111,17 @@ fn the_3d_filter_resumes_bit_identically_and_rests_filtered() {
     straight.run(|_, _| true).unwrap();
     let mut first = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
     first.run(|_, r| r.iteration < 73).unwrap();
-    let bytes = checkpoint::encode(first.config(), first.state(), &Elapsed::default());
+    let bytes = first.checkpoint(&Elapsed::default()).unwrap();
     let ck = checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).unwrap();
-    let s = first.state().smoothing.as_ref().expect("the filter is on");
-    assert_eq!((&ck.state.gaussians.log_scales[..], &ck.state.gaussians.opacity_logits[..]), s.raw(first.gaussians()));
-    assert_ne!(ck.state.gaussians.log_scales, first.gaussians().log_scales, "at rest the model is filtered");
+    let at_rest = first.state().unwrap();
+    let s = at_rest.smoothing.as_ref().expect("the filter is on");
+    assert_eq!((&ck.state.gaussians.log_scales[..], &ck.state.gaussians.opacity_logits[..]), s.raw(&at_rest.gaussians));
+    assert_ne!(ck.state.gaussians.log_scales, at_rest.gaussians.log_scales, "at rest the model is filtered");
     let mut resumed = Trainer::with_state(&scene, train, ck.config, ck.state).unwrap();
     resumed.run(|_, _| true).unwrap();
-    assert_eq!(resumed.state(), straight.state(), "parameters, optimiser, statistics and filter must match bit for bit");
-    let (g, s) = (straight.gaussians(), straight.state().smoothing.as_ref().unwrap());
+    assert_eq!(resumed.state().unwrap(), straight.state().unwrap(), "parameters, optimiser, statistics and filter must match bit for bit");
+    let end = straight.state().unwrap();
+    let (g, s) = (&end.gaussians, end.smoothing.as_ref().unwrap());
     assert!(s.applied() && s.variances().iter().all(|v| *v > 0.0));
     for (ls, v) in g.log_scales.iter().zip(s.variances()) {
         assert!(ls.iter().all(|l| 2.0 * l >= v.ln() - 1e-4), "{ls:?} thinner than the filter's {v}");
@@ -129,8 +131,8 @@ fn the_3d_filter_resumes_bit_identically_and_rests_filtered() {
 #[test]
 fn a_source_depth_that_does_not_fill_its_rows_is_refused() {
     let scene = small_scene();
-    let t = three_iterations(&scene);
-    let mut state = t.state().clone();
+    let mut t = three_iterations(&scene);
+    let mut state = t.state().unwrap().clone();
     let depth = gs_core::Image::filled(5, 3, 1, 1.0).unwrap();
     state.source_depths = gs_train::SourceDepths::from_entries(vec![Some((2, depth))]);
     let mut bytes = checkpoint::encode(t.config(), &state, &Elapsed::default());
@@ -150,8 +152,8 @@ fn a_source_depth_that_does_not_fill_its_rows_is_refused() {
 #[test]
 fn a_smoothing_variance_that_is_not_finite_is_refused_naming_the_file() {
     let scene = small_scene();
-    let t = three_iterations(&scene);
-    let mut state = t.state().clone();
+    let mut t = three_iterations(&scene);
+    let mut state = t.state().unwrap().clone();
     state.smoothing = Some(gs_train::smoothing::Smoothing::new(vec![1e-4; state.gaussians.len()]).unwrap());
     let mut bytes = checkpoint::encode(t.config(), &state, &Elapsed::default());
     assert!(checkpoint::decode(&bytes, std::path::Path::new("ck.bin")).is_ok(), "the valid file loads");

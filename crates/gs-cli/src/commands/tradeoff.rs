@@ -222,7 +222,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
             train_views: names(&train), test_views: names(&test), train: config.clone(),
         };
         write_json(&dir.join("config.json"), &run_config)?;
-        gs_io::write_gaussian_ply(&dir.join("point_cloud.ply"), trainer.gaussians())?;
+        gs_io::write_gaussian_ply(&dir.join("point_cloud.ply"), trainer.gaussians()?)?;
         gs_io::write_mesh_ply(&dir.join("mesh.ply"), &mesh)?;
         let m = evaluate_meshes(&mesh, &gt, &eval)?.metrics;
         let psnr = if test.is_empty() {
@@ -235,7 +235,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
             iterations: config.iterations,
             train_seconds,
             mesh_seconds,
-            gaussians: trainer.gaussians().len(),
+            gaussians: trainer.gaussian_count(),
             accuracy: m.accuracy,
             completeness: m.completeness,
             chamfer: m.chamfer,

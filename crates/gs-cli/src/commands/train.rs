@@ -427,7 +427,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     }
     let work = folder.work.clone();
     write_json(&work.join("config.json"), &run_config)?;
-    eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussians().len(), trainer.extent());
+    eprintln!("initial Gaussians: {}, scene extent r = {:.4}", trainer.gaussian_count(), trainer.extent());
     let b = *trainer.budget();
     if b.active {
         eprintln!("Gaussian budget: {}", b.describe(config.densify.gaussians_per_surface_pixel));
@@ -443,16 +443,16 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let train_seconds = elapsed.total();
     let interrupted = !trainer.finished();
     if interrupted || args.checkpoint_every.is_some() {
-        trainer.sync()?;
-        checkpoint::save(&work.join("checkpoint.bin"), &config, trainer.state(), &elapsed)?;
+        trainer.save_checkpoint(&work.join("checkpoint.bin"), &elapsed)?;
         eprintln!("checkpoint written to {} (resume with --resume)", ckpt_path.display());
     }
+    let made_from = MadeFrom::new(Some(run_id), trainer.gaussians()?);
     let report = TrainReport {
-        made_from: MadeFrom::new(Some(run_id), trainer.gaussians()),
+        made_from,
         iterations: trainer.iteration(),
         interrupted,
-        gaussians: trainer.gaussians().len(),
-        capped: trainer.state().capped,
+        gaussians: trainer.gaussian_count(),
+        capped: trainer.state()?.capped,
         train_seconds,
         phase_seconds: elapsed.phase_seconds,
         segment_seconds,
@@ -460,11 +460,11 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         earlier_time_known: earlier.is_some(),
         peak_memory_bytes: peak_memory_bytes(),
         cache_bytes: trainer.cache_bytes(),
-        sh_degree: trainer.gaussians().sh_degree,
+        sh_degree: trainer.sh_degree(),
         sh_bands,
         budget: b,
-        gaussians_per_training_pixel: trainer.gaussians().len() as f64 / b.training_pixels.max(1) as f64,
-        growth_stopped: growth_stopped(growth, &b, trainer.gaussians().len()),
+        gaussians_per_training_pixel: trainer.gaussian_count() as f64 / b.training_pixels.max(1) as f64,
+        growth_stopped: growth_stopped(growth, &b, trainer.gaussian_count()),
         floaters_removed,
         time_by_part: trainer.profile().clone(),
         loss_terms_on: trainer.loss_executors(),
@@ -474,8 +474,8 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     // The report first, then the model it describes: a run stopped between the two leaves a
     // folder whose model is missing or older than its report, which `OpenRun::open` names.
     write_json(&work.join("report.json"), &report)?;
-    gs_io::write_gaussian_ply(&work.join("point_cloud.ply"), trainer.gaussians())?;
-    write_exposure(&work, &run_config, &trainer)?;
+    gs_io::write_gaussian_ply(&work.join("point_cloud.ply"), trainer.gaussians()?)?;
+    write_exposure(&work, &run_config, &mut trainer)?;
     drop(curves);
     if let Some(note) = folder.commit()? {
         eprintln!("{note}");
@@ -523,8 +523,8 @@ fn warn_degenerate(report: &TrainReport, config: &TrainConfig) {
 }
 
 /// `OUT/exposure.json`: each training photo's learned gain and bias (with `--exposure`).
-fn write_exposure(out: &Path, run_config: &RunConfig, trainer: &Trainer) -> Result<()> {
-    if let Some(e) = &trainer.state().exposure {
+fn write_exposure(out: &Path, run_config: &RunConfig, trainer: &mut Trainer) -> Result<()> {
+    if let Some(e) = &trainer.state()?.exposure {
         let per_view: serde_json::Map<String, serde_json::Value> = run_config
             .train_views
             .iter()

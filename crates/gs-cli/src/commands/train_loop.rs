@@ -3,7 +3,7 @@
 
 use super::train::{TrainArgs, describe};
 use anyhow::{Context, Result};
-use gs_train::checkpoint::{self, Elapsed};
+use gs_train::checkpoint::Elapsed;
 use gs_train::{StepReport, TrainConfig, Trainer};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -108,7 +108,7 @@ pub fn train_loop(
             && every > 0
             && r.iteration % every == 0
             && r.iteration < config.iterations
-            && let Err(e) = tr.sync().and_then(|()| checkpoint::save(&ckpt_path, config, tr.state(), elapsed))
+            && let Err(e) = tr.save_checkpoint(&ckpt_path, elapsed)
         {
             checkpoint_error = Some(e.into());
             return false;

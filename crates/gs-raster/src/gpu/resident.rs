@@ -5,11 +5,11 @@
 //! Without residency every render uploads the host's Gaussians, as before. A resident model
 //! is uploaded once ([`WgpuRasterizer::make_resident`]); from then on renders bind it as it
 //! is, and [`WgpuRasterizer::backward_and_step`] runs the backward and the Adam step on the
-//! device and reads back only the new parameters (the host's copy, which every other reader
-//! of the model uses) and, when asked, the screen-space gradients of the densification
-//! statistics (16 bytes a Gaussian). The moments come back only when asked ([`WgpuRasterizer::read_moments`]).
-//! Whoever changes the host's Gaussians or moments in between (density control, an SH
-//! degree change) ends the residency first ([`WgpuRasterizer::release_resident`]); a
+//! device and reads back only a divergence flag (4 bytes) and, when asked, the screen-space
+//! gradients of the densification statistics (16 bytes a Gaussian). The host's copy of the
+//! parameters falls behind: [`WgpuRasterizer::read_resident`] brings the parameters (and,
+//! when asked, the moments) back at the caller's cadence. Whoever changes the host's
+//! Gaussians or moments ends the residency first ([`WgpuRasterizer::release_resident`]); a
 //! resident render of Gaussians of another size or SH degree is an error, never a silent
 //! mix.
 
@@ -300,31 +300,51 @@ impl WgpuRasterizer {
         self.model.resident.is_some()
     }
 
-    /// Ends the residency: the next render uploads its Gaussians again. The device moments
-    /// are dropped; read them first ([`read_moments`](Self::read_moments)) to keep them.
+    /// Ends the residency: the next render uploads its Gaussians again. The device's
+    /// parameters and moments are dropped; read them first
+    /// ([`read_resident`](Self::read_resident)) to keep them.
     pub fn release_resident(&mut self) {
         self.model.resident = None;
     }
 
-    /// Copies the resident moments into `adam` (the residency goes on).
-    pub fn read_moments(&mut self, adam: &mut Adam) -> Result<()> {
+    /// Copies the resident parameters and SH into `g` (of the resident size and degree) and,
+    /// when given, the resident moments into `adam`, in one readback; the residency goes on.
+    pub fn read_resident(&mut self, g: &mut Gaussians, adam: Option<&mut Adam>) -> Result<()> {
         let Some(r) = self.model.resident else {
             return Err(RasterError::Gpu("no model is resident".into()));
         };
+        if !self.model.holds(g) {
+            return Err(RasterError::Gpu(format!(
+                "the resident model holds {} Gaussians of SH degree {}, not the {} of degree {} given to read it into",
+                r.n,
+                r.sh_degree,
+                g.len(),
+                g.sh_degree
+            )));
+        }
         let nc = coeffs_for_degree(r.sh_degree);
         let (pb, sb) = (bytes_of::<ParamRecord>(r.n), bytes_of::<ShCoeff>(r.n * nc));
         let m = &self.model;
-        self.pool.ensure(self.bufs.staging, 2 * (pb + sb) + 4);
+        let mut order = vec![(m.params, pb), (m.sh, sb)];
+        if adam.is_some() {
+            order.extend([(m.m_params, pb), (m.v_params, pb), (m.m_sh, sb), (m.v_sh, sb)]);
+        }
+        let total: u64 = order.iter().map(|(_, b)| b).sum();
+        self.pool.ensure(self.bufs.staging, total + 4);
         let staging = self.pool.buffer(self.bufs.staging);
         let mut enc = m.disp.encoder();
         let mut at = 0;
-        for (id, bytes) in [(m.m_params, pb), (m.v_params, pb), (m.m_sh, sb), (m.v_sh, sb)] {
+        for (id, bytes) in order {
             enc.encoder.copy_buffer_to_buffer(m.pool.buffer(id), 0, staging, at, bytes);
             at += bytes;
         }
         m.disp.submit(enc);
         self.ctx.read_mapped(staging, at, |bytes| {
-            let (par, sh) = bytes.split_at(2 * pb as usize);
+            let (own, moments) = bytes.split_at((pb + sb) as usize);
+            let (par, sh) = own.split_at(pb as usize);
+            store_parameters(g, &pod_vec::<ParamRecord>(par), &pod_vec::<ShCoeff>(sh), nc);
+            let Some(adam) = adam else { return Ok(()) };
+            let (par, sh) = moments.split_at(2 * pb as usize);
             let (par, sh) = (pod_vec::<ParamRecord>(par), pod_vec::<ShCoeff>(sh));
             let ((mp, vp), (ms, vs)) = (par.split_at(r.n), sh.split_at(r.n * nc));
             store_moments(adam, mp, ms, nc, |g| &mut g.m)?;
@@ -365,16 +385,17 @@ impl AdamUniform {
 }
 
 impl WgpuRasterizer {
-    /// The backward of `forward` (a render of the resident model `g`) and one Adam step of
-    /// every group of `adam` on the device, the twin of [`crate::backward`] followed by
-    /// [`gs_core::Adam::step_strided`] on each group. `g` receives the new parameters; `adam`'s
-    /// groups count the step while their moments stay on the device. A render without
-    /// intersections or gradients steps with zero gradients, as the host does.
+    /// The backward of `forward` (a render of the resident model, of `g`'s size and degree) and
+    /// one Adam step of every group of `adam` on the device, the twin of [`crate::backward`]
+    /// followed by [`gs_core::Adam::step_strided`] on each group. The new parameters and the
+    /// moments stay on the device (`g`, the host's copy, falls behind until
+    /// [`read_resident`](Self::read_resident)); `adam`'s groups count the step. A render
+    /// without intersections or gradients steps with zero gradients, as the host does.
     // The backward's five inputs, the optimiser and the step's extras.
     #[allow(clippy::too_many_arguments)]
     pub fn backward_and_step(
         &mut self,
-        g: &mut Gaussians,
+        g: &Gaussians,
         camera: &Camera,
         config: &RasterConfig,
         forward: &RenderOutput,
@@ -401,7 +422,7 @@ impl WgpuRasterizer {
             let t1 = Instant::now();
             r.disp.submit(enc);
             let uniform = AdamUniform::begin_step(adam, nc, extras.extra_opacity.is_some())?;
-            let (step, t2) = r.step_on_device(g, &uniform, extras)?;
+            let (step, t2) = r.step_on_device(g.len(), &uniform, extras)?;
             r.timings.backward = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
             Ok(step)
         });
@@ -422,11 +443,11 @@ impl WgpuRasterizer {
         enc
     }
 
-    /// Runs the Adam kernels on the gradients in `gout` / `gout_sh` and reads back the new
-    /// parameters (into `g`), the divergence flag and, when asked, the screen gradients;
-    /// also returns when the readback arrived.
-    fn step_on_device(&mut self, g: &mut Gaussians, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<(DeviceStep, Instant)> {
-        let (n, nc) = (g.len(), uniform.nc as usize);
+    /// Runs the Adam kernels of `n` Gaussians on the gradients in `gout` / `gout_sh` and reads
+    /// back the divergence flag and, when asked, the screen gradients; also returns when the
+    /// readback arrived.
+    fn step_on_device(&mut self, n: usize, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<(DeviceStep, Instant)> {
+        let nc = uniform.nc as usize;
         let m = &mut self.model;
         match extras.extra_opacity {
             Some(x) => upload_with(&self.ctx, &mut m.pool, m.extra, n, |out: &mut [f32]| out.copy_from_slice(x)),
@@ -435,9 +456,8 @@ impl WgpuRasterizer {
         m.pool.ensure(m.flags, 4);
         m.pool.ensure(m.screen, bytes_of::<ScreenStat>(n.max(1)));
         m.disp.write_frame(uniform);
-        let (pb, sb) = (bytes_of::<ParamRecord>(n), bytes_of::<ShCoeff>(n * nc));
         let gb = if extras.screen { bytes_of::<ScreenStat>(n) } else { 0 };
-        self.pool.ensure(self.bufs.staging, pb + sb + 4 + gb);
+        self.pool.ensure(self.bufs.staging, 4 + gb);
         let (m, p, b) = (&self.model, &self.pool, &self.bufs);
         let mut enc = m.disp.encoder();
         enc.encoder.clear_buffer(m.pool.buffer(m.flags), 0, Some(4));
@@ -469,19 +489,14 @@ impl WgpuRasterizer {
             m.disp.dispatch_1d(&mut enc, &m.adam_sh, &binds, pass)?;
         }
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.params), 0, staging, 0, pb);
-        enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.sh), 0, staging, pb, sb);
-        enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.flags), 0, staging, pb + sb, 4);
+        enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.flags), 0, staging, 0, 4);
         if extras.screen {
-            enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.screen), 0, staging, pb + sb + 4, gb);
+            enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.screen), 0, staging, 4, gb);
         }
         m.disp.submit(enc);
-        self.ctx.read_mapped(staging, pb + sb + 4 + gb, |bytes| {
+        self.ctx.read_mapped(staging, 4 + gb, |bytes| {
             let arrived = Instant::now();
-            let (par, rest) = bytes.split_at(pb as usize);
-            let (sh, rest) = rest.split_at(sb as usize);
-            let (flags, screen) = rest.split_at(4);
-            store_parameters(g, &pod_vec::<ParamRecord>(par), &pod_vec::<ShCoeff>(sh), nc);
+            let (flags, screen) = bytes.split_at(4);
             let stats = pod_vec::<ScreenStat>(screen);
             let step = DeviceStep {
                 means_finite: u32::from_le_bytes(flags.try_into().expect("4 bytes")) == 0,
