@@ -16,6 +16,7 @@
 //! ```
 
 pub mod camera;
+pub mod densify_stats;
 pub mod error;
 pub mod extent;
 pub mod float;
@@ -32,6 +33,7 @@ pub mod scene;
 pub mod sh;
 
 pub use camera::{Camera, Intrinsics};
+pub use densify_stats::{DensifyStats, screen_norm};
 pub use error::{CoreError, Result};
 pub use gaussians::Gaussians;
 pub use image::Image;

@@ -375,7 +375,7 @@ fn bench_wgpu(
             print_timings(n, "", r.timings());
             // One training step (render, geometry backward, Adam): the parameters uploaded and
             // the gradients read back for the host's Adam, against the resident model with
-            // Adam on the device (only a 4-byte flag comes back).
+            // Adam and the densification statistics on the device (only a 4-byte flag comes back).
             let (mut gh, mut adam) = (g.clone(), optimiser(&g));
             time("train_step_host_adam", st.backward_pairs, &mut || {
                 let o = r.render(&gh, cam, req, cfg).unwrap();
@@ -383,10 +383,11 @@ fn bench_wgpu(
                 gs_raster::adam_step(&mut adam, &mut gh, &grads).unwrap();
             });
             let (gd, mut adam) = (g.clone(), optimiser(&g));
-            r.make_resident(&gd, &adam).unwrap();
+            r.make_resident(&gd, &adam, &gs_core::DensifyStats::new(gd.len())).unwrap();
             time("train_step_resident", st.backward_pairs, &mut || {
                 let o = r.render(&gd, cam, req, cfg).unwrap();
-                r.backward_and_step(&gd, cam, cfg, &o, &og, &mut adam, gs_raster::StepExtras::default()).unwrap();
+                let extras = gs_raster::StepExtras { accumulate: Some(1.0), ..Default::default() };
+                r.backward_and_step(&gd, cam, cfg, &o, &og, &mut adam, extras).unwrap();
             });
             print_timings(n, "resident ", r.timings());
             r.release_resident();

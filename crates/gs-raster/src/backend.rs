@@ -5,7 +5,7 @@ use crate::{
     DeviceStep, GaussianGradients, OutputGradients, RasterConfig, RenderOutput, RenderRequest,
     Result, StepExtras,
 };
-use gs_core::{Adam, Camera, Gaussians};
+use gs_core::{Adam, Camera, DensifyStats, Gaussians};
 
 /// Which rasterizer backend to use (`"cpu" | "wgpu" | "auto"` via [`std::str::FromStr`], in any
 /// letter case; `"gpu"` also names wgpu).
@@ -123,29 +123,30 @@ impl Rasterizer {
         }
     }
 
-    /// Keeps `gaussians` and the moments of `adam` on the device for training
-    /// ([`crate::WgpuRasterizer::make_resident`]). The CPU backend has no device and refuses.
-    pub fn make_resident(&mut self, gaussians: &Gaussians, adam: &Adam) -> Result<()> {
+    /// Keeps `gaussians`, the moments of `adam` and the densification statistics `stats` on
+    /// the device for training ([`crate::WgpuRasterizer::make_resident`]). The CPU backend has
+    /// no device and refuses.
+    pub fn make_resident(&mut self, gaussians: &Gaussians, adam: &Adam, stats: &DensifyStats) -> Result<()> {
         match &mut self.inner {
             Inner::Cpu => {
-                let _ = (gaussians, adam);
+                let _ = (gaussians, adam, stats);
                 Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident; it steps on the host (gs_raster::adam_step)".into()))
             }
             #[cfg(feature = "wgpu")]
-            Inner::Wgpu(r) => r.make_resident(gaussians, adam),
+            Inner::Wgpu(r) => r.make_resident(gaussians, adam, stats),
         }
     }
 
     /// Brings the resident model into `gaussians` (the host's copy, of the resident size and
-    /// degree) and, when given, its moments into `adam`; the residency goes on
-    /// ([`crate::WgpuRasterizer::read_resident`]). Nothing to do when no model is resident
-    /// (always on the CPU backend, whose model is the host's).
-    pub fn read_resident(&mut self, gaussians: &mut Gaussians, adam: Option<&mut Adam>) -> Result<()> {
+    /// degree) and, when given, its moments and densification statistics into `optimiser`;
+    /// the residency goes on ([`crate::WgpuRasterizer::read_resident`]). Nothing to do when no
+    /// model is resident (always on the CPU backend, whose model is the host's).
+    pub fn read_resident(&mut self, gaussians: &mut Gaussians, optimiser: Option<(&mut Adam, &mut DensifyStats)>) -> Result<()> {
         match &mut self.inner {
             #[cfg(feature = "wgpu")]
-            Inner::Wgpu(r) if r.is_resident() => r.read_resident(gaussians, adam),
+            Inner::Wgpu(r) if r.is_resident() => r.read_resident(gaussians, optimiser),
             _ => {
-                let _ = (gaussians, adam);
+                let _ = (gaussians, optimiser);
                 Ok(())
             }
         }

@@ -89,7 +89,7 @@ pub use gpu::{
 pub use types::{
     ALPHA_THRESHOLD, DeviceStep, ForwardState, GaussianGradients, MAX_ALPHA, OBSERVE_T, OutputGradients,
     PLANE_DEPTH_EPS, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats,
-    Result, StepExtras, T_STOP, TILE_SIZE, adam_step, screen_norm,
+    Result, StepExtras, T_STOP, TILE_SIZE, adam_step,
 };
 pub(crate) use types::StateInner;
 

@@ -285,25 +285,21 @@ impl GaussianGradients {
 
     /// ‖∂L/∂mean2d‖ of Gaussian `i` (NDC units).
     pub fn mean2d_norm(&self, i: usize) -> f32 {
-        screen_norm(self.mean2d[i])
+        gs_core::screen_norm(self.mean2d[i])
     }
 
     /// ‖(Σ|∂L/∂x|, Σ|∂L/∂y|)‖ of Gaussian `i` (AbsGS, NDC units).
     pub fn mean2d_abs_norm(&self, i: usize) -> f32 {
-        screen_norm(self.mean2d_abs[i])
+        gs_core::screen_norm(self.mean2d_abs[i])
     }
 }
 
-/// What a device step (`WgpuRasterizer::backward_and_step`) read back besides the parameters.
+/// What a device step (`WgpuRasterizer::backward_and_step`) reads back: a few bytes.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DeviceStep {
     /// Whether every gradient of the means was finite (the host's step refuses a non-finite
     /// one before stepping; here the step has run and the caller stops the run).
     pub means_finite: bool,
-    /// ∂L/∂ of the projected centres in NDC, when asked (else empty).
-    pub mean2d: Vec<[f32; 2]>,
-    /// Σ |∂L/∂x|, Σ |∂L/∂y| in NDC, when asked (else empty).
-    pub mean2d_abs: Vec<[f32; 2]>,
 }
 
 /// What a device step takes besides the render and its gradients.
@@ -311,8 +307,10 @@ pub struct DeviceStep {
 pub struct StepExtras<'a> {
     /// A loss term's own ∂L/∂ opacity logit per Gaussian, added to the rasterizer's.
     pub extra_opacity: Option<&'a [f32]>,
-    /// Read back the screen-space gradients (the densification statistics).
-    pub screen: bool,
+    /// Accumulate the densification statistics of this view on the device
+    /// ([`gs_core::DensifyStats::accumulate`]), its radii counting this many times (the
+    /// render's downscale); pixel-weighted when the render counted pixels (`observed`).
+    pub accumulate: Option<f32>,
 }
 
 /// One Adam step of every parameter of `g` on the host with the gradients `grads`: the CPU
@@ -331,8 +329,3 @@ pub fn adam_step(adam: &mut gs_core::Adam, g: &mut gs_core::Gaussians, grads: &G
     adam.step(Param::Rotations.name(), g.rotations.as_flattened_mut(), grads.rotations.as_flattened())
 }
 
-/// The length of a screen-space gradient (x, y): what densification compares with its
-/// thresholds.
-pub fn screen_norm([x, y]: [f32; 2]) -> f32 {
-    (x * x + y * y).sqrt()
-}

@@ -2,7 +2,9 @@
 //! The resident model on wgpu against the host: the device's Adam step
 //! (`WgpuRasterizer::backward_and_step`) against `gs_raster::adam_step` on the same device
 //! gradients, over several steps with moving cameras, the SH groups at degrees 1 and 3, and a
-//! loss term's own opacity gradient; moments read back; the residency's guards.
+//! loss term's own opacity gradient; the densification statistics accumulated on the device
+//! against `DensifyStats::accumulate` (pixel-weighted or not); moments and statistics read
+//! back; the residency's guards.
 //!
 //! Tolerance: parameters and moments within 1e-6 relative (+ 1e-12 absolute). Element-wise
 //! f32 arithmetic in the same order as the host; a compiler may still fuse a multiply-add,
@@ -13,7 +15,7 @@
 #[allow(dead_code)] // the helpers the parity tests use and these do not
 mod parity;
 
-use gs_core::{Adam, AdamConfig, Gaussians, Param};
+use gs_core::{Adam, AdamConfig, DensifyStats, Gaussians, Param};
 use gs_raster::{OutputGradients, RasterConfig, RenderRequest, StepExtras, WgpuOptions};
 use parity::scenes::*;
 
@@ -50,11 +52,16 @@ fn assert_close(label: &str, what: &str, a: &[f32], b: &[f32]) {
     assert!(worst <= 1e-6, "{label} {what}: relative difference {worst:.3e} > 1e-6");
 }
 
-/// `steps` training steps of one model on the host (backward read back, host Adam) and on the
-/// device (resident, device Adam), with the same per-pixel gradients; both on wgpu.
-fn host_and_device(degree: u32, steps: usize, extra: bool) {
+/// `steps` training steps of one model on the host (backward read back, host Adam and
+/// statistics) and on the device (resident, device Adam and statistics), with the same
+/// per-pixel gradients; both on wgpu. `pixels`: the renders count pixels (Pixel-GS weights).
+fn host_and_device(degree: u32, steps: usize, extra: bool, pixels: bool) {
     let (Some(mut host), Some(mut dev)) = (gpu(WgpuOptions::default()), gpu(WgpuOptions::default())) else { return };
-    let label = format!("degree {degree}, {steps} steps{}", if extra { ", extra opacity gradient" } else { "" });
+    let label = format!(
+        "degree {degree}, {steps} steps{}{}",
+        if extra { ", extra opacity gradient" } else { "" },
+        if pixels { ", pixel-weighted statistics" } else { "" }
+    );
     let cfg = RasterConfig { antialiased: true, low_pass: 0.1, ..RasterConfig::default() };
     let (w, h) = (64, 48);
     let cams = cameras(w, h);
@@ -63,8 +70,15 @@ fn host_and_device(degree: u32, steps: usize, extra: bool) {
     let start = gh.clone();
     let n = gh.len();
     let (mut ah, mut ad) = (optimiser(n), optimiser(n));
-    let req = RenderRequest::all();
-    dev.make_resident(&gd, &ad).unwrap();
+    // Statistics that do not start at zero, as after a readback mid-gathering.
+    let mut sh = DensifyStats::new(n);
+    sh.grad_sum.iter_mut().enumerate().for_each(|(i, v)| *v = (i % 5) as f32 * 1e-4);
+    sh.visible_count.iter_mut().enumerate().for_each(|(i, v)| *v = (i % 3) as u32);
+    sh.visible_count[7] = u32::MAX - 1;
+    let mut sd = sh.clone();
+    let start_sums = sh.grad_sum.clone();
+    let req = RenderRequest { observed: pixels, ..RenderRequest::all() };
+    dev.make_resident(&gd, &ad, &sd).unwrap();
     for s in 0..steps {
         let cam = &cams[s % cams.len()];
         let grads = Grads::new(w, h, 3 + s as u64);
@@ -75,17 +89,17 @@ fn host_and_device(degree: u32, steps: usize, extra: bool) {
         if let Some(x) = &extra_opacity {
             g.opacity_logits.iter_mut().zip(x).for_each(|(a, b)| *a += b);
         }
+        let scale = 1.0 + s as f32;
+        sh.accumulate(&out.radii, out.observed.as_deref(), &g.mean2d, &g.mean2d_abs, scale);
         gs_raster::adam_step(&mut ah, &mut gh, &g).unwrap();
         // Device: the same render of the resident model, backward and Adam there.
         let out = dev.render(&gd, cam, &req, &cfg).unwrap();
-        let extras = StepExtras { extra_opacity: extra_opacity.as_deref(), screen: true };
+        let extras = StepExtras { extra_opacity: extra_opacity.as_deref(), accumulate: Some(scale) };
         let step = dev.backward_and_step(&gd, cam, &cfg, &out, &grads.all(), &mut ad, extras).unwrap();
         assert!(step.means_finite);
-        assert_eq!(step.mean2d, g.mean2d, "{label}: the screen gradients are the backward's");
-        assert_eq!(step.mean2d_abs, g.mean2d_abs, "{label}: the absolute screen gradients are the backward's");
     }
     assert_eq!(gd, start, "{label}: the steps read nothing back into the host's copy");
-    dev.read_resident(&mut gd, Some(&mut ad)).unwrap();
+    dev.read_resident(&mut gd, Some((&mut ad, &mut sd))).unwrap();
     for ((what, a), (_, b)) in parameters(&gh).iter().zip(parameters(&gd).iter()) {
         assert_close(&label, what, a, b);
     }
@@ -94,16 +108,22 @@ fn host_and_device(degree: u32, steps: usize, extra: bool) {
         assert_close(&label, &format!("{} m", x.name), &x.m, &y.m);
         assert_close(&label, &format!("{} v", x.name), &x.v, &y.v);
     }
+    assert_close(&label, "gradient sums", &sh.grad_sum, &sd.grad_sum);
+    assert_close(&label, "absolute gradient sums", &sh.abs_grad_sum, &sd.abs_grad_sum);
+    assert_eq!(sh.max_radius, sd.max_radius, "{label}: largest radii");
+    assert_eq!(sh.visible_count, sd.visible_count, "{label}: view or pixel counts");
+    assert_eq!(sd.visible_count[7], u32::MAX, "{label}: the count saturates");
+    assert!(sh.grad_sum.iter().zip(&start_sums).filter(|(a, b)| a != b).count() > n / 4, "{label}: most Gaussians gathered");
 }
 
 #[test]
 fn the_device_step_matches_the_host_at_sh_degree_3() {
-    host_and_device(3, 4, false);
+    host_and_device(3, 4, false, false);
 }
 
 #[test]
-fn the_device_step_matches_the_host_at_sh_degree_1_with_an_opacity_term() {
-    host_and_device(1, 3, true);
+fn the_device_step_matches_the_host_at_sh_degree_1_with_an_opacity_term_and_pixel_weights() {
+    host_and_device(1, 3, true, true);
 }
 
 /// A step without any gradient (the camera sees nothing) still moves the model by its
@@ -116,7 +136,8 @@ fn a_step_without_gradients_keeps_the_momentum() {
     let mut gh = random_scene(50, 0, 5, 1.0, (-3.0, -2.0));
     let mut gd = gh.clone();
     let (mut ah, mut ad) = (optimiser(gh.len()), optimiser(gh.len()));
-    dev.make_resident(&gd, &ad).unwrap();
+    let (mut sh, mut sd) = (DensifyStats::new(gh.len()), DensifyStats::new(gh.len()));
+    dev.make_resident(&gd, &ad, &sd).unwrap();
     let req = RenderRequest::default();
     let grads = Grads::new(32, 24, 1);
     let color = OutputGradients { color: Some(&grads.color), ..Default::default() };
@@ -125,11 +146,14 @@ fn a_step_without_gradients_keeps_the_momentum() {
         let cfg = RasterConfig { far, ..cfg };
         let out = host.render(&gh, &cams[s], &req, &cfg).unwrap();
         let g = host.backward(&gh, &cams[s], &cfg, &out, &color).unwrap();
+        sh.accumulate(&out.radii, None, &g.mean2d, &g.mean2d_abs, 1.0);
         gs_raster::adam_step(&mut ah, &mut gh, &g).unwrap();
         let out = dev.render(&gd, &cams[s], &req, &cfg).unwrap();
-        dev.backward_and_step(&gd, &cams[s], &cfg, &out, &color, &mut ad, StepExtras::default()).unwrap();
+        let extras = StepExtras { accumulate: Some(1.0), ..Default::default() };
+        dev.backward_and_step(&gd, &cams[s], &cfg, &out, &color, &mut ad, extras).unwrap();
     }
-    dev.read_resident(&mut gd, None).unwrap();
+    dev.read_resident(&mut gd, Some((&mut ad, &mut sd))).unwrap();
+    assert_eq!(sh, sd, "the statistics of a step without gradients");
     for ((what, a), (_, b)) in parameters(&gh).iter().zip(parameters(&gd).iter()) {
         assert_close("no gradients", what, a, b);
     }
@@ -144,8 +168,9 @@ fn the_residency_refuses_other_models_until_released() {
     let cam = &cameras(32, 24)[0];
     let g = random_scene(30, 2, 9, 1.0, (-3.0, -2.0));
     let adam = optimiser(g.len());
+    let stats = DensifyStats::new(g.len());
     assert!(!r.is_resident());
-    r.make_resident(&g, &adam).unwrap();
+    r.make_resident(&g, &adam, &stats).unwrap();
     assert!(r.is_resident());
     let req = RenderRequest::default();
     let first = r.render(&g, cam, &req, &cfg).unwrap();
@@ -156,14 +181,17 @@ fn the_residency_refuses_other_models_until_released() {
     let fewer = random_scene(20, 2, 9, 1.0, (-3.0, -2.0));
     assert!(r.render(&fewer, cam, &req, &cfg).is_err());
     // Moments of the wrong size are refused before anything is uploaded.
-    let err = r.make_resident(&fewer, &adam).unwrap_err().to_string();
+    let err = r.make_resident(&fewer, &adam, &stats).unwrap_err().to_string();
     assert!(err.contains("holds 90 moments, not 20 rows of 3"), "{err}");
+    let err = r.make_resident(&g, &adam, &DensifyStats::new(3)).unwrap_err().to_string();
+    assert!(err.contains("densification statistics hold [3, 3, 3, 3] rows, not 30"), "{err}");
+    r.make_resident(&g, &adam, &stats).unwrap();
     let err = r.read_resident(&mut fewer.clone(), None).unwrap_err().to_string();
     assert!(err.contains("not the 20 of degree 2 given to read it into"), "{err}");
     r.release_resident();
     let again = r.render(&g, cam, &req, &cfg).unwrap();
     assert_eq!(first.color, again.color, "the resident render is the uploaded one");
     assert!(r.render(&other, cam, &req, &cfg).is_ok());
-    let mut moments = adam.clone();
-    assert!(r.read_resident(&mut g.clone(), Some(&mut moments)).is_err(), "nothing is resident");
+    let (mut moments, mut counts) = (adam.clone(), stats.clone());
+    assert!(r.read_resident(&mut g.clone(), Some((&mut moments, &mut counts))).is_err(), "nothing is resident");
 }

@@ -5,8 +5,9 @@
 //! [`ReferenceExecutor`] renders the view on its rasterizer (CPU or wgpu), evaluates the plan's
 //! loss terms through the [`crate::LossTerm`] contract (on the CPU, or on the rasterizer's device
 //! where [`LossDevices`] has a kernel), back-propagates through exposure and rasterizer and takes
-//! the Adam step (on a wgpu rasterizer both on the device, on the model kept resident there
-//! between [`StepExecutor::sync`]s: docs/architecture.md §GPU); density control follows in
+//! the Adam step (on a wgpu rasterizer both on the device, with the densification statistics,
+//! on the model kept resident there between [`StepExecutor::release`]s: docs/architecture.md
+//! §GPU); density control follows in
 //! [`crate::refine`]. With the CPU rasterizer it is the
 //! numerical reference that any other executor of the same plan must match.
 
@@ -93,13 +94,13 @@ pub struct ReferenceExecutor {
 }
 
 /// What of a resident model the host's [`TrainState`] lacks: a device step moves the
-/// parameters and moments on the device only.
+/// parameters, the moments and the densification statistics on the device only.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct Behind {
     /// The parameters (L_o reads them back alone: 236 bytes a Gaussian at SH degree 3).
     parameters: bool,
-    /// The Adam moments.
-    moments: bool,
+    /// The Adam moments and the densification statistics.
+    optimiser: bool,
 }
 
 impl ReferenceExecutor {
@@ -132,8 +133,8 @@ impl ReferenceExecutor {
     }
 
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
-    /// term on its device kernel or the CPU, Adam on the rasterizer's device when the model
-    /// is resident there, density control on the CPU.
+    /// term on its device kernel or the CPU, Adam and the densification statistics on the
+    /// rasterizer's device when the model is resident there, density control on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
         let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
@@ -141,6 +142,7 @@ impl ReferenceExecutor {
         let mut parts = vec![place("render and backward", true)];
         parts.extend(self.devices.term_parts().into_iter().map(|(part, on_device)| place(part, on_device)));
         parts.push(place("Adam", self.adam_on_device));
+        parts.push(place("densification statistics", self.adam_on_device));
         parts.push(place("density control", false));
         parts
     }
@@ -217,14 +219,14 @@ impl ReferenceExecutor {
     /// not resident yet (the first step, or the first after a [`StepExecutor::release`]).
     fn take_up(&mut self, state: &TrainState) -> Result<()> {
         if self.adam_on_device && !self.rasterizer.is_resident() {
-            self.rasterizer.make_resident(&state.gaussians, &state.adam)?;
+            self.rasterizer.make_resident(&state.gaussians, &state.adam, &state.stats)?;
         }
         Ok(())
     }
 
     /// The backward and the Adam step on the device ([`Rasterizer::backward_and_step`]), with
-    /// the loss terms' own opacity gradient `extra_opacity`; accumulates the densification
-    /// statistics when the plan says so.
+    /// the loss terms' own opacity gradient `extra_opacity`; the densification statistics
+    /// accumulate there too when the plan says so.
     #[allow(clippy::too_many_arguments)]
     fn device_step(
         &mut self,
@@ -236,14 +238,12 @@ impl ReferenceExecutor {
         grads: &gs_raster::OutputGradients,
         extra_opacity: Option<&[f32]>,
     ) -> Result<()> {
-        let extras = gs_raster::StepExtras { extra_opacity, screen: plan.refine.accumulate };
+        let accumulate = plan.refine.accumulate.then_some(plan.scale as f32);
+        let extras = gs_raster::StepExtras { extra_opacity, accumulate };
         let step = self.rasterizer.backward_and_step(&state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
-        self.behind = Behind { parameters: true, moments: true };
+        self.behind = Behind { parameters: true, optimiser: true };
         if !step.means_finite {
             return Err(TrainError::Diverged { iteration: plan.iteration, problem: "gradient of the means is not finite".into() });
-        }
-        if plan.refine.accumulate {
-            state.stats.accumulate(&out.radii, out.observed.as_deref(), &step.mean2d, &step.mean2d_abs, plan.scale as f32);
         }
         Ok(())
     }
@@ -374,7 +374,7 @@ impl StepExecutor for ReferenceExecutor {
 
     fn pull(&mut self, state: &mut TrainState) -> Result<()> {
         if self.behind != Behind::default() {
-            self.rasterizer.read_resident(&mut state.gaussians, Some(&mut state.adam))?;
+            self.rasterizer.read_resident(&mut state.gaussians, Some((&mut state.adam, &mut state.stats)))?;
             self.behind = Behind::default();
         }
         Ok(())

@@ -37,14 +37,16 @@ fn a_resident_run_resumes_bit_identically() {
     assert!(adam.on.starts_with("wgpu on "), "Adam runs on {}", adam.on);
     straight.run(|_, _| true).unwrap();
 
-    // Stopped at 65, between the densification steps of 60 and 80: the parameters and moments
-    // live on the device there and come back only when the state is read.
+    // Stopped at 55, after the opacity reset of 50 and before the densification of 60: the
+    // parameters, the moments and the gathering statistics live on the device there and come
+    // back only when the state is read.
     let mut first = on_wgpu(&scene, None).unwrap();
-    first.run(|_, r| r.iteration < 65).unwrap();
+    first.run(|_, r| r.iteration < 55).unwrap();
     assert!(!first.host_current(), "a device step leaves the host's copy behind");
     let bytes = first.checkpoint(&Default::default()).unwrap();
     assert!(first.host_current());
     let ck = checkpoint::decode(&bytes, std::path::Path::new("checkpoint.bin")).unwrap();
+    assert!(ck.state.stats.grad_sum.iter().any(|&g| g > 0.0), "the statistics gather");
     let mut resumed = on_wgpu(&scene, Some(ck.state)).unwrap();
     resumed.run(|_, _| true).unwrap();
     // The run that was read stays resident and goes on as if it had not been.

@@ -1,6 +1,5 @@
 // The parameters other than SH: means, log-scales, rotation and opacity logit, each with its
-// group's step, plus the extra opacity-logit gradient of a loss term when `adam.extra_opacity`;
-// copies the screen-space gradients into `screen` for a compact readback.
+// group's step, plus the extra opacity-logit gradient of a loss term when `adam.extra_opacity`.
 @compute @workgroup_size(256)
 fn adam_params(ids: Ids) {
     let i = thread_1d(ids);
@@ -8,7 +7,6 @@ fn adam_params(ids: Ids) {
         return;
     }
     let gr = grads[i];
-    screen[i] = ScreenStat(vec2<f32>(gr.mean2d_x, gr.mean2d_y), vec2<f32>(gr.mean2d_abs_x, gr.mean2d_abs_y));
     let g = gr.param;
     if (!(is_finite(g.mean[0]) && is_finite(g.mean[1]) && is_finite(g.mean[2]))) {
         atomicOr(&flags[0], 1u);

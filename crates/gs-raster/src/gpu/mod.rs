@@ -36,6 +36,7 @@ mod backward;
 mod forward;
 mod kernels;
 mod resident;
+mod resident_rows;
 
 use crate::cpu::project::CamParams;
 use crate::{RasterError, RenderRequest, Result};
