@@ -211,7 +211,7 @@ pub struct FeatureOutput<T> {
     pub height: usize,
 }
 
-fn check_inputs<T: Real>(
+pub(crate) fn check_inputs<T: Real>(
     reference: &FeatureReference<'_, T>,
     sources: &[FeatureSource<'_, T>],
 ) -> Result<()> {

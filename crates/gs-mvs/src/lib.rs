@@ -43,6 +43,8 @@ pub mod analytic_scene;
 pub mod coverage;
 pub mod error;
 pub mod feature_alignment;
+#[cfg(feature = "wgpu")]
+pub mod feature_gpu;
 pub mod geometry;
 pub mod photometric;
 #[cfg(feature = "wgpu")]
@@ -65,6 +67,8 @@ pub use photometric::{
     DEFAULT_MAX_PIXELS_PER_SOURCE, NccMode, PhotometricConfig, PhotometricOutput, PhotometricReference, PhotometricSource,
     SourceStats, photometric_loss, photometric_loss_with_weights,
 };
+#[cfg(feature = "wgpu")]
+pub use feature_gpu::{AlignView, FeatureGpu};
 #[cfg(feature = "wgpu")]
 pub use photometric_gpu::PhotometricGpu;
 pub use selection::{SourceSelection, SourceViewSelector};
