@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Packs what scripts/gpu-check.sh needs on a GPU machine that reaches no registry: stripped
 # release binaries (vagsl, the rasterizer bench, the wgpu parity tests of the rasterizer, L_p,
-# L_I, L_nc/L_ns and the resident model's Adam), the synth-bunny scene without its GT depth maps, and the Vulkan
+# L_f, L_I, L_nc/L_ns and the resident model's Adam), the synth-bunny scene without its GT depth maps, and the Vulkan
 # loader's Debian packages. Run it here, in the repository root; it fills the ignored folders .gpu/ and .gl/, which travel with `carry`.
 #
 #   scripts/gpu-pack.sh [--baseline PATH_TO_OLD_VAGSL] [--baseline-bench OLD_RASTER_BENCH NAME]
@@ -37,6 +37,7 @@ print(p[-1])'; }
 raster=$(exe bench --bench raster --no-run)
 parity=$(exe test --release --test wgpu_parity --no-run)
 lp_parity=$(exe test --release --test photometric_gpu --no-run)
+lf_parity=$(exe test --release --test feature_gpu --no-run)
 image_parity=$(exe test --release --test image_gpu --no-run)
 normal_parity=$(exe test --release --test normal_gpu --no-run)
 resident_parity=$(exe test --release --test wgpu_resident --no-run)
@@ -44,6 +45,7 @@ strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
 strip -o .gpu/bin/lp-parity "$lp_parity"
+strip -o .gpu/bin/lf-parity "$lf_parity"
 strip -o .gpu/bin/image-parity "$image_parity"
 strip -o .gpu/bin/normal-parity "$normal_parity"
 strip -o .gpu/bin/resident-parity "$resident_parity"

@@ -50,7 +50,7 @@ fn builtin_scene_end_to_end() {
     assert!(on_of("Adam").unwrap() == raster && on_of("density control").unwrap().starts_with("cpu ("));
     assert_eq!(on_of("densification statistics").unwrap(), raster);
     assert_eq!(on_of("L_I (L1, D-SSIM, edge term)").unwrap(), raster);
-    assert_eq!(parts.len(), 10, "{parts:?}");
+    assert_eq!(parts.len(), 11, "{parts:?}");
     let prof = report["time_by_part"].as_object().unwrap();
     let iterations: u64 = prof.values().map(|p| p["iterations"].as_u64().unwrap()).sum();
     assert_eq!(iterations, 40, "{prof:?}");

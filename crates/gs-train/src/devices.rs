@@ -1,9 +1,40 @@
 //! The loss terms' device executors, passed to the terms explicitly through
 //! [`crate::terms::TermInputs`] (docs/architecture.md §GPU): L_p's patches
-//! ([`gs_mvs::PhotometricGpu`]), L_I ([`gs_losses::ImageLossGpu`]: L1, D-SSIM and the edge
-//! term) and L_nc with L_ns ([`gs_losses::NormalGpu`]), on the wgpu rasterizer's own device
-//! (one context, cloned). Without the `wgpu` feature there are none and the CPU
-//! reference evaluates every term.
+//! ([`gs_mvs::PhotometricGpu`]), L_f's feature alignment ([`gs_mvs::FeatureGpu`]), L_I
+//! ([`gs_losses::ImageLossGpu`]: L1, D-SSIM and the edge term) and L_nc with L_ns
+//! ([`gs_losses::NormalGpu`]), on the wgpu rasterizer's own device (one context, cloned).
+//! Without the `wgpu` feature there are none and the CPU reference evaluates every term.
+
+/// Which of the terms with a device kernel built only for the runs that use them a run
+/// uses: L_p and L_f.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TermsUsed {
+    /// L_p runs in some phase.
+    pub photometric: bool,
+    /// L_f runs in some phase ([`crate::TrainConfig::has_feature_phase`]).
+    pub features: bool,
+}
+
+impl TermsUsed {
+    /// The terms `config` uses.
+    pub fn of(config: &crate::TrainConfig) -> Self {
+        Self { photometric: config.losses.photometric, features: config.has_feature_phase() }
+    }
+}
+
+/// One view of an L_f evaluation, the reference first: its camera, rendered plane depth, VGG
+/// features and training slot (the key its features are kept under on the device).
+#[derive(Clone, Copy)]
+pub struct FeatureView<'a> {
+    /// The camera.
+    pub camera: &'a gs_core::Camera,
+    /// The rendered plane depth.
+    pub plane_depth: &'a gs_core::Image,
+    /// The feature maps.
+    pub features: &'a gs_features::FeatureMap,
+    /// The training slot.
+    pub slot: usize,
+}
 
 /// The device executors of one run (each `None` where its term runs on the CPU).
 #[derive(Debug, Default)]
@@ -11,6 +42,9 @@ pub struct LossDevices {
     /// L_p's patches.
     #[cfg(feature = "wgpu")]
     pub photometric: Option<std::cell::RefCell<gs_mvs::PhotometricGpu>>,
+    /// L_f's feature alignment.
+    #[cfg(feature = "wgpu")]
+    pub features: Option<std::cell::RefCell<gs_mvs::FeatureGpu>>,
     /// L_I (L1, D-SSIM and the edge term).
     #[cfg(feature = "wgpu")]
     pub image: Option<std::cell::RefCell<gs_losses::ImageLossGpu>>,
@@ -22,20 +56,25 @@ pub struct LossDevices {
 }
 
 impl LossDevices {
-    /// The executors on the device of `rasterizer` when it runs on wgpu (L_p's only when the run
-    /// uses L_p); none for the CPU rasterizer. An error names the kernel that failed to build.
-    pub(crate) fn for_rasterizer(rasterizer: &gs_raster::Rasterizer, uses_photometric: bool) -> Result<Self, String> {
+    /// The executors on the device of `rasterizer` when it runs on wgpu (L_p's and L_f's only
+    /// when the run uses them); none for the CPU rasterizer. An error names the kernel that
+    /// failed to build.
+    pub(crate) fn for_rasterizer(rasterizer: &gs_raster::Rasterizer, uses: TermsUsed) -> Result<Self, String> {
         #[cfg(feature = "wgpu")]
         if let Some(ctx) = rasterizer.gpu_context() {
-            let photometric = match uses_photometric {
+            let photometric = match uses.photometric {
                 true => Some(gs_mvs::PhotometricGpu::new(ctx).map_err(|e| format!("L_p: {e}"))?.into()),
+                false => None,
+            };
+            let features = match uses.features {
+                true => Some(gs_mvs::FeatureGpu::new(ctx).map_err(|e| format!("L_f: {e}"))?.into()),
                 false => None,
             };
             let image = Some(gs_losses::ImageLossGpu::new(ctx).map_err(|e| format!("L_I: {e}"))?.into());
             let normal = Some(gs_losses::NormalGpu::new(ctx).map_err(|e| format!("L_nc and L_ns: {e}"))?.into());
-            return Ok(Self { photometric, image, normal, adapter: Some(ctx.description()) });
+            return Ok(Self { photometric, features, image, normal, adapter: Some(ctx.description()) });
         }
-        let _ = (rasterizer, uses_photometric);
+        let _ = (rasterizer, uses);
         Ok(Self::default())
     }
 
@@ -88,19 +127,41 @@ impl LossDevices {
         gs_mvs::photometric_loss(reference, sources, config)
     }
 
+    /// L_f of `views[0]` (the reference) against the other views: the feature alignment on the
+    /// device when there is an executor for it, else [`gs_mvs::feature_alignment::feature_loss`]
+    /// (the reference).
+    pub fn feature_loss(&self, views: &[FeatureView<'_>]) -> crate::Result<gs_mvs::feature_alignment::FeatureOutput<f32>> {
+        let (reference, sources) = views.split_first().ok_or_else(|| crate::TrainError::InvalidConfig("L_f without a reference view".into()))?;
+        #[cfg(feature = "wgpu")]
+        if let Some(d) = &self.features {
+            fn view<'a>(v: &FeatureView<'a>) -> gs_mvs::AlignView<'a> {
+                gs_mvs::AlignView { camera: v.camera, plane_depth: v.plane_depth.into(), features: v.features, key: v.slot as u64 }
+            }
+            let sources: Vec<gs_mvs::AlignView<'_>> = sources.iter().map(view).collect();
+            return Ok(d.borrow_mut().loss(&view(reference), &sources)?);
+        }
+        use gs_mvs::feature_alignment::{FeatureReference, FeatureSource, feature_loss};
+        let reference = FeatureReference { camera: reference.camera, plane_depth: reference.plane_depth.into(), features: reference.features };
+        let sources: Vec<FeatureSource<'_, f32>> =
+            sources.iter().map(|s| FeatureSource { camera: s.camera, plane_depth: s.plane_depth.into(), features: s.features }).collect();
+        Ok(feature_loss(&reference, &sources)?)
+    }
+
     /// Each part of the loss terms and whether it runs on the device (the rest runs on the CPU),
     /// in the order the terms run.
-    pub fn term_parts(&self) -> [(&'static str, bool); 6] {
+    pub fn term_parts(&self) -> [(&'static str, bool); 7] {
         #[cfg(feature = "wgpu")]
-        let (image, normal, photometric) = (self.image.is_some(), self.normal.is_some(), self.photometric.is_some());
+        let (image, normal, photometric, features) =
+            (self.image.is_some(), self.normal.is_some(), self.photometric.is_some(), self.features.is_some());
         #[cfg(not(feature = "wgpu"))]
-        let (image, normal, photometric) = (false, false, false);
+        let (image, normal, photometric, features) = (false, false, false, false);
         [
             ("L_I (L1, D-SSIM, edge term)", image),
             ("L_nc and L_ns", normal),
             ("L_p: NCC of the patches", photometric),
             ("L_p: pixel selection, visibility υ and weight ω", false),
-            ("L_f (VGG16 features)", false),
+            ("L_f: feature alignment", features),
+            ("L_f: VGG16 features of each view (once a view)", false),
             ("exposure compensation", false),
         ]
     }
@@ -112,9 +173,12 @@ impl LossDevices {
         let mut on: Vec<String> = Vec::new();
         #[cfg(feature = "wgpu")]
         {
-            use crate::terms::term_name::{NORMAL_CONSISTENCY, NORMAL_SMOOTHING, PHOTOMETRIC};
+            use crate::terms::term_name::{FEATURES, NORMAL_CONSISTENCY, NORMAL_SMOOTHING, PHOTOMETRIC};
             if self.photometric.is_some() {
                 on.push(PHOTOMETRIC.into());
+            }
+            if self.features.is_some() {
+                on.push(FEATURES.into());
             }
             if self.image.is_some() {
                 on.push("L_I".into());

@@ -14,7 +14,7 @@
 use crate::budget::Budget;
 use crate::caches::{ViewCaches, downscaled_camera, photo};
 use crate::config::TrainConfig;
-use crate::devices::LossDevices;
+use crate::devices::{LossDevices, TermsUsed};
 use crate::error::{Result, TrainError};
 use crate::params::{Param, adam_step, set_lr};
 use crate::plan::StepPlan;
@@ -105,20 +105,20 @@ struct Behind {
 
 impl ReferenceExecutor {
     /// An executor on `rasterizer` for `views` training views; the loss terms go to its device
-    /// when it has one (L_p's kernel only when `photometric`), and Adam too unless `smoothing`
-    /// (the 3D filter) is on.
-    pub fn new(rasterizer: Rasterizer, views: usize, photometric: bool, smoothing: bool) -> Self {
-        let (devices, devices_error) = devices_of(&rasterizer, photometric);
+    /// when it has one (L_p's and L_f's kernels only when the run `uses` them), and Adam too
+    /// unless `smoothing` (the 3D filter) is on.
+    pub fn new(rasterizer: Rasterizer, views: usize, uses: TermsUsed, smoothing: bool) -> Self {
+        let (devices, devices_error) = devices_of(&rasterizer, uses);
         let adam_on_device = rasterizer.backend() == gs_raster::Backend::Wgpu && !smoothing;
         Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device, behind: Behind::default() }
     }
 
     /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches; `state`
     /// first receives what the old rasterizer's device kept ([`StepExecutor::release`]).
-    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, photometric: bool, smoothing: bool, state: &mut TrainState) -> Result<()> {
+    pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, uses: TermsUsed, smoothing: bool, state: &mut TrainState) -> Result<()> {
         self.release(state)?;
         let caches = std::mem::replace(&mut self.caches, ViewCaches::new(0));
-        *self = Self { caches, ..Self::new(rasterizer, 0, photometric, smoothing) };
+        *self = Self { caches, ..Self::new(rasterizer, 0, uses, smoothing) };
         Ok(())
     }
 
@@ -293,6 +293,7 @@ impl StepExecutor for ReferenceExecutor {
             .iter()
             .zip(depths)
             .map(|(&s, d)| SourceInputs {
+                slot: s,
                 camera: &run.scene.views[run.train_views[s]].camera,
                 plane_depth: d,
                 grey: self.caches.grey(s),
@@ -300,6 +301,7 @@ impl StepExecutor for ReferenceExecutor {
             })
             .collect();
         let inputs = TermInputs {
+            slot: plan.slot,
             gaussians: &state.gaussians,
             camera,
             photo: self.caches.scaled(plan.slot, plan.scale).unwrap_or(&run.scene.views[plan.view].image),
@@ -392,8 +394,8 @@ impl StepExecutor for ReferenceExecutor {
 }
 
 /// The loss terms' kernels on `rasterizer`'s device, or none with the reason they failed to build.
-fn devices_of(rasterizer: &Rasterizer, photometric: bool) -> (LossDevices, Option<String>) {
-    match LossDevices::for_rasterizer(rasterizer, photometric) {
+fn devices_of(rasterizer: &Rasterizer, uses: TermsUsed) -> (LossDevices, Option<String>) {
+    match LossDevices::for_rasterizer(rasterizer, uses) {
         Ok(d) => (d, None),
         Err(e) => (LossDevices::default(), Some(e)),
     }

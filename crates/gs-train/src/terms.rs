@@ -13,12 +13,12 @@
 use crate::config::LossWeights;
 use crate::error::Result;
 use crate::profile::Part;
-use crate::devices::LossDevices;
+use crate::devices::{FeatureView, LossDevices};
 use gs_core::{Camera, Gaussians, Image};
 use gs_features::FeatureMap;
 use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, opacity_entropy};
 use gs_mvs::{
-    FeatureReference, FeatureSource, PhotometricConfig, PhotometricReference, PhotometricSource, feature_loss,
+    PhotometricConfig, PhotometricReference, PhotometricSource,
 };
 use gs_raster::{OutputGradients, RenderOutput};
 use serde::Serialize;
@@ -146,6 +146,8 @@ impl GradientBuffers {
 
 /// A source view of L_p / L_f: its camera, rendered plane depth and cached photo data.
 pub struct SourceInputs<'a> {
+    /// Its training slot.
+    pub slot: usize,
     /// Its camera.
     pub camera: &'a Camera,
     /// Its rendered plane depth (no gradient flows into sources).
@@ -160,6 +162,8 @@ pub struct SourceInputs<'a> {
 pub struct TermInputs<'a> {
     /// The model the view was rendered from.
     pub gaussians: &'a Gaussians,
+    /// The reference's training slot.
+    pub slot: usize,
     /// The reference camera.
     pub camera: &'a Camera,
     /// The photograph I.
@@ -303,17 +307,17 @@ impl LossTerm for FeatureTerm {
     }
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
-        let reference = FeatureReference {
+        let reference = FeatureView {
             camera: x.camera,
-            plane_depth: channel(&x.render.plane_depth, "plane depth")?.into(),
+            plane_depth: channel(&x.render.plane_depth, "plane depth")?,
             features: needed(x.features, "the reference feature map")?,
+            slot: x.slot,
         };
-        let sources = x
-            .sources
-            .iter()
-            .map(|s| Ok(FeatureSource { camera: s.camera, plane_depth: s.plane_depth.into(), features: needed(s.features, "a source feature map")? }))
-            .collect::<Result<Vec<FeatureSource<f32>>>>()?;
-        let lf = feature_loss(&reference, &sources)?;
+        let mut views = vec![reference];
+        for s in x.sources {
+            views.push(FeatureView { camera: s.camera, plane_depth: s.plane_depth, features: needed(s.features, "a source feature map")?, slot: s.slot });
+        }
+        let lf = x.devices.feature_loss(&views)?;
         values.features = Some(lf.loss);
         let g = Image::from_vec(lf.width, lf.height, 1, lf.grad_plane_depth)?;
         GradientBuffers::add(&mut grads.plane_depth, g, w.lambda_f);

@@ -17,6 +17,7 @@ use crate::init::initial_gaussians;
 use crate::model::TrainedModel;
 use crate::plan::{StepPlan, plan_step};
 use crate::profile::{Clock, Part, StepProfile};
+use crate::devices::TermsUsed;
 use crate::executor::{ReferenceExecutor, RunInputs, StepExecutor};
 use crate::sh_policy::{self, ShBandDecision};
 use crate::smoothing::Smoothing;
@@ -209,7 +210,7 @@ impl<'s> Trainer<'s> {
         let smoothing = smoothing_on(&config, &state);
         Ok(Self {
             raster: config.raster_config(),
-            executor: ReferenceExecutor::new(Rasterizer::new(Backend::Cpu)?, train_views.len(), config.losses.photometric, smoothing),
+            executor: ReferenceExecutor::new(Rasterizer::new(Backend::Cpu)?, train_views.len(), TermsUsed::of(&config), smoothing),
             config,
             scene,
             train_views,
@@ -310,7 +311,7 @@ impl<'s> Trainer<'s> {
     /// its device comes back to the state first.
     pub fn set_rasterizer(&mut self, rasterizer: Rasterizer) -> Result<()> {
         let smoothing = smoothing_on(&self.config, &self.state);
-        self.executor.set_rasterizer(rasterizer, self.config.losses.photometric, smoothing, &mut self.state)
+        self.executor.set_rasterizer(rasterizer, TermsUsed::of(&self.config), smoothing, &mut self.state)
     }
 
     /// Where the loss terms run, in words (with the reason when the wgpu rasterizer's device

@@ -1,0 +1,57 @@
+#![cfg(feature = "wgpu")]
+//! L_f through the `LossTerm` contract on a wgpu rasterizer: the feature alignment runs on the
+//! device (`gs_mvs::FeatureGpu`) and `parts_on` says so, and the first L_f step of one lent
+//! state gives the CPU executor's L_f within 1e-4 relative (the renders of the two backends
+//! differ by float error, the alignment's arithmetic by fused operations at most).
+//!
+//! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
+
+use gs_core::NeighbourRule;
+use gs_mvs::{SourceSelection, SourceViewSelector};
+use gs_raster::{Backend, Rasterizer};
+use gs_train::{ReferenceExecutor, RunInputs, StepExecutor, TermsUsed, TrainConfig, Trainer, plan_step};
+
+#[allow(dead_code)] // the helpers other tests use
+mod common;
+
+#[test]
+fn the_feature_term_runs_on_the_device_and_matches_the_cpu() {
+    // Enough views on the ring for each to have neighbours (the sources of L_f).
+    let opts = gs_synth::BuiltinOptions { width: 64, height: 48, views: 24, supersample: 1, points: 400, ..Default::default() };
+    let scene = gs_synth::generate(&opts).unwrap().scene;
+    let (train, _) = scene.split(false);
+    let cfg = TrainConfig { sh_degree_max: 0, source_depth_max_age: 0, ..common::busy_config() };
+    assert!(cfg.has_feature_phase(), "the run has an L_f phase");
+    let cams = scene.cameras_of(&train);
+    let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), cfg.source_views, SourceSelection::RandomN).unwrap();
+    // The first iteration of the L_f phase whose view has sources.
+    let extent = scene.extent_of(&train).max(1e-9);
+    let first_lf = (cfg.photometric_end + 1..=cfg.features_end).find(|&it| !plan_step(&cfg, &train, &selector, extent, it).sources.is_empty()).unwrap();
+    let mut trainer = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
+    trainer.run(|_, r| r.iteration < first_lf - 1).unwrap();
+    let state = trainer.state().unwrap().clone();
+    let plan = plan_step(&cfg, &train, &selector, trainer.extent(), first_lf);
+    assert!(plan.phase.features && !plan.sources.is_empty(), "iteration {first_lf} runs L_f");
+    let (budget, raster) = (trainer.budget().clone(), trainer.raster_config().clone());
+    let run = RunInputs { config: &cfg, scene: &scene, train_views: &train, extent: trainer.extent(), raster: &raster, budget: &budget };
+    let lf = |backend: Backend| -> Option<(f64, Vec<gs_train::PartPlace>)> {
+        let r = match Rasterizer::new(backend) {
+            Ok(r) => r,
+            Err(e) => {
+                gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
+                return None;
+            }
+        };
+        let mut executor = ReferenceExecutor::new(r, train.len(), TermsUsed::of(&cfg), false);
+        let mut s = state.clone();
+        let values = executor.execute(&run, &mut s, &plan, &mut gs_train::StepProfile::default()).unwrap();
+        Some((values.features.expect("L_f ran"), executor.parts_on()))
+    };
+    let (cpu, _) = lf(Backend::Cpu).unwrap();
+    let Some((gpu, parts)) = lf(Backend::Wgpu) else { return };
+    let align = parts.iter().find(|p| p.part == "L_f: feature alignment").unwrap();
+    assert!(align.on.starts_with("wgpu on "), "L_f's alignment runs on {}", align.on);
+    let rel = (cpu - gpu).abs() / cpu.abs();
+    eprintln!("L_f: CPU {cpu:.8e}, wgpu {gpu:.8e}, relative difference {rel:.2e}");
+    assert!(cpu > 0.0 && rel <= 1e-4, "L_f: CPU {cpu} against wgpu {gpu}");
+}
