@@ -358,27 +358,40 @@ pub fn feature_loss_with_weights<T: Real>(
                 (valid, wsum, csum)
             })
             .collect();
-        let mut st = FeatureSourceStats {
-            visibility: vis.stats(),
-            ..Default::default()
-        };
-        for (v, ws, cs) in rows {
-            st.n_valid += v;
-            st.weighted_sum += ws;
-            st.cos_sum += cs;
-        }
-        if st.n_valid > 0 {
-            st.loss = st.weighted_sum / st.n_valid as f64;
-            out.loss += st.loss / n_src as f64;
-            let scale = T::from_f64(1.0 / (st.n_valid as f64 * n_src as f64));
-            out.grad_plane_depth
-                .par_iter_mut()
-                .zip(scratch.par_iter())
-                .for_each(|(o, s)| *o += *s * scale);
-        }
-        out.per_source.push(st);
+        add_source(&mut out, vis, rows, &scratch, n_src);
     }
     Ok(out)
+}
+
+/// Adds one source to `out`: its rows' (|V|, Σ υω·|1 − cos|, Σ cos), summed in row order, give
+/// L_f,s = Σ / |V|, averaged over the `n_src` sources, and its per-pixel gradient `grad` is
+/// added scaled by 1 / (|V|·n_src). Shared by the host and the device evaluation.
+pub(crate) fn add_source<T: Real>(
+    out: &mut FeatureOutput<T>,
+    vis: &Visibility<T>,
+    rows: impl IntoIterator<Item = (usize, f64, f64)>,
+    grad: &[T],
+    n_src: usize,
+) {
+    let mut st = FeatureSourceStats {
+        visibility: vis.stats(),
+        ..Default::default()
+    };
+    for (v, ws, cs) in rows {
+        st.n_valid += v;
+        st.weighted_sum += ws;
+        st.cos_sum += cs;
+    }
+    if st.n_valid > 0 {
+        st.loss = st.weighted_sum / st.n_valid as f64;
+        out.loss += st.loss / n_src as f64;
+        let scale = T::from_f64(1.0 / (st.n_valid as f64 * n_src as f64));
+        out.grad_plane_depth
+            .par_iter_mut()
+            .zip(grad.par_iter())
+            .for_each(|(o, s)| *o += *s * scale);
+    }
+    out.per_source.push(st);
 }
 
 #[inline]

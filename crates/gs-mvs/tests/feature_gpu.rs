@@ -11,13 +11,14 @@
 //! the host does not): |V| equal; L_f and each source's sums within 1e-5 relative; the
 //! gradient map within 1e-4 relative L2 error.
 
-use gs_core::glam::DVec3;
-use gs_core::{Camera, Intrinsics};
+use gs_core::Camera;
 use gs_features::FeatureMap;
 use gs_gpu::{GpuContext, GpuOptions};
-use gs_mvs::analytic_scene::{AnalyticMaps, AnalyticScene, AxisBox};
+use gs_mvs::analytic_scene::AnalyticMaps;
 use gs_mvs::feature_alignment::{FeatureOutput, FeatureReference, FeatureSource, feature_loss};
 use gs_mvs::{AlignView, FeatureGpu, MapView};
+
+mod common;
 
 fn context() -> Option<GpuContext> {
     match GpuContext::new(&GpuOptions::default()) {
@@ -30,17 +31,6 @@ fn context() -> Option<GpuContext> {
             None
         }
     }
-}
-
-fn cameras(w: u32, h: u32, n: usize) -> Vec<Camera> {
-    let f = w as f64 * 0.9;
-    let k = Intrinsics::new(f, f, w as f64 / 2.0 + 0.1, h as f64 / 2.0 - 0.2);
-    (0..n)
-        .map(|i| {
-            let a = -0.3 + 0.2 * i as f64;
-            Camera::look_at(w, h, k, DVec3::new(2.2 * a.sin(), -2.2 * a.cos(), 1.6), DVec3::new(0.0, 0.1, 0.1), DVec3::Z).unwrap()
-        })
-        .collect()
 }
 
 /// Smooth features at stride 2: channel k of feature pixel (x, y) from the view's grey image
@@ -68,8 +58,8 @@ struct Views {
 }
 
 fn views(w: u32, h: u32, n: usize, channels: usize) -> Views {
-    let scene = AnalyticScene { boxes: vec![AxisBox { min: DVec3::new(-0.25, -0.2, 0.0), max: DVec3::new(0.15, 0.2, 0.45) }], frequency: 5.0 };
-    let cams = cameras(w, h, n);
+    let scene = common::box_scene();
+    let cams = common::arc_cameras(w, h, n, -0.3, 0.2);
     let maps: Vec<AnalyticMaps> = cams.iter().map(|c| scene.render(c)).collect();
     let mut depths: Vec<Vec<f32>> = maps.iter().map(|m| m.plane_depth.data().to_vec()).collect();
     // The reference's depth a little off the surface: the features disagree and pull.

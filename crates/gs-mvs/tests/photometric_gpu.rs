@@ -10,11 +10,12 @@
 //! 0.9 mask, so |V| may differ by at most 0.2 % per source; L_p within 1e-4 relative; the
 //! gradient maps within 2e-3 relative L2 error (a flipped patch moves its whole pixel).
 
-use gs_core::glam::DVec3;
-use gs_core::{Camera, Image, Intrinsics};
+use gs_core::{Camera, Image};
 use gs_gpu::{GpuContext, GpuOptions};
-use gs_mvs::analytic_scene::{AnalyticMaps, AnalyticScene, AxisBox};
+use gs_mvs::analytic_scene::AnalyticMaps;
 use gs_mvs::{MapView, NccMode, PhotometricConfig, PhotometricGpu, PhotometricReference, PhotometricSource, photometric_loss};
+
+mod common;
 
 fn gpu() -> Option<PhotometricGpu> {
     match GpuContext::new(&GpuOptions::default()).and_then(|c| Ok(PhotometricGpu::new(&c))) {
@@ -30,24 +31,6 @@ fn gpu() -> Option<PhotometricGpu> {
     }
 }
 
-fn scene() -> AnalyticScene {
-    AnalyticScene {
-        boxes: vec![AxisBox { min: DVec3::new(-0.25, -0.2, 0.0), max: DVec3::new(0.15, 0.2, 0.45) }],
-        frequency: 5.0,
-    }
-}
-
-fn cameras(w: u32, h: u32, n: usize) -> Vec<Camera> {
-    let f = w as f64 * 0.9;
-    let k = Intrinsics::new(f, f, w as f64 / 2.0 + 0.1, h as f64 / 2.0 - 0.2);
-    (0..n)
-        .map(|i| {
-            let a = -0.25 + 0.25 * i as f64;
-            Camera::look_at(w, h, k, DVec3::new(2.2 * a.sin(), -2.2 * a.cos(), 1.6), DVec3::new(0.0, 0.1, 0.1), DVec3::Z).unwrap()
-        })
-        .collect()
-}
-
 /// The maps of every camera, the reference's normals tilted a little, and the grey images at
 /// `grey_scale`× the camera size.
 struct Views {
@@ -58,8 +41,8 @@ struct Views {
 }
 
 fn views(w: u32, h: u32, n: usize, grey_scale: u32) -> Views {
-    let s = scene();
-    let cams = cameras(w, h, n);
+    let s = common::box_scene();
+    let cams = common::arc_cameras(w, h, n, -0.25, 0.25);
     let maps: Vec<AnalyticMaps> = cams.iter().map(|c| s.render(c)).collect();
     let greys = cams.iter().map(|c| s.render(&c.resized(w * grey_scale, h * grey_scale).unwrap()).grey).collect();
     let normal = maps[0].normal.data().iter().enumerate().map(|(k, v)| v + 0.02 * ((k as f32) * 0.37).sin()).collect();

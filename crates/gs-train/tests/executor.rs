@@ -32,7 +32,7 @@ fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
     let raster = trainer.raster_config().clone();
     let run = RunInputs { config: &cfg, scene: &scene, train_views: &train, extent: trainer.extent(), raster: &raster, budget: &budget };
     let mut profile = gs_train::StepProfile::default();
-    let (mut densified, mut trimmed, mut reset) = (0, 0, 0);
+    let (mut densified, mut trimmed, mut reset, mut photometric, mut features) = (0, 0, 0, 0, 0);
     while !trainer.finished() {
         let report = trainer.step().unwrap();
         let plan = plan_step(&cfg, &train, &selector, run.extent, state.iteration + 1);
@@ -44,8 +44,11 @@ fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
         densified += refined.densify.is_some() as u32;
         trimmed += refined.trimmed.is_some() as u32;
         reset += refined.opacity_reset as u32;
+        photometric += losses.photometric.is_some() as u32;
+        features += losses.features.is_some() as u32;
         assert!(state == *trainer.state().unwrap(), "the states part at iteration {}", plan.iteration);
     }
     assert!(densified > 0 && trimmed > 0 && reset > 0, "the run covers the density control: {densified} {trimmed} {reset}");
+    assert!(photometric > 10 && features > 10, "the run covers L_p ({photometric} steps) and L_f ({features})");
     assert_ne!(state.gaussians.len(), 0);
 }

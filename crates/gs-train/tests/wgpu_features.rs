@@ -11,14 +11,11 @@ use gs_mvs::{SourceSelection, SourceViewSelector};
 use gs_raster::{Backend, Rasterizer};
 use gs_train::{ReferenceExecutor, RunInputs, StepExecutor, TermsUsed, TrainConfig, Trainer, plan_step};
 
-#[allow(dead_code)] // the helpers other tests use
 mod common;
 
 #[test]
 fn the_feature_term_runs_on_the_device_and_matches_the_cpu() {
-    // Enough views on the ring for each to have neighbours (the sources of L_f).
-    let opts = gs_synth::BuiltinOptions { width: 64, height: 48, views: 24, supersample: 1, points: 400, ..Default::default() };
-    let scene = gs_synth::generate(&opts).unwrap().scene;
+    let scene = common::small_scene();
     let (train, _) = scene.split(false);
     let cfg = TrainConfig { sh_degree_max: 0, source_depth_max_age: 0, ..common::busy_config() };
     assert!(cfg.has_feature_phase(), "the run has an L_f phase");

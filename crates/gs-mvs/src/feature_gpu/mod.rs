@@ -14,8 +14,7 @@ mod arena;
 
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{
-    COS_EPS, FeatureMaps, FeatureOutput, FeatureReference, FeatureSource, FeatureSourceStats, check_inputs,
-    feature_loss_with_weights,
+    COS_EPS, FeatureMaps, FeatureOutput, FeatureReference, FeatureSource, add_source, check_inputs, feature_loss_with_weights,
 };
 use crate::geometry::{MapView, PairGeometry};
 use crate::visibility::{Visibility, visibility_unchecked};
@@ -215,7 +214,7 @@ impl FeatureGpu {
         let results = self.evaluate(&frame, &pairs, &flat, reference.plane_depth.data)?;
         let mut out = FeatureOutput { loss: 0.0, per_source: Vec::with_capacity(sources.len()), grad_plane_depth: vec![0.0; w * h], width: w, height: h };
         for (k, vis) in weights.iter().enumerate() {
-            add_source(&mut out, &results[k * w * h..(k + 1) * w * h], vis, w, sources.len());
+            add_results(&mut out, &results[k * w * h..(k + 1) * w * h], vis, w, sources.len());
         }
         Ok(out)
     }
@@ -290,12 +289,10 @@ fn pair_record(reference: &Camera, source: &AlignView<'_>, offset: u32) -> Align
     }
 }
 
-/// Adds one source's pair results to `out` as the host reference does: |V|, Σ υω·|1 − cos|
-/// and Σ cos summed by row and then over rows, L_f,s = Σ / |V| averaged over the `n_src`
-/// sources, the gradients scaled by 1 / (|V|·n_src).
-fn add_source(out: &mut FeatureOutput<f32>, results: &[AlignResult], vis: &Visibility<f32>, w: usize, n_src: usize) {
-    let mut st = FeatureSourceStats { visibility: vis.stats(), ..Default::default() };
-    for row in results.chunks(w) {
+/// Adds one source's pair results to `out` as the host reference does
+/// ([`crate::feature_alignment`]'s `add_source`, on the same row sums and gradient).
+fn add_results(out: &mut FeatureOutput<f32>, results: &[AlignResult], vis: &Visibility<f32>, w: usize, n_src: usize) {
+    let rows = results.chunks(w).map(|row| {
         let (mut valid, mut wsum, mut csum) = (0usize, 0.0f64, 0.0f64);
         for r in row.iter().filter(|r| r.status != STATUS_NOT_IN_V) {
             valid += 1;
@@ -304,20 +301,10 @@ fn add_source(out: &mut FeatureOutput<f32>, results: &[AlignResult], vis: &Visib
                 csum += r.cos as f64;
             }
         }
-        st.n_valid += valid;
-        st.weighted_sum += wsum;
-        st.cos_sum += csum;
-    }
-    if st.n_valid > 0 {
-        st.loss = st.weighted_sum / st.n_valid as f64;
-        out.loss += st.loss / n_src as f64;
-        let scale = (1.0 / (st.n_valid as f64 * n_src as f64)) as f32;
-        out.grad_plane_depth.par_iter_mut().zip(results.par_iter()).for_each(|(o, r)| {
-            let g = if r.status == STATUS_TERM { r.grad } else { 0.0 };
-            *o += g * scale;
-        });
-    }
-    out.per_source.push(st);
+        (valid, wsum, csum)
+    });
+    let grad: Vec<f32> = results.par_iter().map(|r| if r.status == STATUS_TERM { r.grad } else { 0.0 }).collect();
+    add_source(out, vis, rows, &grad, n_src);
 }
 
 #[cfg(test)]

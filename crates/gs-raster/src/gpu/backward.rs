@@ -6,7 +6,7 @@
 
 use super::kernels::{BlendState, ParamGrad, ParamRecord, PixelGrad, ScreenGrad, ShCoeff, TileRect};
 use gs_gpu::bytes_of;
-use super::{BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
+use super::{BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks, pod_vec};
 use crate::cpu::project::CamParams;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
 use crate::{
@@ -276,14 +276,6 @@ impl WgpuRasterizer {
             d.dispatch_1d(enc, &k.project_bwd, &binds, pass)?;
         }
         Ok(())
-    }
-}
-
-/// Records of type `T` from read-back bytes (copied only where the mapping is misaligned).
-pub(super) fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> std::borrow::Cow<'_, [T]> {
-    match bytemuck::try_cast_slice::<u8, T>(bytes) {
-        Ok(v) => std::borrow::Cow::Borrowed(v),
-        Err(_) => std::borrow::Cow::Owned(bytemuck::pod_collect_to_vec(bytes)),
     }
 }
 

@@ -370,3 +370,11 @@ fn upload_with<T: bytemuck::Pod>(
         }
     });
 }
+
+/// Records of type `T` from read-back bytes (copied only where the mapping is misaligned).
+fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> std::borrow::Cow<'_, [T]> {
+    match bytemuck::try_cast_slice::<u8, T>(bytes) {
+        Ok(v) => std::borrow::Cow::Borrowed(v),
+        Err(_) => std::borrow::Cow::Owned(bytemuck::pod_collect_to_vec(bytes)),
+    }
+}

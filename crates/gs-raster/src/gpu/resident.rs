@@ -14,9 +14,8 @@
 //! SH degree is an error, never a silent mix.
 
 use super::kernels::{ParamGrad, ParamRecord, ShCoeff};
-use super::backward::pod_vec;
 use super::resident_rows::{Moment, check_stats, fill_param_moments, fill_sh_moments, groups_of, store_moments, store_parameters, store_stats};
-use super::{GpuTimings, WgpuRasterizer, chunks, upload_with};
+use super::{GpuTimings, WgpuRasterizer, chunks, pod_vec, upload_with};
 use crate::{DeviceStep, OutputGradients, RasterConfig, RasterError, RenderOutput, Result, StepExtras};
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Adam, Camera, DensifyStats, Gaussians, GroupStep, Param};

@@ -3,9 +3,10 @@
 
 use gs_train::TrainConfig;
 
-/// The built-in scene at 64×48, 8 views, 400 points.
+/// The built-in scene at 64×48, 24 views (12 a ring, 30° apart: each has source views for L_p
+/// and L_f), 400 points.
 pub fn small_scene() -> gs_core::Scene {
-    let opts = gs_synth::BuiltinOptions { width: 64, height: 48, views: 8, supersample: 1, points: 400, ..Default::default() };
+    let opts = gs_synth::BuiltinOptions { width: 64, height: 48, views: 24, supersample: 1, points: 400, ..Default::default() };
     gs_synth::generate(&opts).unwrap().scene
 }
 
@@ -21,5 +22,7 @@ pub fn busy_config() -> TrainConfig {
     c.seed = 7;
     c.exposure = true;
     c.source_depth_max_age = 15;
+    // Two sources a step keep L_p and L_f cheap on lavapipe (the wgpu runs of wgpu_resume).
+    c.source_views = 2;
     c
 }
