@@ -1,6 +1,7 @@
 //! The wgpu context: adapter choice, device and queue, limits, features, error scopes and
 //! readback.
 
+use crate::ledger::{Ledger, Transfers};
 use crate::{GpuError, Result};
 
 /// Options of [`GpuContext::new`].
@@ -26,6 +27,7 @@ pub struct GpuContext {
     info: wgpu::AdapterInfo,
     native_f32_atomics: bool,
     max_binding: u64,
+    ledger: Ledger,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -146,6 +148,7 @@ impl GpuContext {
             info,
             native_f32_atomics,
             max_binding,
+            ledger: Ledger::default(),
         })
     }
 
@@ -154,9 +157,26 @@ impl GpuContext {
         &self.device
     }
 
-    /// The queue.
+    /// The queue. Writes through it directly are not counted in [`GpuContext::transfers`];
+    /// use [`GpuContext::write_buffer`] or [`GpuContext::write_with`].
     pub fn queue(&self) -> &wgpu::Queue {
         &self.queue
+    }
+
+    /// The host–device traffic of this device so far (every clone counts into one ledger).
+    pub fn transfers(&self) -> Transfers {
+        self.ledger.snapshot()
+    }
+
+    /// The ledger, for the dispatchers of this device.
+    pub(crate) fn ledger(&self) -> &Ledger {
+        &self.ledger
+    }
+
+    /// Queues a write of `data` at `offset` in `buffer` (counted in [`GpuContext::transfers`]).
+    pub fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
+        self.ledger.wrote(data.len() as u64);
+        self.queue.write_buffer(buffer, offset, data);
     }
 
     /// The adapter's information.
@@ -219,6 +239,7 @@ impl GpuContext {
         if bytes == 0 {
             return Ok(read(&[]));
         }
+        self.ledger.read_back(bytes);
         let dev = |e: &dyn std::fmt::Display| GpuError::Device(e.to_string());
         let slice = buffer.slice(0..bytes);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -239,6 +260,7 @@ impl GpuContext {
     /// validation error of the open error scopes, and `fill` is not called.
     pub fn write_with(&self, buffer: &wgpu::Buffer, bytes: u64, fill: impl FnOnce(&mut [u8])) {
         let Some(size) = std::num::NonZeroU64::new(bytes) else { return };
+        self.ledger.wrote(bytes);
         if let Some(mut view) = self.queue.write_buffer_with(buffer, 0, size) {
             fill(&mut view);
         }
@@ -261,6 +283,7 @@ impl GpuContext {
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         enc.copy_buffer_to_buffer(src, offset, &staging, 0, bytes.next_multiple_of(4));
+        self.ledger.submitted();
         self.queue.submit(Some(enc.finish()));
         let mut out = self.read_buffer(&staging, bytes.next_multiple_of(4))?;
         out.truncate(bytes as usize);

@@ -30,6 +30,7 @@ pub struct Encoder {
 pub struct Dispatcher {
     device: wgpu::Device,
     queue: wgpu::Queue,
+    ledger: crate::ledger::Ledger,
     frame: wgpu::Buffer,
     pass: wgpu::Buffer,
 }
@@ -57,6 +58,7 @@ impl Dispatcher {
             })
         };
         Self {
+            ledger: ctx.ledger().clone(),
             device: ctx.device().clone(),
             queue: ctx.queue().clone(),
             frame: uniform("frame", frame_bytes.max(16).next_multiple_of(16)),
@@ -66,6 +68,7 @@ impl Dispatcher {
 
     /// Writes the frame uniform (seen by every dispatch submitted after this call).
     pub fn write_frame<T: bytemuck::Pod>(&self, value: &T) {
+        self.ledger.wrote(std::mem::size_of::<T>() as u64);
         self.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(value));
     }
@@ -166,8 +169,10 @@ impl Dispatcher {
                 bytes[o..o + std::mem::size_of::<PassUniform>()]
                     .copy_from_slice(bytemuck::bytes_of(s));
             }
+            self.ledger.wrote(bytes.len() as u64);
             self.queue.write_buffer(&self.pass, 0, &bytes);
         }
+        self.ledger.submitted();
         self.queue.submit(Some(enc.encoder.finish()));
     }
 }

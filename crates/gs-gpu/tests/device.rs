@@ -252,3 +252,21 @@ fn unreserved_scratch_is_an_error_before_anything_is_recorded() {
 fn pairs<'a>(p: &'a BufferPool, ids: &[gs_gpu::BufId]) -> [(gs_gpu::Bind<'a>, gs_gpu::Bind<'a>); 2] {
     [(p.whole(ids[0]), p.whole(ids[1])), (p.whole(ids[2]), p.whole(ids[3]))]
 }
+
+/// The ledger counts what crosses between host and device, on every clone of a context: the
+/// counted writes, each readback the host waits for and its bytes, and each submission.
+#[test]
+fn the_ledger_counts_writes_readbacks_and_submissions() {
+    let Some(ctx) = context() else { return };
+    let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
+    let data = pool.add_storage("data");
+    pool.ensure(data, 4000);
+    let before = ctx.transfers();
+    let clone = ctx.clone();
+    clone.write_buffer(pool.buffer(data), 0, &[7u8; 4000]);
+    ctx.write_with(pool.buffer(data), 400, |b| b.fill(1));
+    let back = ctx.download(pool.buffer(data), 0, 4000).unwrap();
+    assert_eq!((back[0], back[399], back[400], back[3999]), (1, 1, 7, 7));
+    let d = clone.transfers() - before;
+    assert_eq!(d, gs_gpu::Transfers { syncs: 1, bytes_down: 4000, bytes_up: 4400, submits: 1 });
+}

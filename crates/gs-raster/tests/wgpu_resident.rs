@@ -95,8 +95,11 @@ fn host_and_device(degree: u32, steps: usize, extra: bool, pixels: bool) {
         // Device: the same render of the resident model, backward and Adam there.
         let out = dev.render(&gd, cam, &req, &cfg).unwrap();
         let extras = StepExtras { extra_opacity: extra_opacity.as_deref(), accumulate: Some(scale) };
+        let before = dev.context().transfers();
         let step = dev.backward_and_step(&gd, cam, &cfg, &out, &grads.all(), &mut ad, extras).unwrap();
         assert!(step.means_finite);
+        let t = dev.context().transfers() - before;
+        assert_eq!((t.syncs, t.bytes_down), (1, 4), "{label}: the step reads back its 4-byte flag alone");
     }
     assert_eq!(gd, start, "{label}: the steps read nothing back into the host's copy");
     dev.read_resident(&mut gd, Some((&mut ad, &mut sd))).unwrap();

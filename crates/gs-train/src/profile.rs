@@ -1,8 +1,10 @@
 //! Where the training time goes: wall seconds per part of an iteration, per phase
 //! (docs/architecture.md §Training profile). The executor and the density control time their
 //! parts; whatever an iteration spent outside them (planning, the SH band policy) is counted as
-//! `other`. Bookkeeping only: it is not model state, not checkpointed (a resumed run profiles
-//! its own segment), and reading the clock never changes what the run computes.
+//! `other`. On a device it also counts the host–device traffic per iteration (`gs_gpu`'s
+//! ledger: syncs, bytes read back and written, submissions). Bookkeeping only: it is not model
+//! state, not checkpointed (a resumed run profiles its own segment), and reading the clock
+//! never changes what the run computes.
 
 use serde::ser::{Serialize, SerializeMap, Serializer};
 use std::time::Instant;
@@ -76,6 +78,9 @@ pub struct StepProfile {
     parts: [[f64; PARTS]; 4],
     whole: [f64; 4],
     iterations: [u64; 4],
+    /// The host–device traffic per phase (`None`: no device took part).
+    #[cfg(feature = "wgpu")]
+    transfers: Option<[gs_gpu::Transfers; 4]>,
 }
 
 impl StepProfile {
@@ -88,6 +93,26 @@ impl StepProfile {
     pub fn finish_iteration(&mut self, phase: usize, seconds: f64) {
         self.whole[phase] += seconds;
         self.iterations[phase] += 1;
+    }
+
+    /// Adds one iteration's host–device traffic `t` to phase `phase`.
+    #[cfg(feature = "wgpu")]
+    pub fn add_transfers(&mut self, phase: usize, t: gs_gpu::Transfers) {
+        self.transfers.get_or_insert_with(Default::default)[phase] += t;
+    }
+
+    /// The mean host–device traffic of one iteration of phase `phase`: syncs, bytes read back,
+    /// bytes written and submissions. `None` without a device or when the phase did not run.
+    pub fn transfers_per_iteration(&self, phase: usize) -> Option<[f64; 4]> {
+        #[cfg(feature = "wgpu")]
+        if let Some(t) = &self.transfers
+            && self.iterations[phase] > 0
+        {
+            let (t, n) = (t[phase], self.iterations[phase] as f64);
+            return Some([t.syncs, t.bytes_down, t.bytes_up, t.submits].map(|v| v as f64 / n));
+        }
+        let _ = phase;
+        None
     }
 
     /// Iterations profiled in phase `phase`.
@@ -123,8 +148,14 @@ impl StepProfile {
                     .filter(|(_, ms)| whole > 0.0 && *ms >= 0.01 * whole)
                     .map(|(name, ms)| format!("{name} {ms:.1} ms ({:.0} %)", 100.0 * ms / whole))
                     .collect();
+                let traffic = match self.transfers_per_iteration(ph) {
+                    Some([syncs, down, up, _]) => {
+                        format!("; each {syncs:.1} device round trips, {} read back, {} written", bytes_text(down), bytes_text(up))
+                    }
+                    None => String::new(),
+                };
                 Some(format!(
-                    "{} phase, {} iterations at {whole:.1} ms each: {}",
+                    "{} phase, {} iterations at {whole:.1} ms each: {}{traffic}",
                     PHASE_NAMES[ph],
                     self.iterations[ph],
                     shares.join(", ")
@@ -144,7 +175,10 @@ impl Serialize for StepProfile {
             let (parts, other, whole) = self.per_iteration_ms(ph).expect("the phase ran");
             let mut ms: Vec<(&str, f64)> = Part::ALL.iter().map(|p| p.name()).zip(parts).collect();
             ms.extend([("other", other), ("whole", whole)]);
-            let entry = PhaseEntry { iterations: self.iterations[ph], ms_per_iteration: ms };
+            let traffic = self.transfers_per_iteration(ph).map(|[syncs, down, up, submits]| {
+                vec![("syncs", syncs), ("bytes_read_back", down), ("bytes_written", up), ("submissions", submits)]
+            });
+            let entry = PhaseEntry { iterations: self.iterations[ph], ms_per_iteration: ms, transfers_per_iteration: traffic };
             m.serialize_entry(PHASE_NAMES[ph], &entry)?;
         }
         m.end()
@@ -154,14 +188,28 @@ impl Serialize for StepProfile {
 struct PhaseEntry<'a> {
     iterations: u64,
     ms_per_iteration: Vec<(&'a str, f64)>,
+    /// On a device: syncs, bytes read back and written, submissions, per iteration.
+    transfers_per_iteration: Option<Vec<(&'a str, f64)>>,
 }
 
 impl Serialize for PhaseEntry<'_> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut m = s.serialize_map(Some(2))?;
+        let mut m = s.serialize_map(None)?;
         m.serialize_entry("iterations", &self.iterations)?;
         m.serialize_entry("ms_per_iteration", &Ordered(&self.ms_per_iteration))?;
+        if let Some(t) = &self.transfers_per_iteration {
+            m.serialize_entry("transfers_per_iteration", &Ordered(t))?;
+        }
         m.end()
+    }
+}
+
+/// `bytes` in words (B, KB, MB; decimal).
+fn bytes_text(bytes: f64) -> String {
+    match bytes {
+        b if b >= 1e6 => format!("{:.2} MB", b / 1e6),
+        b if b >= 1e3 => format!("{:.1} KB", b / 1e3),
+        b => format!("{b:.0} B"),
     }
 }
 
@@ -222,5 +270,25 @@ mod tests {
         assert!(v.get("warm-up").is_none());
         let keys: Vec<&String> = v["photometric"]["ms_per_iteration"].as_object().unwrap().keys().collect();
         assert_eq!(keys.len(), PARTS + 2);
+    }
+
+    /// On a device the profile counts the host–device traffic per iteration; on the CPU it
+    /// has none and says nothing of it.
+    #[cfg(feature = "wgpu")]
+    #[test]
+    fn device_traffic_per_iteration() {
+        let mut p = StepProfile::default();
+        p.finish_iteration(0, 0.01);
+        assert!(p.transfers_per_iteration(0).is_none(), "no device took part");
+        assert!(serde_json::to_value(&p).unwrap()["warm-up"].get("transfers_per_iteration").is_none());
+        for _ in 0..4 {
+            p.add_transfers(1, gs_gpu::Transfers { syncs: 2, bytes_down: 8000, bytes_up: 3_000_000, submits: 6 });
+            p.finish_iteration(1, 0.02);
+        }
+        assert_eq!(p.transfers_per_iteration(1), Some([2.0, 8000.0, 3e6, 6.0]));
+        assert!(p.describe()[1].ends_with("; each 2.0 device round trips, 8.0 KB read back, 3.00 MB written"), "{}", p.describe()[1]);
+        let v = serde_json::to_value(&p).unwrap();
+        assert_eq!(v["photometric"]["transfers_per_iteration"]["bytes_read_back"], 8000.0);
+        assert_eq!(v["warm-up"]["transfers_per_iteration"]["syncs"], 0.0);
     }
 }

@@ -410,6 +410,8 @@ impl<'s> Trainer<'s> {
     /// One training iteration: plan it, set the SH degree, execute the plan, then refine.
     pub fn step(&mut self) -> Result<StepReport> {
         let mut whole = Clock::start();
+        #[cfg(feature = "wgpu")]
+        let traffic = self.executor.rasterizer().gpu_context().map(|c| c.transfers());
         let plan = self.plan();
         let run = RunInputs {
             config: &self.config,
@@ -435,10 +437,14 @@ impl<'s> Trainer<'s> {
         crate::smoothing::settle(&mut self.state, &self.train_cameras, f64::from(self.config.near), self.config.smoothing_3d, due)?;
         let phase = crate::checkpoint::Elapsed::phase_of(&self.config, plan.iteration);
         self.profile.add(phase, Part::Refine, clock.lap());
-        self.profile.finish_iteration(phase, whole.lap());
         self.state.iteration = plan.iteration;
         if self.finished() {
             self.executor.release(&mut self.state)?;
+        }
+        self.profile.finish_iteration(phase, whole.lap());
+        #[cfg(feature = "wgpu")]
+        if let (Some(before), Some(ctx)) = (traffic, self.executor.rasterizer().gpu_context()) {
+            self.profile.add_transfers(phase, ctx.transfers() - before);
         }
         Ok(StepReport {
             iteration: plan.iteration,

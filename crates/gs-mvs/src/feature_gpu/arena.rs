@@ -81,7 +81,7 @@ impl Arena {
             unused.min_by_key(|(_, s)| s.map_or(0, |s| s.used)).map_or(0, |(i, _)| i)
         });
         let offset = 4 * (i * self.slot_floats) as u64;
-        ctx.queue().write_buffer(self.pool.buffer(self.maps), offset, bytemuck::cast_slice(&map.to_f32_vec()));
+        ctx.write_buffer(self.pool.buffer(self.maps), offset, bytemuck::cast_slice(&map.to_f32_vec()));
         self.slots[i] = Some(Slot { key, floats, used: clock });
         i
     }

@@ -233,7 +233,7 @@ impl FeatureGpu {
             [(b.pairs, bytemuck::cast_slice(pairs)), (b.weights, bytemuck::cast_slice(weights)), (b.depth, bytemuck::cast_slice(depth))];
         for (id, bytes) in uploads {
             self.pool.ensure(id, bytes.len() as u64);
-            self.ctx.queue().write_buffer(self.pool.buffer(id), 0, bytes);
+            self.ctx.write_buffer(self.pool.buffer(id), 0, bytes);
         }
         let n = weights.len();
         self.pool.ensure(b.results, result_bytes * chunk.min(n) as u64);

@@ -268,7 +268,7 @@ impl PhotometricGpu {
         ];
         for (id, bytes) in uploads {
             self.pool.ensure(id, bytes.len() as u64);
-            self.ctx.queue().write_buffer(self.pool.buffer(id), 0, bytes);
+            self.ctx.write_buffer(self.pool.buffer(id), 0, bytes);
         }
         self.pool.ensure(b.results, result_bytes * chunk.min(entries.len()) as u64);
         self.pool.ensure(b.staging, result_bytes * chunk.min(entries.len()) as u64);
