@@ -28,7 +28,7 @@ fn an_executor_on_a_lent_state_matches_the_trainer_bit_for_bit() {
     let cams = scene.cameras_of(&train);
     let selector = SourceViewSelector::new(&cams, &NeighbourRule::default(), cfg.source_views, SourceSelection::RandomN).unwrap();
     let mut executor = ReferenceExecutor::new(Rasterizer::new(Backend::Cpu).unwrap(), train.len(), gs_train::TermsUsed::of(&cfg), false);
-    let budget = trainer.budget().clone();
+    let budget = *trainer.budget();
     let raster = trainer.raster_config().clone();
     let run = RunInputs { config: &cfg, scene: &scene, train_views: &train, extent: trainer.extent(), raster: &raster, budget: &budget };
     let mut profile = gs_train::StepProfile::default();

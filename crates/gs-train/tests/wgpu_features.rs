@@ -29,7 +29,7 @@ fn the_feature_term_runs_on_the_device_and_matches_the_cpu() {
     let state = trainer.state().unwrap().clone();
     let plan = plan_step(&cfg, &train, &selector, trainer.extent(), first_lf);
     assert!(plan.phase.features && !plan.sources.is_empty(), "iteration {first_lf} runs L_f");
-    let (budget, raster) = (trainer.budget().clone(), trainer.raster_config().clone());
+    let (budget, raster) = (*trainer.budget(), trainer.raster_config().clone());
     let run = RunInputs { config: &cfg, scene: &scene, train_views: &train, extent: trainer.extent(), raster: &raster, budget: &budget };
     let lf = |backend: Backend| -> Option<(f64, Vec<gs_train::PartPlace>)> {
         let r = match Rasterizer::new(backend) {
