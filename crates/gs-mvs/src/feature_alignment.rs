@@ -181,6 +181,34 @@ pub struct FeatureSource<'a, T: Real> {
     pub features: &'a dyn FeatureMaps<T>,
 }
 
+/// One view of an L_f evaluation with gs-features' VGG maps: camera, rendered plane depth
+/// (the reference's carries the gradient; a source's gives ω), its features and the key a
+/// device executor keeps them under ([`crate::FeatureGpu`]; the same key must always name the
+/// same maps).
+#[derive(Clone, Copy)]
+pub struct AlignView<'a> {
+    /// The camera.
+    pub camera: &'a Camera,
+    /// Rendered plane depth, 1 channel.
+    pub plane_depth: MapView<'a, f32>,
+    /// The feature maps.
+    pub features: &'a gs_features::FeatureMap,
+    /// The key of `features` on a device.
+    pub key: u64,
+}
+
+impl<'a> AlignView<'a> {
+    /// The view as the host reference's reference view.
+    pub fn as_reference(&self) -> FeatureReference<'a, f32> {
+        FeatureReference { camera: self.camera, plane_depth: self.plane_depth, features: self.features }
+    }
+
+    /// The view as one of the host reference's source views.
+    pub fn as_source(&self) -> FeatureSource<'a, f32> {
+        FeatureSource { camera: self.camera, plane_depth: self.plane_depth, features: self.features }
+    }
+}
+
 /// Statistics of one source view for L_f.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FeatureSourceStats {

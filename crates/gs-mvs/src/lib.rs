@@ -59,7 +59,7 @@ pub use coverage::{DepthView, SEEN_DEPTH_TOLERANCE, seen_mask};
 pub use error::{MvsError, Result};
 pub use gs_core::float::Real;
 pub use feature_alignment::{
-    FeatureMaps, FeatureOutput, FeatureReference, FeatureSource, FeatureSourceStats,
+    AlignView, FeatureMaps, FeatureOutput, FeatureReference, FeatureSource, FeatureSourceStats,
     GridFeatureMaps, feature_loss, feature_loss_with_weights,
 };
 pub use geometry::{MapView, plane_homography, sample_bilinear, sample_bilinear_grad};
@@ -68,7 +68,7 @@ pub use photometric::{
     SourceStats, photometric_loss, photometric_loss_with_weights,
 };
 #[cfg(feature = "wgpu")]
-pub use feature_gpu::{AlignView, FeatureGpu};
+pub use feature_gpu::FeatureGpu;
 #[cfg(feature = "wgpu")]
 pub use photometric_gpu::PhotometricGpu;
 pub use selection::{SourceSelection, SourceViewSelector};

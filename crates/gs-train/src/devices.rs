@@ -22,20 +22,6 @@ impl TermsUsed {
     }
 }
 
-/// One view of an L_f evaluation, the reference first: its camera, rendered plane depth, VGG
-/// features and training slot (the key its features are kept under on the device).
-#[derive(Clone, Copy)]
-pub struct FeatureView<'a> {
-    /// The camera.
-    pub camera: &'a gs_core::Camera,
-    /// The rendered plane depth.
-    pub plane_depth: &'a gs_core::Image,
-    /// The feature maps.
-    pub features: &'a gs_features::FeatureMap,
-    /// The training slot.
-    pub slot: usize,
-}
-
 /// The device executors of one run (each `None` where its term runs on the CPU).
 #[derive(Debug, Default)]
 pub struct LossDevices {
@@ -127,24 +113,16 @@ impl LossDevices {
         gs_mvs::photometric_loss(reference, sources, config)
     }
 
-    /// L_f of `views[0]` (the reference) against the other views: the feature alignment on the
-    /// device when there is an executor for it, else [`gs_mvs::feature_alignment::feature_loss`]
-    /// (the reference).
-    pub fn feature_loss(&self, views: &[FeatureView<'_>]) -> crate::Result<gs_mvs::feature_alignment::FeatureOutput<f32>> {
-        let (reference, sources) = views.split_first().ok_or_else(|| crate::TrainError::InvalidConfig("L_f without a reference view".into()))?;
+    /// L_f of `reference` against `sources` (each view's key its training slot): the feature
+    /// alignment on the device when there is an executor for it, else
+    /// [`gs_mvs::feature_alignment::feature_loss`] (the reference).
+    pub fn feature_loss(&self, reference: &gs_mvs::AlignView<'_>, sources: &[gs_mvs::AlignView<'_>]) -> gs_mvs::Result<gs_mvs::FeatureOutput<f32>> {
         #[cfg(feature = "wgpu")]
         if let Some(d) = &self.features {
-            fn view<'a>(v: &FeatureView<'a>) -> gs_mvs::AlignView<'a> {
-                gs_mvs::AlignView { camera: v.camera, plane_depth: v.plane_depth.into(), features: v.features, key: v.slot as u64 }
-            }
-            let sources: Vec<gs_mvs::AlignView<'_>> = sources.iter().map(view).collect();
-            return Ok(d.borrow_mut().loss(&view(reference), &sources)?);
+            return d.borrow_mut().loss(reference, sources);
         }
-        use gs_mvs::feature_alignment::{FeatureReference, FeatureSource, feature_loss};
-        let reference = FeatureReference { camera: reference.camera, plane_depth: reference.plane_depth.into(), features: reference.features };
-        let sources: Vec<FeatureSource<'_, f32>> =
-            sources.iter().map(|s| FeatureSource { camera: s.camera, plane_depth: s.plane_depth.into(), features: s.features }).collect();
-        Ok(feature_loss(&reference, &sources)?)
+        let sources: Vec<gs_mvs::FeatureSource<'_, f32>> = sources.iter().map(gs_mvs::AlignView::as_source).collect();
+        gs_mvs::feature_loss(&reference.as_reference(), &sources)
     }
 
     /// Each part of the loss terms and whether it runs on the device (the rest runs on the CPU),

@@ -65,7 +65,7 @@ pub use region::GrowthRegion;
 pub use densify::{DensifyReport, DensifyStats, Growth};
 pub use error::{Result, TrainError};
 pub use evaluate::{ImageMetrics, PixelMasks, VEIL_MIN_COVER, Veil, ViewMetrics, evaluate_images, find_veil, score_view, seen_masks};
-pub use devices::{FeatureView, TermsUsed};
+pub use devices::TermsUsed;
 pub use executor::{PartPlace, ReferenceExecutor, RunInputs, StepExecutor};
 pub use exposure::{Exposure, ExposureParams};
 pub use floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};

@@ -13,12 +13,12 @@
 use crate::config::LossWeights;
 use crate::error::Result;
 use crate::profile::Part;
-use crate::devices::{FeatureView, LossDevices};
+use crate::devices::LossDevices;
 use gs_core::{Camera, Gaussians, Image};
 use gs_features::FeatureMap;
 use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, opacity_entropy};
 use gs_mvs::{
-    PhotometricConfig, PhotometricReference, PhotometricSource,
+    AlignView, PhotometricConfig, PhotometricReference, PhotometricSource,
 };
 use gs_raster::{OutputGradients, RenderOutput};
 use serde::Serialize;
@@ -307,17 +307,16 @@ impl LossTerm for FeatureTerm {
     }
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
-        let reference = FeatureView {
-            camera: x.camera,
-            plane_depth: channel(&x.render.plane_depth, "plane depth")?,
-            features: needed(x.features, "the reference feature map")?,
-            slot: x.slot,
-        };
-        let mut views = vec![reference];
-        for s in x.sources {
-            views.push(FeatureView { camera: s.camera, plane_depth: s.plane_depth, features: needed(s.features, "a source feature map")?, slot: s.slot });
+        fn view<'a>(camera: &'a Camera, plane_depth: &'a Image, features: &'a FeatureMap, slot: usize) -> AlignView<'a> {
+            AlignView { camera, plane_depth: plane_depth.into(), features, key: slot as u64 }
         }
-        let lf = x.devices.feature_loss(&views)?;
+        let reference = view(x.camera, channel(&x.render.plane_depth, "plane depth")?, needed(x.features, "the reference feature map")?, x.slot);
+        let sources = x
+            .sources
+            .iter()
+            .map(|s| Ok(view(s.camera, s.plane_depth, needed(s.features, "a source feature map")?, s.slot)))
+            .collect::<Result<Vec<AlignView<'_>>>>()?;
+        let lf = x.devices.feature_loss(&reference, &sources)?;
         values.features = Some(lf.loss);
         let g = Image::from_vec(lf.width, lf.height, 1, lf.grad_plane_depth)?;
         GradientBuffers::add(&mut grads.plane_depth, g, w.lambda_f);

@@ -14,12 +14,11 @@ mod arena;
 
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{
-    COS_EPS, FeatureMaps, FeatureOutput, FeatureReference, FeatureSource, add_source, check_inputs, feature_loss_with_weights,
+    AlignView, COS_EPS, FeatureOutput, FeatureSource, add_source, check_inputs, feature_loss_with_weights,
 };
-use crate::geometry::{MapView, PairGeometry};
+use crate::geometry::PairGeometry;
 use crate::visibility::{Visibility, visibility_unchecked};
 use arena::Arena;
-use gs_core::Camera;
 use gs_features::FeatureMap;
 use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
 use rayon::prelude::*;
@@ -106,21 +105,6 @@ fn gpu_error(e: gs_gpu::GpuError) -> MvsError {
     MvsError::Device(e.to_string())
 }
 
-/// One view of an L_f evaluation on the device: camera, rendered plane depth (the reference's
-/// carries the gradient; a source's gives ω), its VGG features and the key they are kept
-/// under on the device (the same key must always name the same maps).
-#[derive(Clone, Copy)]
-pub struct AlignView<'a> {
-    /// The camera.
-    pub camera: &'a Camera,
-    /// Rendered plane depth, 1 channel.
-    pub plane_depth: MapView<'a, f32>,
-    /// The feature maps.
-    pub features: &'a FeatureMap,
-    /// The arena key of `features`.
-    pub key: u64,
-}
-
 struct Buffers {
     pairs: BufId,
     weights: BufId,
@@ -178,12 +162,14 @@ impl FeatureGpu {
     /// [`crate::feature_alignment::feature_loss`] with the pairs evaluated on the device: the
     /// same υ/ω, statistics and gradient layout.
     pub fn loss(&mut self, reference: &AlignView<'_>, sources: &[AlignView<'_>]) -> Result<FeatureOutput<f32>> {
-        let host_ref = host_view(reference);
-        let host_sources: Vec<FeatureSource<'_, f32>> = sources.iter().map(host_source).collect();
+        let host_ref = reference.as_reference();
+        let host_sources: Vec<FeatureSource<'_, f32>> = sources.iter().map(AlignView::as_source).collect();
         check_inputs(&host_ref, &host_sources)?;
+        let geometry: Vec<PairGeometry<f32>> = sources.iter().map(|s| PairGeometry::new(reference.camera, s.camera)).collect();
         let weights: Vec<Visibility<f32>> = sources
             .par_iter()
-            .map(|s| visibility_unchecked(&PairGeometry::new(reference.camera, s.camera), &reference.plane_depth, &s.plane_depth))
+            .zip(&geometry)
+            .map(|(s, g)| visibility_unchecked(g, &reference.plane_depth, &s.plane_depth))
             .collect();
         let maps: Vec<(u64, &FeatureMap)> = std::iter::once(reference).chain(sources).map(|v| (v.key, v.features)).collect();
         let Some(offsets) = self.arena.place(&self.ctx, &maps) else {
@@ -206,7 +192,7 @@ impl FeatureGpu {
             ref_inv_stride: 1.0 / reference.features.stride(),
             eps: COS_EPS as f32,
         };
-        let pairs: Vec<AlignPair> = sources.iter().zip(&offsets[1..]).map(|(s, &o)| pair_record(reference.camera, s, o)).collect();
+        let pairs: Vec<AlignPair> = sources.iter().zip(&geometry).zip(&offsets[1..]).map(|((s, g), &o)| pair_record(g, s, o)).collect();
         let mut flat = Vec::with_capacity(sources.len() * w * h);
         for vis in &weights {
             flat.extend((0..w * h).map(|p| vis.weight(p)));
@@ -260,18 +246,8 @@ impl FeatureGpu {
     }
 }
 
-/// The host reference's view of `v` (for the checks and the fallback).
-fn host_view<'a>(v: &AlignView<'a>) -> FeatureReference<'a, f32> {
-    FeatureReference { camera: v.camera, plane_depth: v.plane_depth, features: v.features as &dyn FeatureMaps<f32> }
-}
-
-fn host_source<'a>(v: &AlignView<'a>) -> FeatureSource<'a, f32> {
-    FeatureSource { camera: v.camera, plane_depth: v.plane_depth, features: v.features as &dyn FeatureMaps<f32> }
-}
-
-/// The pair record of `source` seen from `reference`, its map at `offset` in the arena.
-fn pair_record(reference: &Camera, source: &AlignView<'_>, offset: u32) -> AlignPair {
-    let g = PairGeometry::<f32>::new(reference, source.camera);
+/// The pair record of `source` with the pair geometry `g`, its map at `offset` in the arena.
+fn pair_record(g: &PairGeometry<f32>, source: &AlignView<'_>, offset: u32) -> AlignPair {
     let row = |r: usize| [g.rot[3 * r], g.rot[3 * r + 1], g.rot[3 * r + 2], 0.0];
     AlignPair {
         r0: row(0),

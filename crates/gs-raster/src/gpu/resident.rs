@@ -188,13 +188,7 @@ impl Model {
     pub(super) fn prepare(&mut self, ctx: &GpuContext, g: &Gaussians) -> Result<()> {
         match self.resident {
             _ if self.holds(g) => Ok(()),
-            Some(r) => Err(RasterError::Gpu(format!(
-                "the resident model holds {} Gaussians of SH degree {}, the render was given {} of degree {}: release the residency after changing the model",
-                r.n,
-                r.sh_degree,
-                g.len(),
-                g.sh_degree
-            ))),
+            Some(r) => Err(r.refuses(g, "the render was given", ": release the residency after changing the model")),
             None => {
                 self.pool.begin_frame();
                 self.upload(ctx, g);
@@ -229,6 +223,18 @@ impl Model {
 impl Residency {
     fn of(g: &Gaussians) -> Self {
         Self { n: g.len(), sh_degree: g.sh_degree }
+    }
+
+    /// The error for Gaussians `g` of another size or degree than the resident model, their
+    /// count and degree framed by `before` and `after`.
+    fn refuses(self, g: &Gaussians, before: &str, after: &str) -> RasterError {
+        RasterError::Gpu(format!(
+            "the resident model holds {} Gaussians of SH degree {}, {before} {} of degree {}{after}",
+            self.n,
+            self.sh_degree,
+            g.len(),
+            g.sh_degree
+        ))
     }
 }
 
@@ -277,13 +283,7 @@ impl WgpuRasterizer {
             return Err(RasterError::Gpu("no model is resident".into()));
         };
         if !self.model.holds(g) {
-            return Err(RasterError::Gpu(format!(
-                "the resident model holds {} Gaussians of SH degree {}, not the {} of degree {} given to read it into",
-                r.n,
-                r.sh_degree,
-                g.len(),
-                g.sh_degree
-            )));
+            return Err(r.refuses(g, "not the", " given to read it into"));
         }
         let nc = coeffs_for_degree(r.sh_degree);
         let (pb, sb) = (bytes_of::<ParamRecord>(r.n), bytes_of::<ShCoeff>(r.n * nc));
@@ -436,9 +436,8 @@ impl WgpuRasterizer {
         }
         m.pool.ensure(m.flags, 4);
         m.disp.write_frame(uniform);
-        for id in [self.bufs.radii, self.bufs.observed] {
-            self.pool.ensure(id, bytes_of::<u32>(n + 1));
-        }
+        // The statistics read the radii and pixel counts the checked render (or
+        // `zero_gradients`) left in their buffers, which hold `n` of each.
         self.pool.ensure(self.bufs.staging, 4);
         let (m, p, b) = (&self.model, &self.pool, &self.bufs);
         let mut enc = m.disp.encoder();
