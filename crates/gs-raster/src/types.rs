@@ -114,6 +114,11 @@ pub struct RenderRequest {
     pub expected_depth: bool,
     /// Per-Gaussian observed counts (pixels where it contributed while T > 0.5).
     pub observed: bool,
+    /// Per-pixel T_final and last contributor ([`RenderOutput::final_t`],
+    /// [`RenderOutput::last_contributor`]) for the caller. The CPU backend fills them always (its
+    /// backward needs them); the wgpu backend keeps them on the device and reads them back
+    /// only when asked (T_final also when colour, alpha or expected depth need it).
+    pub traversal: bool,
     /// Transmittance at which the geometry channels (Ñ, D, and so the plane depth) stop
     /// blending: contributions count only while T > `geometry_cut`, the one that crosses it in
     /// part (weight T − max(T', cut)). A pixel's geometry is then that of the front of its
@@ -134,6 +139,7 @@ impl Default for RenderRequest {
             plane_depth: false,
             expected_depth: false,
             observed: false,
+            traversal: false,
             geometry_cut: 0.0,
         }
     }
@@ -150,6 +156,7 @@ impl RenderRequest {
             plane_depth: true,
             expected_depth: true,
             observed: true,
+            traversal: true,
             geometry_cut: 0.0,
         }
     }

@@ -139,12 +139,14 @@ fn parity_for_channel_subsets_and_single_gradients() {
     let cam = &cameras(80, 64)[0];
     let cfg = RasterConfig::default();
     let grads = Grads::new(80, 64, 9);
+    // T_final and the last contributors come back (`traversal`) to tell flips from errors.
     let requests = [
-        RenderRequest::default(),
+        RenderRequest { traversal: true, ..RenderRequest::default() },
         RenderRequest {
             color: false,
             alpha: false,
             plane_depth: true,
+            traversal: true,
             ..RenderRequest::default()
         },
         RenderRequest {
@@ -152,6 +154,7 @@ fn parity_for_channel_subsets_and_single_gradients() {
             alpha: false,
             expected_depth: true,
             observed: true,
+            traversal: true,
             ..RenderRequest::default()
         },
         RenderRequest {
@@ -159,6 +162,7 @@ fn parity_for_channel_subsets_and_single_gradients() {
             alpha: true,
             normal: true,
             distance: true,
+            traversal: true,
             ..RenderRequest::default()
         },
     ];
@@ -178,6 +182,52 @@ fn parity_for_channel_subsets_and_single_gradients() {
         let gc = gs_raster::backward(&g, cam, &cfg, &cpu, &og).unwrap();
         let gg = r.backward(&g, cam, &cfg, &gpu, &og).unwrap();
         compare_grads(&label, &gc, &gg, &touched);
+    }
+}
+
+/// A render reads back only what its request needs: without `traversal`, a plane-depth render
+/// leaves T_final and the last contributors on the device (8 bytes a pixel fewer) and a colour
+/// render brings T_final alone; the images and the backward (which reads the device's copies,
+/// and takes its window count from the device's longest list) are the same bits.
+#[test]
+fn a_render_reads_back_what_its_request_needs() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    // One tile's list longer than a backward window (256), so the window count matters.
+    let mut g = random_scene(600, 1, 8, 0.25, (-4.5, -4.0));
+    for o in g.opacity_logits.iter_mut() {
+        *o = gs_core::gaussians::inverse_sigmoid(0.02);
+    }
+    let cam = camera(32, 32, 40.0, DVec3::new(0.0, 0.0, -4.0));
+    let cfg = RasterConfig::default();
+    let npix = 32 * 32;
+    let grads = Grads::new(32, 32, 5);
+    for (base, per_pixel) in [
+        (RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() }, 8),
+        (RenderRequest::default(), 4),
+    ] {
+        let mut read = |req: &RenderRequest| {
+            let before = r.context().transfers();
+            let out = r.render(&g, &cam, req, &cfg).unwrap();
+            let down = (r.context().transfers() - before).bytes_down;
+            let og = OutputGradients {
+                color: req.color.then_some(&grads.color),
+                alpha: req.alpha.then_some(&grads.alpha),
+                plane_depth: req.plane_depth.then_some(&grads.plane_depth),
+                ..OutputGradients::default()
+            };
+            let back = r.backward(&g, &cam, &cfg, &out, &og).unwrap();
+            (out, down, back)
+        };
+        let (full, full_down, full_back) = read(&RenderRequest { traversal: true, ..base });
+        let (lean, lean_down, lean_back) = read(&base);
+        assert!(full.last_contributor.iter().max().copied().unwrap_or(0) > 256, "the list must outgrow one backward window");
+        assert_eq!(full_down - lean_down, per_pixel * npix, "{base:?}: bytes read back");
+        assert!(lean.last_contributor.is_empty());
+        assert_eq!(lean.final_t.is_empty(), per_pixel == 8);
+        for (a, b) in [(&full.color, &lean.color), (&full.alpha, &lean.alpha), (&full.plane_depth, &lean.plane_depth)] {
+            assert_eq!(a.as_ref().map(|i| i.data()), b.as_ref().map(|i| i.data()));
+        }
+        assert_eq!(full_back, lean_back, "{base:?}: the backward");
     }
 }
 
@@ -368,6 +418,7 @@ fn a_gaussian_covering_more_tiles_than_one_emit_window() {
     let cfg = RasterConfig::default();
     let req = RenderRequest {
         color: false,
+        traversal: true,
         ..RenderRequest::default()
     };
     let cpu = gs_raster::render(&g, &cam, &req, &cfg).unwrap();
@@ -518,14 +569,15 @@ fn backend_selector() {
     let g = random_scene(100, 0, 50, 1.0, (-3.5, -2.0));
     let cam = camera(40, 30, 40.0, DVec3::new(0.4, -0.3, -4.0));
     let cfg = RasterConfig::default();
-    let out = w.render(&g, &cam, &RenderRequest::default(), &cfg).unwrap();
+    let req = RenderRequest { traversal: true, ..RenderRequest::default() };
+    let out = w.render(&g, &cam, &req, &cfg).unwrap();
     let ones = Image::filled(40, 30, 3, 1.0).unwrap();
     let og = OutputGradients {
         color: Some(&ones),
         ..Default::default()
     };
     let gg = w.backward(&g, &cam, &cfg, &out, &og).unwrap();
-    let cpu_out = gs_raster::render(&g, &cam, &RenderRequest::default(), &cfg).unwrap();
+    let cpu_out = gs_raster::render(&g, &cam, &req, &cfg).unwrap();
     let gc = gs_raster::backward(&g, &cam, &cfg, &cpu_out, &og).unwrap();
     let touched = touched_by(&g, &cam, &cpu_out.radii, &flipped_pixels("selector", &cpu_out, &out));
     compare_grads("selector", &gc, &gg, &touched);

@@ -139,6 +139,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         expected_depth: false,
         // Pixel-GS's weights ([`crate::densify::DensifyStats::accumulate`]).
         observed: d.pixel_weighted && gathering,
+        traversal: false,
         geometry_cut: 0.0,
     };
     let w = &config.weights;

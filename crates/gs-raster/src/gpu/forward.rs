@@ -16,13 +16,17 @@ use gs_gpu::{Encoder, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Where each forward output lies in the staging buffer.
+/// The counter holding the largest last contributor of any pixel (`raster_fwd`'s atomicMax:
+/// an integer maximum, the same whatever the order).
+const LONGEST_LIST: usize = 8;
+
+/// Where each forward output lies in the staging buffer (`None`: not read back).
 struct Readback {
     /// Accumulator planes read back (colour 0..3, Ñ and D 3..7, depth sum 7).
     planes: Vec<usize>,
     radii: u64,
-    final_t: u64,
-    last: u64,
+    final_t: Option<u64>,
+    last: Option<u64>,
     counters: u64,
     observed: u64,
     planes_at: u64,
@@ -42,23 +46,23 @@ impl Readback {
             planes.push(7);
         }
         let radii = 0u64;
-        let final_t = radii + (n * 4).next_multiple_of(8);
-        let last = final_t + npix * 4;
-        let counters = last + npix * 4;
+        let mut at = radii + (n * 4).next_multiple_of(8);
+        let mut place = |wanted: bool, bytes: u64| {
+            wanted.then(|| {
+                at += bytes;
+                at - bytes
+            })
+        };
+        // T_final makes the colour (background), the alpha and the expected depth; the
+        // plane depth, normal and distance need neither it nor the last contributors.
+        let final_t = place(request.traversal || request.color || request.alpha || request.expected_depth, npix * 4);
+        let last = place(request.traversal, npix * 4);
+        let counters = at;
         let observed = counters + 64;
         let obs_bytes = if request.observed { n * 4 } else { 0 };
         let planes_at = (observed + obs_bytes).next_multiple_of(8);
         let bytes = planes_at + planes.len() as u64 * npix * 4;
-        Self {
-            planes,
-            radii,
-            final_t,
-            last,
-            counters,
-            observed,
-            planes_at,
-            bytes,
-        }
+        Self { planes, radii, final_t, last, counters, observed, planes_at, bytes }
     }
 }
 
@@ -139,13 +143,13 @@ impl WgpuRasterizer {
         })?;
         let out = out?;
         self.timings.render = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
-        let max_last = out.last_contributor.iter().copied().max().unwrap_or(0);
+        let max_last = out.1;
         self.frame = Some(Frame {
             generation: self.generation,
             total: total as u32,
             max_last,
         });
-        Ok(out)
+        Ok(out.0)
     }
 
     /// Phase 1: projection (chunked), depth sort, per-Gaussian tile counts and their scan;
@@ -380,8 +384,12 @@ impl WgpuRasterizer {
         let nn = n as u64;
         let staging = p.buffer(b.staging);
         let e = &mut enc.encoder;
-        e.copy_buffer_to_buffer(p.buffer(b.final_t), 0, staging, rb.final_t, npix * 4);
-        e.copy_buffer_to_buffer(p.buffer(b.last), 0, staging, rb.last, npix * 4);
+        if let Some(at) = rb.final_t {
+            e.copy_buffer_to_buffer(p.buffer(b.final_t), 0, staging, at, npix * 4);
+        }
+        if let Some(at) = rb.last {
+            e.copy_buffer_to_buffer(p.buffer(b.last), 0, staging, at, npix * 4);
+        }
         e.copy_buffer_to_buffer(p.buffer(b.counters), 0, staging, rb.counters, 64);
         if request.observed && nn > 0 {
             e.copy_buffer_to_buffer(p.buffer(b.observed), 0, staging, rb.observed, nn * 4);
@@ -400,7 +408,8 @@ impl WgpuRasterizer {
     }
 
     /// Builds the [`RenderOutput`] (images, radii, counters, device-state handle) from the
-    /// staging bytes.
+    /// staging bytes, with the longest list position any pixel blended (the backward's
+    /// window count).
     #[allow(clippy::too_many_arguments)]
     fn forward_output(
         &self,
@@ -412,7 +421,7 @@ impl WgpuRasterizer {
         bytes: &[u8],
         visible: usize,
         total: u32,
-    ) -> Result<RenderOutput> {
+    ) -> Result<(RenderOutput, u32)> {
         let n = g.len();
         let npix = cam.width as usize * cam.height as usize;
         let u32s = |off: u64, count: usize| -> Vec<u32> {
@@ -423,21 +432,22 @@ impl WgpuRasterizer {
         };
         let radii = u32s(rb.radii, n);
         let mut acc = vec![[0.0f32; 8]; npix];
+        // Without intersections nothing was blended: T = 1 and no contributor anywhere.
         let (final_t, last, counters, observed) = if total > 0 {
             for (k, &p) in rb.planes.iter().enumerate() {
                 let plane = f32s(rb.planes_at + k as u64 * npix as u64 * 4, npix);
                 acc.par_iter_mut().zip(plane).for_each(|(a, v)| a[p] = v);
             }
             (
-                f32s(rb.final_t, npix),
-                u32s(rb.last, npix),
+                rb.final_t.map_or_else(Vec::new, |at| f32s(at, npix)),
+                rb.last.map_or_else(Vec::new, |at| u32s(at, npix)),
                 u32s(rb.counters, 16),
                 request.observed.then(|| u32s(rb.observed, n)),
             )
         } else {
             (
-                vec![1.0; npix],
-                vec![0; npix],
+                rb.final_t.map_or_else(Vec::new, |_| vec![1.0; npix]),
+                rb.last.map_or_else(Vec::new, |_| vec![0; npix]),
                 vec![0; 16],
                 request.observed.then(|| vec![0; n]),
             )
@@ -470,6 +480,6 @@ impl WgpuRasterizer {
         }));
         out.final_t = final_t;
         out.last_contributor = last;
-        Ok(out)
+        Ok((out, counters[LONGEST_LIST]))
     }
 }

@@ -129,5 +129,8 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     add64(4u, traversed);
     if (final_window) {
         add64(6u, last_k);
+        // The longest list position blended (the backward's window count): an integer
+        // maximum, the same in any order.
+        atomicMax(&counters[8], last_k);
     }
 }

@@ -48,6 +48,10 @@ pub const GRAD_L2: f64 = 2e-3;
 pub fn flipped_pixels(label: &str, cpu: &RenderOutput, gpu: &RenderOutput) -> Vec<usize> {
     let step = (1.0f64 - 1.0 / 255.0).ln();
     let mut out = Vec::new();
+    assert!(
+        gpu.final_t.len() == cpu.final_t.len() && gpu.last_contributor.len() == cpu.last_contributor.len(),
+        "{label}: compare renders requested with `traversal` (T_final and last contributors read back)"
+    );
     for (i, (&a, &b)) in cpu.final_t.iter().zip(&gpu.final_t).enumerate() {
         if cpu.last_contributor[i] != gpu.last_contributor[i] {
             out.push(i);
