@@ -15,7 +15,10 @@
 //!    into Gaussian ids (what the blends read) and records each emission index's list position.
 //! 5. `raster_fwd`: one workgroup per 16×16 tile, one thread per pixel, front to back; writes
 //!    the eight accumulators channel-planar, T_final, last contributor, observed counts and
-//!    the pair counters. Only the planes the request needs are read back.
+//!    the pair counters (with the longest list position blended, an integer maximum: the
+//!    backward's window count). Only what the request needs is read back: its planes, T_final
+//!    where colour, alpha or expected depth need it, and both per-pixel states only for
+//!    `RenderRequest::traversal`; the backward reads the device's copies.
 //!
 //! [`WgpuRasterizer::backward`] uploads the per-pixel channel gradients (folded on the host
 //! with the CPU code), runs `raster_bwd` (one workgroup of 128 threads per tile, reverse
