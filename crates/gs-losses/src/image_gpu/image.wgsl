@@ -11,8 +11,8 @@
 // Generated before this file: `struct ImageFrame` (binding 0), the records `EdgeTexel` and
 // `EdgeRange`, and the storage bindings: planes of `frame.n` values (or `frame.pixels` for
 // pixel planes) in `images` (a, then b, then the pixel plane ∇I), `moments` (5 planes),
-// `partials` (3), `blurred` (3), `values` (SSIM, |a − b|, then the pixel plane |∇Ĩ − ∇I|) and
-// `grad` (1); `edge`, one `EdgeTexel` per pixel; `edge_ranges`, the interior's `EdgeRange`,
+// `partials` (3), `blurred` (3), `values` (SSIM, |a − b|, then the pixel plane |∇Ĩ − ∇I|, then
+// three sums a row) and `grad` (1); `edge`, one `EdgeTexel` per pixel; `edge_ranges`, the interior's `EdgeRange`,
 // then each range group's.
 
 @group(0) @binding(0) var<uniform> frame: ImageFrame;
@@ -306,4 +306,38 @@ fn loss_gradient(ids: Ids) {
         g += edge_backward(p % frame.width, p / frame.width, i % c, a);
     }
     grad[i] = g;
+}
+
+// Compensated (Kahan) f32 sum of `count` entries of `values` from `start`, in order.
+fn row_sum(start: u32, count: u32) -> f32 {
+    var s = 0.0;
+    var c = 0.0;
+    for (var i = 0u; i < count; i++) {
+        let v = values[start + i] - c;
+        let t = s + v;
+        c = (t - s) - v;
+        s = t;
+    }
+    return s;
+}
+
+// After `loss_gradient`, one thread per image row: the sums of its SSIM values, its |a − b|
+// values and (when a guide was given) its pixels' |∇Ĩ − ∇I|, each along the row in order, written
+// after the planes. The host reads these three values a row, not every value, and adds the
+// rows in order in f64.
+@compute @workgroup_size(256)
+fn row_sums(ids: Ids) {
+    let y = thread_1d(ids);
+    if (y >= frame.height) {
+        return;
+    }
+    let row = frame.width * frame.channels;
+    let at = plane_at(2u, frame.pixels) + 3u * y;
+    values[at] = row_sum(y * row, row);
+    values[at + 1u] = row_sum(plane_at(1u, y * row), row);
+    var edge = 0.0;
+    if (frame.edge_values != 0u) {
+        edge = row_sum(plane_at(2u, y * frame.width), frame.width);
+    }
+    values[at + 2u] = edge;
 }

@@ -1,17 +1,17 @@
 //! L_I on the device (behind the `wgpu` feature), the twin of [`crate::image_loss()`]: L1, D-SSIM
 //! and the edge term in one set of WGSL passes (`image.wgsl`) that writes ∂L_I/∂Ĩ and each
-//! value's or pixel's terms; the host sums those in the reference's fixed orders, so one input
-//! gives one result on one device. [`ImageLossGpu::ssim_backward`] is D-SSIM alone, the twin of
+//! value's or pixel's terms, and sums those along each image row in order (compensated f32);
+//! the host reads three sums a row and adds the rows in order in f64, so one input gives one
+//! result on one device. [`ImageLossGpu::ssim_backward`] is D-SSIM alone, the twin of
 //! [`crate::ssim::ssim_backward`] over the whole image. Tolerances: `tests/image_gpu.rs`
 //! (docs/method.md §L_I, docs/architecture.md §GPU).
 
 use crate::device::{LossKernels, gpu_error};
 use gs_gpu::{GeneratedStruct, bytes_of, declarations};
-use crate::dims::{Dims, ordered_sum};
+use crate::dims::Dims;
 use crate::error::{LossError, Result};
 use crate::gradient::GRAD_NORM_EPS;
 use crate::image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, check_inputs};
-use crate::l1::chunked_mean;
 use crate::ssim::{SSIM_C1, SSIM_C2, gaussian_window_1d};
 use gs_core::Image;
 use gs_gpu::{Binding, GpuContext, PassUniform};
@@ -42,7 +42,9 @@ gs_gpu::wgsl_struct! {
         groups: u32,
         /// The ε of ∇Ĩ's min–max normalisation.
         grad_eps: f32,
-        pad0: u32,
+        /// 1 when the edge term's values were written (a guide was given; with or without an
+        /// interior).
+        edge_values: u32,
         pad1: u32,
         /// The 11 window taps (the last lane of g2 unused).
         g0: [f32; 4],
@@ -104,10 +106,12 @@ enum Grid {
     RangeGroups,
     /// One workgroup, as `RangeGroups`.
     RangeTotal,
+    /// One thread per image row.
+    Rows,
 }
 
 /// The passes in order, with their grids.
-const PASSES: [(&str, Grid); 8] = [
+const PASSES: [(&str, Grid); 9] = [
     ("blur_rows", Grid::Values),
     ("ssim_values", Grid::Values),
     ("blur_partials", Grid::Values),
@@ -116,7 +120,11 @@ const PASSES: [(&str, Grid); 8] = [
     ("edge_range", Grid::RangeTotal),
     ("edge_terms", Grid::EdgePixels),
     ("loss_gradient", Grid::Values),
+    ("row_sums", Grid::Rows),
 ];
+
+/// Sums a row that `row_sums` writes after the value planes: SSIM, |a − b|, |∇Ĩ − ∇I|.
+const ROW_SUMS: usize = 3;
 
 /// Most workgroups of the range pass (each strides over the image).
 const RANGE_GROUPS: usize = 256;
@@ -223,7 +231,7 @@ impl ImageLossGpu {
             edge: (gt_gradient.is_some() && interior) as u32,
             groups: groups as u32,
             grad_eps: GRAD_NORM_EPS as f32,
-            pad0: 0,
+            edge_values: gt_gradient.is_some() as u32,
             pad1: 0,
             g0: [g[0], g[1], g[2], g[3]],
             g1: [g[4], g[5], g[6], g[7]],
@@ -231,11 +239,13 @@ impl ImageLossGpu {
         };
         let bytes = bytes_of::<f32>(n);
         let pixel_bytes = bytes_of::<f32>(pixels);
-        // Values read back: SSIM and |a − b| per value, then |∇Ĩ − ∇I| per pixel; the gradient.
-        let read = 2 * bytes + pixel_bytes;
+        // `values`: SSIM and |a − b| per value, |∇Ĩ − ∇I| per pixel, then the row sums, which
+        // alone come back with the gradient.
+        let sums_at = 2 * bytes + pixel_bytes;
+        let read = bytes_of::<f32>(ROW_SUMS * dims.height);
         let k = &mut self.k;
         let edge = [bytes_of::<EdgeTexel>(pixels), bytes_of::<EdgeRange>(1 + groups)];
-        k.begin([2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, read, bytes, edge[0], edge[1]], read + bytes);
+        k.begin([2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, sums_at + read, bytes, edge[0], edge[1]], read + bytes);
         let [images, _, _, _, values, grad, _, _] = k.bufs;
         let q = k.ctx.queue();
         q.write_buffer(k.pool.buffer(images), 0, bytemuck::cast_slice(a));
@@ -250,34 +260,32 @@ impl ImageLossGpu {
         k.ctx.push_error_scopes();
         let per_value = PassUniform { n: n as u32, ..Default::default() };
         let per_pixel = PassUniform { n: pixels as u32, ..Default::default() };
+        let per_row = PassUniform { n: dims.height as u32, ..Default::default() };
         for (kernel, (_, grid)) in k.kernels.iter().zip(PASSES) {
             match grid {
                 Grid::Values => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_value),
                 Grid::EdgePixels if gt_gradient.is_some() => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_pixel),
                 Grid::RangeGroups if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (groups as u32, 1)),
                 Grid::RangeTotal if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (1, 1)),
+                Grid::Rows => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_row),
                 _ => Ok(()),
             }
             .map_err(gpu_error)?;
         }
         let staging = p.buffer(k.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(values), 0, staging, 0, read);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(values), sums_at, staging, 0, read);
         enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, staging, read, bytes);
         k.disp.submit(enc);
         k.ctx.pop_error_scopes().map_err(gpu_error)?;
-        let row = dims.width * dims.channels;
         k.ctx
             .read_mapped(staging, read + bytes, |m| {
                 let all = bytemuck::cast_slice::<u8, f32>(m);
-                let (ssim, rest) = all.split_at(n);
-                let (l1, rest) = rest.split_at(n);
-                let (edge, grad) = rest.split_at(pixels);
+                let (sums, grad) = all.split_at(ROW_SUMS * dims.height);
+                let rows = |k: usize| sums.chunks_exact(ROW_SUMS).map(|r| r[k] as f64).sum::<f64>();
                 Terms {
-                    // The references' sums: SSIM by rows in f64, the rows in order; L1 and the
-                    // edge term in chunks (`l1::l1`).
-                    ssim: ordered_sum(dims.height, |y| ssim[y * row..(y + 1) * row].iter().map(|&v| v as f64).sum()) / n as f64,
-                    l1: chunked_mean(n, |i| l1[i] as f64),
-                    edge: gt_gradient.map(|_| chunked_mean(pixels, |p| edge[p] as f64)),
+                    ssim: rows(0) / n as f64,
+                    l1: rows(1) / n as f64,
+                    edge: gt_gradient.map(|_| rows(2) / pixels as f64),
                     grad: grad.to_vec(),
                 }
             })
