@@ -14,10 +14,15 @@ use gs_gpu::{GpuContext, GpuOptions};
 use gs_losses::{EdgeGuide, NormalGpu, NormalLossConfig, NormalLossOutput, NsGate, NsPairs, normal_losses};
 
 fn gpu() -> Option<NormalGpu> {
+    gpu_and_context().map(|(g, _)| g)
+}
+
+/// The executor and its context (for its traffic ledger).
+fn gpu_and_context() -> Option<(NormalGpu, GpuContext)> {
     match GpuContext::new(&GpuOptions::default()) {
         Ok(c) => {
             eprintln!("wgpu adapter: {}", c.description());
-            Some(NormalGpu::new(&c).expect("the normal kernels on an adapter that exists"))
+            Some((NormalGpu::new(&c).expect("the normal kernels on an adapter that exists"), c))
         }
         Err(e) => {
             gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
@@ -148,4 +153,17 @@ fn device_normal_losses_refuse_what_the_reference_refuses() {
     let o = g.normal_losses(&v.z, &v.normal, None, &v.guide, &v.k, &off).unwrap();
     assert!(o.l_nc > 0.0 && o.total == 0.0);
     assert!(o.grad_plane_depth.data().iter().chain(o.grad_normal.data()).all(|&x| x == 0.0));
+}
+
+/// An evaluation reads back N̂, ∂/∂Ñ and ∂/∂z (28 bytes a pixel) and one 16-byte record of sums
+/// a row, in one round trip: not every pixel's terms.
+#[test]
+fn an_evaluation_reads_back_the_gradients_and_one_record_a_row() {
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let (w, h) = (160, 120);
+    let v = view(w, h, 3);
+    let before = ctx.transfers();
+    g.normal_losses(&v.z, &v.normal, Some(&v.alpha), &v.guide, &v.k, &NormalLossConfig::default()).unwrap();
+    let t = ctx.transfers() - before;
+    assert_eq!((t.syncs, t.bytes_down), (1, (28 * w * h + 16 * h) as u64));
 }

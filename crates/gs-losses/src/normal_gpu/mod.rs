@@ -1,8 +1,8 @@
 //! L_nc and L_ns on the device (behind the `wgpu` feature), the twin of
 //! [`crate::normal_losses`]: four WGSL passes (`normal.wgsl`) compute N̂, each pixel's values
-//! and ∂/∂N̂, ∂/∂Ñ, then the chain through N̂ into the plane depth z. The host sums the
-//! per-pixel values in the reference's fixed order, so one input gives one result on one
-//! device. Tolerances: `tests/normal_gpu.rs` (docs/method.md §L_nc, §L_ns; docs/architecture.md
+//! and ∂/∂N̂, ∂/∂Ñ, then the chain through N̂ into the plane depth z; a fifth sums each row's
+//! values in order (compensated f32), and the host reads those sums alone and adds the rows in
+//! order in f64, so one input gives one result on one device. Tolerances: `tests/normal_gpu.rs` (docs/method.md §L_nc, §L_ns; docs/architecture.md
 //! §GPU).
 
 use crate::device::{LossKernels, gpu_error};
@@ -10,7 +10,7 @@ use gs_gpu::{GeneratedStruct, bytes_of, declarations};
 use crate::error::Result;
 use crate::image_loss::EdgeGuide;
 use crate::normal::{NORMALIZE_EPS, ray_x, ray_y};
-use crate::normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, check_inputs, consistency_sum, smoothing_sum};
+use crate::normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, check_inputs, smoothing_sum};
 use gs_core::{Image, Intrinsics};
 use gs_gpu::{Binding, GpuContext, PassUniform};
 
@@ -65,8 +65,8 @@ gs_gpu::wgsl_struct! {
 }
 
 gs_gpu::wgsl_struct! {
-    /// One pixel's loss terms (WGSL `struct PixelTerms`), summed on the host in the
-    /// reference's order. 16 bytes.
+    /// One pixel's loss terms (WGSL `struct PixelTerms`); after the pixels, one a row with the
+    /// row's sums (`nc`, the right and down pairs' sum in `ns_right`, `pairs`). 16 bytes.
     pub(crate) struct PixelTerms as "PixelTerms" {
         /// δ·‖N̂ − Ñ‖₁.
         nc: f32,
@@ -111,14 +111,15 @@ fn generated_structs() -> [GeneratedStruct; 5] {
     ]
 }
 
-const PASSES: [&str; 4] = ["depth_normals", "normal_terms", "normal_chain", "depth_gradient"];
+/// The passes in order: one thread per pixel, then (`row_sums`) one per row.
+const PASSES: [&str; 5] = ["depth_normals", "normal_terms", "normal_chain", "depth_gradient", "row_sums"];
 
 /// The kernels' whole WGSL source.
 pub fn normal_kernel_source() -> String {
     gs_gpu::kernel_source(&[&declarations(&generated_structs()), include_str!("normal.wgsl")], &BINDINGS)
 }
 
-/// The device executor of L_nc and L_ns: its context (shared), buffers and four kernels.
+/// The device executor of L_nc and L_ns: its context (shared), buffers and five kernels.
 pub struct NormalGpu {
     k: LossKernels<8>,
 }
@@ -172,11 +173,12 @@ impl NormalGpu {
         };
         let rays: Vec<f32> = (0..w).map(|i| ray_x(intrinsics, i) as f32).chain((0..h).map(|j| ray_y(intrinsics, j) as f32)).collect();
         let inputs = pixel_inputs(plane_depth, rendered_normal, &guide.delta, alpha);
-        // The readback: N̂, the terms, ∂/∂Ñ and ∂/∂z.
+        // The readback: N̂, the rows' sums, ∂/∂Ñ and ∂/∂z.
         let (vec3, terms, plane) = (bytes_of::<PixelVec3>(n), bytes_of::<PixelTerms>(n), bytes_of::<f32>(n));
-        let read = [vec3, terms, vec3, plane];
+        let sums = bytes_of::<PixelTerms>(h);
+        let read = [vec3, sums, vec3, plane];
         let k = &mut self.k;
-        k.begin([bytes_of::<PixelInput>(n), bytes_of::<f32>(rays.len()), vec3, terms, vec3, vec3, bytes_of::<DiffGrad>(n), plane], read.iter().sum());
+        k.begin([bytes_of::<PixelInput>(n), bytes_of::<f32>(rays.len()), vec3, terms + sums, vec3, vec3, bytes_of::<DiffGrad>(n), plane], read.iter().sum());
         let [input_buf, ray_buf, nhat, values, _, gnt, _, gz] = k.bufs;
         let q = k.ctx.queue();
         q.write_buffer(k.pool.buffer(input_buf), 0, bytemuck::cast_slice(&inputs));
@@ -186,29 +188,30 @@ impl NormalGpu {
         let binds = k.bufs.map(|id| p.whole(id));
         let mut enc = k.disp.encoder();
         k.ctx.push_error_scopes();
-        for kernel in &k.kernels {
-            k.disp.dispatch_1d(&mut enc, kernel, &binds, PassUniform { n: n as u32, ..Default::default() }).map_err(gpu_error)?;
+        for (kernel, name) in k.kernels.iter().zip(PASSES) {
+            let threads = if name == "row_sums" { h } else { n };
+            k.disp.dispatch_1d(&mut enc, kernel, &binds, PassUniform { n: threads as u32, ..Default::default() }).map_err(gpu_error)?;
         }
         let staging = p.buffer(k.staging);
         let mut at = 0;
-        for (id, size) in [nhat, values, gnt, gz].into_iter().zip(read) {
-            enc.encoder.copy_buffer_to_buffer(p.buffer(id), 0, staging, at, size);
+        for ((id, from), size) in [(nhat, 0), (values, terms), (gnt, 0), (gz, 0)].into_iter().zip(read) {
+            enc.encoder.copy_buffer_to_buffer(p.buffer(id), from, staging, at, size);
             at += size;
         }
         k.disp.submit(enc);
         k.ctx.pop_error_scopes().map_err(gpu_error)?;
-        let (nhat, values, g_nt, g_z) = k
+        let (nhat, rows, g_nt, g_z) = k
             .ctx
             .read_mapped(staging, at, |m| {
                 let (nhat, rest) = m.split_at(vec3 as usize);
-                let (values, rest) = rest.split_at(terms as usize);
+                let (rows, rest) = rest.split_at(sums as usize);
                 let (g_nt, g_z) = rest.split_at(vec3 as usize);
                 // N̂ and ∂/∂Ñ: the records' components are the 3-channel images' values.
                 let f = |b: &[u8]| bytemuck::cast_slice::<u8, f32>(b).to_vec();
-                (f(nhat), bytemuck::cast_slice::<u8, PixelTerms>(values).to_vec(), f(g_nt), f(g_z))
+                (f(nhat), bytemuck::cast_slice::<u8, PixelTerms>(rows).to_vec(), f(g_nt), f(g_z))
             })
             .map_err(gpu_error)?;
-        NormalLossOutput::assemble(cfg, (w, h), term_sums(&values, w), nhat, g_z, g_nt)
+        NormalLossOutput::assemble(cfg, (w, h), term_sums(&rows, n), nhat, g_z, g_nt)
     }
 }
 
@@ -220,20 +223,11 @@ fn pixel_inputs(z: &Image, normal: &Image, delta: &Image, alpha: Option<&Image>)
     zd.zip(normals).enumerate().map(|(p, ((&z, &delta), &normal))| PixelInput { z, normal, delta, alpha: alpha(p) }).collect()
 }
 
-/// L_nc, L_ns and the number of active pairs from the per-pixel terms of rows of `w` pixels,
-/// summed as the reference sums them.
-fn term_sums(values: &[PixelTerms], w: usize) -> (f64, f64, usize) {
-    let n = values.len();
-    let l_nc = consistency_sum(n, |p| values[p].nc as f64) / n as f64;
-    // The reference's L_ns sum: each row's active pairs in order (right, then down), in f64.
-    let rows = values
-        .chunks(w)
-        .map(|row| {
-            let s = row.iter().flat_map(|v| [v.ns_right as f64, v.ns_down as f64]).fold(0.0, |s, v| s + v);
-            (s, row.iter().map(|v| v.pairs as usize).sum())
-        })
-        .collect();
-    let (ns_sum, active) = smoothing_sum(rows);
+/// L_nc, L_ns and the number of active pairs of `n` pixels from the rows' sums (`row_sums`),
+/// the rows added in order in f64 as the reference adds its rows.
+fn term_sums(rows: &[PixelTerms], n: usize) -> (f64, f64, usize) {
+    let l_nc = rows.iter().map(|r| r.nc as f64).sum::<f64>() / n as f64;
+    let (ns_sum, active) = smoothing_sum(rows.iter().map(|r| (r.ns_right as f64, r.pairs as usize)).collect());
     (l_nc, ns_sum / n as f64, active)
 }
 

@@ -5,7 +5,8 @@
 // Generated before this file: `struct NormalFrame` (binding 0), the records `PixelInput`,
 // `PixelVec3`, `PixelTerms` and `DiffGrad`, and the storage bindings, one record per pixel:
 // `inputs` (z, Ñ, δ, A), `nhat` (N̂), `values` (δ·‖N̂ − Ñ‖₁, the right and the down pair's
-// δ_k·ReLU(‖N̂_k − N̂_p‖₁ − τ²) where the pair is active, the number of active pairs), `gnhat`
+// δ_k·ReLU(‖N̂_k − N̂_p‖₁ − τ²) where the pair is active, the number of active pairs; after the
+// n pixels' records one record a row with the row's sums, `row_sums`), `gnhat`
 // (∂/∂N̂), `gnt` (∂/∂Ñ), `gab` (∂/∂dx and ∂/∂dy), `gz` (∂/∂z); and `rays`, x of each column's
 // ray, then y of each row's (`ray_x`, `ray_y`).
 
@@ -267,4 +268,36 @@ fn depth_gradient(ids: Ids) {
         s -= gb(p - w);
     }
     gz[p] = s.x * ray_x(i) + s.y * ray_y(j) + s.z;
+}
+
+// Last pass, one thread per row: the row's L_nc values, its L_ns values (each pixel's right,
+// then down pair) and its active pairs, each summed along the row in order (compensated f32;
+// the counts are exact integers in f32), written as record n + y of `values`. The host reads
+// these records alone and adds the rows in order in f64.
+@compute @workgroup_size(256)
+fn row_sums(ids: Ids) {
+    let y = thread_1d(ids);
+    if (y >= frame.height) {
+        return;
+    }
+    var nc = 0.0;
+    var nc_c = 0.0;
+    var ns = 0.0;
+    var ns_c = 0.0;
+    var pairs = 0.0;
+    for (var x = 0u; x < frame.width; x++) {
+        let t = values[y * frame.width + x];
+        let a = t.nc - nc_c;
+        let s1 = nc + a;
+        nc_c = (s1 - nc) - a;
+        nc = s1;
+        for (var k = 0u; k < 2u; k++) {
+            let b = select(t.ns_down, t.ns_right, k == 0u) - ns_c;
+            let s2 = ns + b;
+            ns_c = (s2 - ns) - b;
+            ns = s2;
+        }
+        pairs += t.pairs;
+    }
+    values[frame.n + y] = PixelTerms(nc, ns, 0.0, pairs);
 }
