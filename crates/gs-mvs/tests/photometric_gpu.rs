@@ -8,7 +8,9 @@
 //! Tolerances (f32 on both sides; the device may contract a·b + c into one fused operation, the
 //! host does not): the patch status may flip only where the cost sits within float error of the
 //! 0.9 mask, so |V| may differ by at most 0.2 % per source; L_p within 1e-4 relative; the
-//! gradient maps within 2e-3 relative L2 error (a flipped patch moves its whole pixel).
+//! gradient maps within 2e-3 relative L2 error (a flipped patch moves its whole pixel); each
+//! source's Σ cost and Σ υω·cost within 1e-4 relative (the device sums each row in
+//! compensated f32, the reference in f64).
 
 use gs_core::{Camera, Image};
 use gs_gpu::{GpuContext, GpuOptions};
@@ -18,12 +20,17 @@ use gs_mvs::{MapView, NccMode, PhotometricConfig, PhotometricGpu, PhotometricRef
 mod common;
 
 fn gpu() -> Option<PhotometricGpu> {
-    match GpuContext::new(&GpuOptions::default()).and_then(|c| Ok(PhotometricGpu::new(&c))) {
-        Ok(Ok(g)) => {
+    gpu_and_context().map(|(g, _)| g)
+}
+
+/// The executor and its context (for its traffic ledger).
+fn gpu_and_context() -> Option<(PhotometricGpu, GpuContext)> {
+    match GpuContext::new(&GpuOptions::default()).map(|c| (PhotometricGpu::new(&c), c)) {
+        Ok((Ok(g), c)) => {
             eprintln!("wgpu adapter: {}", g.adapter_description());
-            Some(g)
+            Some((g, c))
         }
-        Ok(Err(e)) => panic!("the L_p kernel on an adapter that exists: {e}"),
+        Ok((Err(e), _)) => panic!("the L_p kernel on an adapter that exists: {e}"),
         Err(e) => {
             gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
             None
@@ -76,6 +83,9 @@ fn compare(label: &str, v: &Views, config: &PhotometricConfig, g: &mut Photometr
         let flips = a.n_valid.abs_diff(b.n_valid) + a.n_inside_source.abs_diff(b.n_inside_source);
         assert!(a.n_valid > 100, "{label} source {k}: only {} valid patches", a.n_valid);
         assert!(flips as f64 <= 0.002 * a.n_valid as f64 + 1.0, "{label} source {k}: |V| {} vs {}, inside {} vs {}", a.n_valid, b.n_valid, a.n_inside_source, b.n_inside_source);
+        for (what, x, y) in [("Σ cost", a.cost_sum, b.cost_sum), ("Σ υω·cost", a.weighted_cost_sum, b.weighted_cost_sum)] {
+            assert!((x - y).abs() <= 1e-4 * x.abs(), "{label} source {k}: {what} {x} vs {y}");
+        }
     }
     let rel = (cpu.loss - dev.loss).abs() / cpu.loss;
     assert!(rel < 1e-4, "{label}: L_p {} (CPU) vs {} (device), relative {rel:e}", cpu.loss, dev.loss);
@@ -117,6 +127,14 @@ fn device_results_repeat_bit_for_bit() {
     let a = g.loss(&reference, &sources, &config).unwrap();
     let b = g.loss(&reference, &sources, &config).unwrap();
     assert_eq!(a, b);
+    drop(g);
+    // What comes back: one 16-byte record of sums a (source, row) and one a pixel, in one round
+    // trip (not one 32-byte result a patch).
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let before = ctx.transfers();
+    g.loss(&reference, &sources, &config).unwrap();
+    let t = ctx.transfers() - before;
+    assert_eq!((t.syncs, t.bytes_down), (1, 16 * (sources.len() as u64 * 48 + 64 * 48)));
     // No source, no pixel: zero loss and gradients, as on the CPU.
     let none = g.loss(&reference, &[], &config).unwrap();
     assert_eq!(none.loss, 0.0);

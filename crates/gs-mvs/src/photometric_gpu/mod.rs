@@ -1,10 +1,15 @@
 //! L_p on the device (behind the `wgpu` feature), the twin of [`crate::photometric`]: one WGSL
 //! kernel (`ncc.wgsl`) evaluates every selected (pixel, source) patch — its NCC cost and the
-//! gradient with respect to the rendered plane (Ñ, D) — while υ/ω, the seeded pixel selection
-//! and the sums stay on the host and use the reference's own code. So the two executors differ
-//! only in the patch arithmetic (f32 on both; the tolerances are in `tests/photometric_gpu.rs`),
-//! and the host sums the device's per-patch results in a fixed order: one seed gives one result
-//! on one device (docs/method.md §L_p, docs/architecture.md §GPU).
+//! gradient with respect to the rendered plane (Ñ, D) — and three more (`reduce.wgsl`) sum
+//! them in fixed orders into each (source, row)'s statistics and the gradient image, which
+//! alone come back. υ/ω and the seeded pixel selection stay on the host and use the
+//! reference's own code, so the two executors choose the same patches and differ only in the
+//! patch arithmetic and the f32 sums (the tolerances are in `tests/photometric_gpu.rs`): one
+//! seed gives one result on one device (docs/method.md §L_p, docs/architecture.md §GPU).
+
+mod reduce;
+
+pub use reduce::reduce_kernel_source;
 
 use crate::error::{MvsError, Result};
 use crate::photometric::{
@@ -29,9 +34,12 @@ gs_gpu::wgsl_struct! {
         side: u32,
         /// 0 = [`NccMode::Pgsr`], 1 = [`NccMode::Plain`].
         mode: u32,
-        pad0: u32,
-        pad1: u32,
-        pad2: u32,
+        /// Reference camera height (the reduction's rows).
+        height: u32,
+        /// Source views of this call.
+        sources: u32,
+        /// Reference pixels (width · height).
+        pixels: u32,
     }
 }
 
@@ -67,8 +75,6 @@ gs_gpu::wgsl_struct! {
     }
 }
 
-const STATUS_MASKED: u32 = 1;
-const STATUS_VALID: u32 = 2;
 
 /// The kernel's storage bindings, by name (slot order).
 const BINDINGS: [Binding<'static>; 7] = [
@@ -113,16 +119,26 @@ struct Buffers {
     greys: BufId,
     rays: BufId,
     results: BufId,
-    /// The readback of the results (pooled: a mappable buffer per call is costly to create).
+    /// υω of each entry.
+    weights: BufId,
+    /// Each source's first entry of each row (and one past its last).
+    row_starts: BufId,
+    /// The reduction's outputs: per (source, row), per source, per pixel.
+    row_sums: BufId,
+    scales: BufId,
+    grads: BufId,
+    /// The readback of the sums (pooled: a mappable buffer per call is costly to create).
     staging: BufId,
 }
 
-/// The device executor of L_p: its context, buffers and kernel.
+/// The device executor of L_p: its context, buffers and kernels.
 pub struct PhotometricGpu {
     ctx: GpuContext,
     pool: BufferPool,
     disp: Dispatcher,
     kernel: Kernel,
+    /// The reduction's passes ([`reduce::PASSES`]).
+    sums: Vec<Kernel>,
     bufs: Buffers,
 }
 
@@ -154,6 +170,12 @@ impl PhotometricGpu {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let ctx = ctx.clone();
         let kernel = Kernel::new(&ctx, "ncc_patch", &[&declarations(), include_str!("ncc.wgsl")], &BINDINGS).map_err(gpu_error)?;
+        let sum_decls = gs_gpu::declarations(&reduce::generated_structs());
+        let sums = reduce::PASSES
+            .iter()
+            .map(|entry| Kernel::new(&ctx, entry, &[&sum_decls, include_str!("reduce.wgsl")], &reduce::BINDINGS))
+            .collect::<std::result::Result<Vec<_>, _>>()
+            .map_err(gpu_error)?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let bufs = Buffers {
             pairs: pool.add_storage("ncc pairs"),
@@ -163,10 +185,15 @@ impl PhotometricGpu {
             greys: pool.add_storage("ncc greys"),
             rays: pool.add_storage("ncc rays"),
             results: pool.add_storage("ncc results"),
+            weights: pool.add_storage("ncc weights"),
+            row_starts: pool.add_storage("ncc row starts"),
+            row_sums: pool.add_storage("ncc row sums"),
+            scales: pool.add_storage("ncc scales"),
+            grads: pool.add_storage("ncc gradient"),
             staging: pool.add_staging("ncc readback"),
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<NccFrame>() as u64);
-        Ok(Self { ctx, pool, disp, kernel, bufs })
+        Ok(Self { ctx, pool, disp, kernel, sums, bufs })
     }
 
     /// The adapter, in words.
@@ -203,7 +230,17 @@ impl PhotometricGpu {
             })
             .collect::<Result<Vec<Prepared>>>()?;
         // Pairs, greys and the selected entries, source by source (row-major within each).
-        let mut frame = NccFrame { width: w as u32, grey_width: reference.grey.width as u32, side: config.patch_size as u32, ..Default::default() };
+        // Pairs, greys and the selected entries with their υω, source by source (row-major
+        // within each).
+        let mut frame = NccFrame {
+            width: w as u32,
+            height: h as u32,
+            sources: sources.len() as u32,
+            pixels: (w * h) as u32,
+            grey_width: reference.grey.width as u32,
+            side: config.patch_size as u32,
+            ..Default::default()
+        };
         frame.mode = match config.ncc {
             NccMode::Pgsr => 0,
             NccMode::Plain => 1,
@@ -216,15 +253,20 @@ impl PhotometricGpu {
         }
         let mut pairs = Vec::with_capacity(sources.len());
         let mut greys: Vec<f32> = reference.grey.data.to_vec();
-        let mut entries: Vec<Entry> = Vec::with_capacity(prepared.iter().map(|p| p.picked.len()).sum());
+        let picked = prepared.iter().map(|p| p.picked.len()).sum();
+        let mut entries: Vec<Entry> = Vec::with_capacity(picked);
+        let mut weights: Vec<f32> = Vec::with_capacity(picked);
         let mut ranges = Vec::with_capacity(sources.len());
         for (p, source) in prepared.iter().zip(sources) {
             pairs.push(pair_record(&p.g, greys.len(), source));
             greys.extend_from_slice(source.grey.data);
             ranges.push(entries.len()..entries.len() + p.picked.len());
             entries.extend_from_slice(&p.picked);
+            weights.extend(p.picked.iter().map(|e| p.vis.weight(e[0] as usize)));
         }
-        let results = self.evaluate(&frame, &pairs, &entries, reference, &greys, &rays)?;
+        if std::mem::size_of::<NccResult>() as u64 * entries.len() as u64 > self.ctx.max_storage_binding() {
+            return photometric_loss(reference, sources, config);
+        }
         let mut out = PhotometricOutput {
             loss: 0.0,
             per_source: Vec::with_capacity(sources.len()),
@@ -233,65 +275,99 @@ impl PhotometricGpu {
             width: w,
             height: h,
         };
-        for (p, range) in prepared.iter().zip(ranges) {
-            let stats = add_source(&mut out, &entries[range.clone()], &results[range], &p.vis, &p.selected, w);
+        let (row_sums, grads) = match entries.is_empty() {
+            true => (vec![reduce::NccRowSums::default(); sources.len() * h], Vec::new()),
+            false => {
+                let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, greys: &greys, rays: &rays };
+                self.evaluate(&inputs, reference, &reduce::row_starts(&entries, &ranges, w, h))?
+            }
+        };
+        reduce::unpack_gradient(&mut out, &grads);
+        for (p, rows) in prepared.iter().zip(row_sums.chunks_exact(h.max(1))) {
+            let counted = SourceStats {
+                visibility: p.vis.stats(),
+                n_candidates: p.selected.iter().filter(|&&s| s != 0).count(),
+                n_sampled: p.picked.len(),
+                ..Default::default()
+            };
+            let stats = reduce::source_stats(counted, rows);
+            out.loss += stats.loss;
             out.per_source.push(stats);
         }
         Ok(out)
     }
 
-    /// Uploads the inputs, runs the kernel over `entries` (in chunks that fit one storage
-    /// binding) and reads the results back.
+    /// Uploads the inputs, runs the patch kernel over every entry and the reduction, and reads
+    /// back each (source, row)'s sums and the gradient image in one round trip.
     fn evaluate(
         &mut self,
-        frame: &NccFrame,
-        pairs: &[NccPair],
-        entries: &[Entry],
+        inputs: &Inputs<'_>,
         reference: &PhotometricReference<'_, f32>,
-        greys: &[f32],
-        rays: &[f32],
-    ) -> Result<Vec<NccResult>> {
-        if entries.is_empty() {
-            return Ok(Vec::new());
-        }
-        let b = &self.bufs;
+        row_starts: &[u32],
+    ) -> Result<(Vec<reduce::NccRowSums>, Vec<reduce::PlaneGrad>)> {
+        let (b, frame) = (&self.bufs, inputs.frame);
         let result_bytes = std::mem::size_of::<NccResult>() as u64;
-        let chunk = (self.ctx.max_storage_binding() / result_bytes).min(1 << 22) as usize;
+        let row_bytes = gs_gpu::bytes_of::<reduce::NccRowSums>((frame.sources * frame.height) as usize);
+        let grad_bytes = gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize);
         self.pool.begin_frame();
-        let uploads: [(BufId, &[u8]); 6] = [
-            (b.pairs, bytemuck::cast_slice(pairs)),
-            (b.entries, bytemuck::cast_slice(entries)),
+        let uploads: [(BufId, &[u8]); 8] = [
+            (b.pairs, bytemuck::cast_slice(inputs.pairs)),
+            (b.entries, bytemuck::cast_slice(inputs.entries)),
             (b.normal, bytemuck::cast_slice(reference.normal.data)),
             (b.distance, bytemuck::cast_slice(reference.distance.data)),
-            (b.greys, bytemuck::cast_slice(greys)),
-            (b.rays, bytemuck::cast_slice(rays)),
+            (b.greys, bytemuck::cast_slice(inputs.greys)),
+            (b.rays, bytemuck::cast_slice(inputs.rays)),
+            (b.weights, bytemuck::cast_slice(inputs.weights)),
+            (b.row_starts, bytemuck::cast_slice(row_starts)),
         ];
         for (id, bytes) in uploads {
             self.pool.ensure(id, bytes.len() as u64);
             self.ctx.write_buffer(self.pool.buffer(id), 0, bytes);
         }
-        self.pool.ensure(b.results, result_bytes * chunk.min(entries.len()) as u64);
-        self.pool.ensure(b.staging, result_bytes * chunk.min(entries.len()) as u64);
-        self.disp.write_frame(frame);
-        let mut results = Vec::with_capacity(entries.len());
-        for base in (0..entries.len()).step_by(chunk) {
-            let n = chunk.min(entries.len() - base);
-            let p = &self.pool;
-            let binds = [b.pairs, b.entries, b.normal, b.distance, b.greys, b.rays, b.results].map(|id| p.whole(id));
-            let mut enc = self.disp.encoder();
-            let pass = PassUniform { n: n as u32, base: base as u32, ..Default::default() };
-            self.ctx.push_error_scopes();
-            self.disp.dispatch_1d(&mut enc, &self.kernel, &binds, pass).map_err(gpu_error)?;
-            let bytes = result_bytes * n as u64;
-            enc.encoder.copy_buffer_to_buffer(p.buffer(b.results), 0, p.buffer(b.staging), 0, bytes);
-            self.disp.submit(enc);
-            self.ctx.pop_error_scopes().map_err(gpu_error)?;
-            self.ctx
-                .read_mapped(p.buffer(b.staging), bytes, |m| results.extend_from_slice(bytemuck::cast_slice::<u8, NccResult>(m)))
-                .map_err(gpu_error)?;
+        let outputs = [
+            (b.results, result_bytes * inputs.entries.len() as u64),
+            (b.row_sums, row_bytes),
+            (b.scales, gs_gpu::bytes_of::<f32>(frame.sources as usize)),
+            (b.grads, grad_bytes),
+            (b.staging, row_bytes + grad_bytes),
+        ];
+        for (id, bytes) in outputs {
+            self.pool.ensure(id, bytes);
         }
-        Ok(results)
+        self.disp.write_frame(frame);
+        let p = &self.pool;
+        let patch_binds = [b.pairs, b.entries, b.normal, b.distance, b.greys, b.rays, b.results].map(|id| p.whole(id));
+        let sum_binds = [b.entries, b.results, b.weights, b.row_starts, b.row_sums, b.scales, b.grads].map(|id| p.whole(id));
+        let mut enc = self.disp.encoder();
+        self.ctx.push_error_scopes();
+        let threads = [frame.sources * frame.height, frame.sources, frame.pixels];
+        let pass = |n: u32| PassUniform { n, ..Default::default() };
+        self.disp.dispatch_1d(&mut enc, &self.kernel, &patch_binds, pass(inputs.entries.len() as u32)).map_err(gpu_error)?;
+        for (kernel, n) in self.sums.iter().zip(threads) {
+            self.disp.dispatch_1d(&mut enc, kernel, &sum_binds, pass(n)).map_err(gpu_error)?;
+        }
+        let staging = p.buffer(b.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, row_bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes);
+        self.disp.submit(enc);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        self.ctx
+            .read_mapped(staging, row_bytes + grad_bytes, |m| {
+                let (rows, grads) = m.split_at(row_bytes as usize);
+                (bytemuck::pod_collect_to_vec(rows), bytemuck::pod_collect_to_vec(grads))
+            })
+            .map_err(gpu_error)
     }
+}
+
+/// The host-built inputs of one evaluation.
+struct Inputs<'a> {
+    frame: &'a NccFrame,
+    pairs: &'a [NccPair],
+    entries: &'a [Entry],
+    weights: &'a [f32],
+    greys: &'a [f32],
+    rays: &'a [f32],
 }
 
 /// The pair record of `g` with the source grey image at `offset` in `greys`.
@@ -309,61 +385,6 @@ fn pair_record(g: &PairGeometry<f32>, offset: usize, source: &PhotometricSource<
         grey_height: source.grey.height as u32,
         ..Default::default()
     }
-}
-
-/// Adds one source's patch results to `out` as [`photometric_loss`] does: statistics summed by
-/// row and then over rows, L_p,s = Σ υω·cost / |V|, the υω-weighted gradients scaled by 1/|V|.
-fn add_source(
-    out: &mut PhotometricOutput<f32>,
-    entries: &[Entry],
-    results: &[NccResult],
-    vis: &Visibility<f32>,
-    selected: &[u8],
-    w: usize,
-) -> SourceStats {
-    let mut stats = SourceStats {
-        visibility: vis.stats(),
-        n_candidates: selected.iter().filter(|&&s| s != 0).count(),
-        n_sampled: entries.len(),
-        ..Default::default()
-    };
-    let mut row: Option<usize> = None;
-    let (mut weighted, mut cost) = (0.0f64, 0.0f64);
-    let flush = |weighted: &mut f64, cost: &mut f64, stats: &mut SourceStats| {
-        stats.weighted_cost_sum += std::mem::take(weighted);
-        stats.cost_sum += std::mem::take(cost);
-    };
-    for (e, r) in entries.iter().zip(results) {
-        let p = e[0] as usize;
-        if row != Some(p / w) {
-            flush(&mut weighted, &mut cost, &mut stats);
-            row = Some(p / w);
-        }
-        if r.status >= STATUS_MASKED {
-            stats.n_inside_source += 1;
-        }
-        if r.status == STATUS_VALID {
-            stats.n_valid += 1;
-            let wt = vis.weight(p);
-            weighted += (wt * r.cost) as f64;
-            cost += r.cost as f64;
-        }
-    }
-    flush(&mut weighted, &mut cost, &mut stats);
-    if stats.n_valid > 0 {
-        stats.loss = stats.weighted_cost_sum / stats.n_valid as f64;
-        out.loss += stats.loss;
-        let scale = (1.0 / stats.n_valid as f64) as f32;
-        for (e, r) in entries.iter().zip(results).filter(|(_, r)| r.status == STATUS_VALID) {
-            let p = e[0] as usize;
-            let wt = vis.weight(p);
-            for c in 0..3 {
-                out.grad_normal[3 * p + c] += wt * r.grad_n[c] * scale;
-            }
-            out.grad_distance[p] += wt * r.grad_d * scale;
-        }
-    }
-    stats
 }
 
 #[cfg(test)]
