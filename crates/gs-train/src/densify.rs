@@ -22,10 +22,8 @@ pub use gs_core::DensifyStats;
 pub struct DensifyReport {
     /// Gaussians cloned.
     pub cloned: usize,
-    /// Gaussians split (each replaced by two), the curvature split's included.
+    /// Gaussians split (each replaced by two).
     pub split: usize,
-    /// Of those, the ones split because they sag off a curved surface ([`crate::curvature`]).
-    pub curvature_split: usize,
     /// Gaussians pruned.
     pub pruned: usize,
     /// Whether the Gaussian cap limited the step.
@@ -105,8 +103,6 @@ pub fn densify_and_prune(
     let mut clone = Vec::new();
     let mut split = Vec::new();
     let mut abs_split = Vec::new();
-    let sagging = crate::curvature::sagging(g, stats, &cfg.curvature);
-    let mut by_curve = vec![false; n];
     for i in 0..n {
         if cfg.region.is_some_and(|r| !r.contains(g.means[i])) {
             continue;
@@ -119,9 +115,6 @@ pub fn densify_and_prune(
             split.push(i);
         } else if big && mean_grad(&stats.abs_grad_sum, i) >= cfg.abs_grad_threshold && stats.max_radius[i] > cfg.max_screen_radius {
             abs_split.push(i);
-        } else if big && sagging[i] {
-            split.push(i);
-            by_curve[i] = true;
         }
     }
     abs_split.truncate(cfg.max_abs_splits);
@@ -149,7 +142,6 @@ pub fn densify_and_prune(
     }
     report.cloned = clone.len();
     report.split = split.len();
-    report.curvature_split = split.iter().filter(|&&i| by_curve[i]).count();
     // Prune: split parents, low opacity, and (after prune_big_after) huge ones.
     let mut keep = vec![true; n + born.len()];
     for &i in &split {

@@ -35,7 +35,6 @@ pub mod budget;
 pub mod caches;
 pub mod checkpoint;
 pub mod config;
-pub mod curvature;
 pub mod densify;
 pub mod devices;
 pub mod error;

@@ -232,10 +232,6 @@ pub struct DensifyConfig {
     /// that graze it (docs/method.md §Densification). Off by default.
     #[serde(default)]
     pub pixel_weighted: bool,
-    /// The curvature split ([`crate::curvature`]): Gaussians too large for the curve of their
-    /// surface split even without a large image gradient. Off by default.
-    #[serde(default)]
-    pub curvature: crate::curvature::CurvatureSplit,
 }
 
 fn default_gaussians_per_surface_pixel() -> f32 {
@@ -268,7 +264,6 @@ impl Default for DensifyConfig {
             floaters: crate::floaters::FloaterRule::default(),
             region: None,
             pixel_weighted: false,
-            curvature: crate::curvature::CurvatureSplit::default(),
         }
     }
 }
