@@ -114,6 +114,10 @@ pub struct RenderRequest {
     pub expected_depth: bool,
     /// Per-Gaussian observed counts (pixels where it contributed while T > 0.5).
     pub observed: bool,
+    /// Per-Gaussian screen radii ([`RenderOutput::radii`]) for the caller. The CPU backend fills
+    /// them always; the wgpu backend keeps them on the device (where a resident step's
+    /// statistics read them) and reads them back only when asked: 4 bytes a Gaussian.
+    pub radii: bool,
     /// Per-pixel T_final and last contributor ([`RenderOutput::final_t`],
     /// [`RenderOutput::last_contributor`]) for the caller. The CPU backend fills them always (its
     /// backward needs them); the wgpu backend keeps them on the device and reads them back
@@ -139,6 +143,7 @@ impl Default for RenderRequest {
             plane_depth: false,
             expected_depth: false,
             observed: false,
+            radii: true,
             traversal: false,
             geometry_cut: 0.0,
         }
@@ -156,6 +161,7 @@ impl RenderRequest {
             plane_depth: true,
             expected_depth: true,
             observed: true,
+            radii: true,
             traversal: true,
             geometry_cut: 0.0,
         }

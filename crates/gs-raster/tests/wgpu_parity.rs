@@ -187,8 +187,9 @@ fn parity_for_channel_subsets_and_single_gradients() {
 
 /// A render reads back only what its request needs: without `traversal`, a plane-depth render
 /// leaves T_final and the last contributors on the device (8 bytes a pixel fewer) and a colour
-/// render brings T_final alone; the images and the backward (which reads the device's copies,
-/// and takes its window count from the device's longest list) are the same bits.
+/// render brings T_final alone; without `radii`, 4 bytes a Gaussian fewer. The images and the
+/// backward (which reads the device's copies, and takes its window count from the device's
+/// longest list) are the same bits.
 #[test]
 fn a_render_reads_back_what_its_request_needs() {
     let Some(mut r) = gpu(WgpuOptions::default()) else { return };
@@ -201,9 +202,13 @@ fn a_render_reads_back_what_its_request_needs() {
     let cfg = RasterConfig::default();
     let npix = 32 * 32;
     let grads = Grads::new(32, 32, 5);
-    for (base, per_pixel) in [
-        (RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() }, 8),
-        (RenderRequest::default(), 4),
+    let depth_only = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
+    let n = g.len() as u64;
+    // (a request, the same without what it saves, the bytes saved)
+    for (full, lean, saved) in [
+        (RenderRequest { traversal: true, ..depth_only }, depth_only, 8 * npix),
+        (RenderRequest { traversal: true, ..RenderRequest::default() }, RenderRequest::default(), 4 * npix),
+        (RenderRequest::default(), RenderRequest { radii: false, ..RenderRequest::default() }, 4 * n),
     ] {
         let mut read = |req: &RenderRequest| {
             let before = r.context().transfers();
@@ -218,16 +223,20 @@ fn a_render_reads_back_what_its_request_needs() {
             let back = r.backward(&g, &cam, &cfg, &out, &og).unwrap();
             (out, down, back)
         };
-        let (full, full_down, full_back) = read(&RenderRequest { traversal: true, ..base });
-        let (lean, lean_down, lean_back) = read(&base);
-        assert!(full.last_contributor.iter().max().copied().unwrap_or(0) > 256, "the list must outgrow one backward window");
-        assert_eq!(full_down - lean_down, per_pixel * npix, "{base:?}: bytes read back");
-        assert!(lean.last_contributor.is_empty());
-        assert_eq!(lean.final_t.is_empty(), per_pixel == 8);
-        for (a, b) in [(&full.color, &lean.color), (&full.alpha, &lean.alpha), (&full.plane_depth, &lean.plane_depth)] {
-            assert_eq!(a.as_ref().map(|i| i.data()), b.as_ref().map(|i| i.data()));
+        let (a, a_down, a_back) = read(&full);
+        let (b, b_down, b_back) = read(&lean);
+        assert_eq!(a_down - b_down, saved, "{lean:?}: bytes read back");
+        if full.traversal {
+            assert!(a.last_contributor.iter().max().copied().unwrap_or(0) > 256, "the list must outgrow one backward window");
+            assert!(b.last_contributor.is_empty());
+            assert_eq!(b.final_t.is_empty(), !lean.color);
+        } else {
+            assert!(b.radii.is_empty() && a.radii.len() == g.len());
         }
-        assert_eq!(full_back, lean_back, "{base:?}: the backward");
+        for (x, y) in [(&a.color, &b.color), (&a.alpha, &b.alpha), (&a.plane_depth, &b.plane_depth)] {
+            assert_eq!(x.as_ref().map(|i| i.data()), y.as_ref().map(|i| i.data()));
+        }
+        assert_eq!(a_back, b_back, "{lean:?}: the backward");
     }
 }
 

@@ -183,7 +183,7 @@ impl ReferenceExecutor {
     /// Renders the plane depth of training slot `slot` without gradients (a source view), at
     /// 1/`source_depth_downscale` of its size and upsampled back when that is above 1.
     fn source_plane_depth(&mut self, run: &RunInputs<'_>, gaussians: &gs_core::Gaussians, slot: usize) -> Result<Image> {
-        let req = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
+        let req = RenderRequest { color: false, alpha: false, plane_depth: true, radii: false, ..RenderRequest::default() };
         let camera = &run.scene.views[run.train_views[slot]].camera;
         let s = run.config.source_depth_downscale;
         let rendered_at = downscaled_camera(camera, s)?;
@@ -270,7 +270,9 @@ impl StepExecutor for ReferenceExecutor {
         let max_age = run.config.source_depth_max_age;
         let rendered_depths = self.render_source_depths(run, state, plan)?;
         profile.add(phase, Part::SourceDepths, clock.lap());
-        let out = self.rasterizer.render(&state.gaussians, camera, &plan.render, run.raster)?;
+        // A step on the device gathers its statistics from the radii there.
+        let request = RenderRequest { radii: !self.adam_on_device, ..plan.render };
+        let out = self.rasterizer.render(&state.gaussians, camera, &request, run.raster)?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
         let corrected = match &state.exposure {

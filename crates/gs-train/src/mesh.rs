@@ -292,6 +292,7 @@ impl DepthSource<'_> {
                     color: true,
                     alpha: true,
                     plane_depth: true,
+                    radii: false,
                     geometry_cut: opts.surface_cut,
                     ..RenderRequest::default()
                 };

@@ -139,6 +139,8 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         expected_depth: false,
         // Pixel-GS's weights ([`crate::densify::DensifyStats::accumulate`]).
         observed: d.pixel_weighted && gathering,
+        // The host's statistics read them; a device step drops them (`executor`).
+        radii: true,
         traversal: false,
         geometry_cut: 0.0,
     };

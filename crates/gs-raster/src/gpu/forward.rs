@@ -24,7 +24,7 @@ const LONGEST_LIST: usize = 8;
 struct Readback {
     /// Accumulator planes read back (colour 0..3, Ñ and D 3..7, depth sum 7).
     planes: Vec<usize>,
-    radii: u64,
+    radii: Option<u64>,
     final_t: Option<u64>,
     last: Option<u64>,
     counters: u64,
@@ -45,14 +45,14 @@ impl Readback {
         if request.expected_depth {
             planes.push(7);
         }
-        let radii = 0u64;
-        let mut at = radii + (n * 4).next_multiple_of(8);
+        let mut at = 0u64;
         let mut place = |wanted: bool, bytes: u64| {
             wanted.then(|| {
                 at += bytes;
                 at - bytes
             })
         };
+        let radii = place(request.radii, (n * 4).next_multiple_of(8));
         // T_final makes the colour (background), the alpha and the expected depth; the
         // plane depth, normal and distance need neither it nor the last contributors.
         let final_t = place(request.traversal || request.color || request.alpha || request.expected_depth, npix * 4);
@@ -183,6 +183,9 @@ impl WgpuRasterizer {
         let (d, p, k, model) = (&self.disp, &self.pool, &self.kernels, &self.model);
         let mut enc = d.encoder();
         enc.encoder.clear_buffer(p.buffer(b.counters), 0, Some(64));
+        // Every render's pixel counts start at zero, so that the buffer holds this render's
+        // (zeros without intersections) for a step that reads it.
+        enc.encoder.clear_buffer(p.buffer(b.observed), 0, Some(nn * 4 + 4));
         for (bb, m) in chunks(n32) {
             let pass = PassUniform {
                 n: m as u32,
@@ -256,19 +259,13 @@ impl WgpuRasterizer {
         let mut enc = self.disp.encoder();
         if total > 0 {
             self.emit_and_sort(&mut enc, cam, n, total)?;
-            self.blend_windows(&mut enc, cam, request, bands, n, (visible, total))?;
+            self.blend_windows(&mut enc, cam, bands, (visible, total))?;
             self.copy_outputs(&mut enc, cam, request, bands, n, rb);
         }
         let (p, b) = (&self.pool, &self.bufs);
         let nn = n as u64;
-        if nn > 0 {
-            enc.encoder.copy_buffer_to_buffer(
-                p.buffer(b.radii),
-                0,
-                p.buffer(b.staging),
-                rb.radii,
-                nn * 4,
-            );
+        if let Some(at) = rb.radii.filter(|_| nn > 0) {
+            enc.encoder.copy_buffer_to_buffer(p.buffer(b.radii), 0, p.buffer(b.staging), at, nn * 4);
         }
         self.disp.submit(enc);
         Ok(())
@@ -327,17 +324,10 @@ impl WgpuRasterizer {
         &self,
         enc: &mut Encoder,
         cam: &CamParams,
-        request: &RenderRequest,
         bands: &[(u32, u32, u64, u64)],
-        n: u32,
         (visible, total): (usize, u32),
     ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
-        if request.observed {
-            let nn = n as u64;
-            enc.encoder
-                .clear_buffer(p.buffer(b.observed), 0, Some(nn * 4 + 4));
-        }
         // No tile list is longer than the visible Gaussians or the intersections.
         let longest = total.min(visible as u32).max(1);
         let windows = longest.div_ceil(FWD_WINDOW);
@@ -430,7 +420,7 @@ impl WgpuRasterizer {
         let f32s = |off: u64, count: usize| -> Vec<f32> {
             bytemuck::pod_collect_to_vec(&bytes[off as usize..off as usize + count * 4])
         };
-        let radii = u32s(rb.radii, n);
+        let radii = rb.radii.map_or_else(Vec::new, |at| u32s(at, n));
         let mut acc = vec![[0.0f32; 8]; npix];
         // Without intersections nothing was blended: T = 1 and no contributor anywhere.
         let (final_t, last, counters, observed) = if total > 0 {

@@ -389,7 +389,7 @@ impl WgpuRasterizer {
             let nc = coeffs_for_degree(g.sh_degree);
             let enc = match checked {
                 Some(checked) => r.record_backward(g, config, grads, &checked)?,
-                None => r.zero_gradients(g.len(), nc, extras.accumulate.map(|_| forward)),
+                None => r.zero_gradients(g.len(), nc),
             };
             let t1 = Instant::now();
             r.disp.submit(enc);
@@ -403,18 +403,11 @@ impl WgpuRasterizer {
         out
     }
 
-    /// An encoder that zeroes the gradient buffers of `n` Gaussians with `nc` SH coefficients;
-    /// with `forward`, its radii and pixel counts are uploaded for the statistics (its device
-    /// state was not checked: no backward ran).
-    fn zero_gradients(&mut self, n: usize, nc: usize, forward: Option<&RenderOutput>) -> Encoder {
+    /// An encoder that zeroes the gradient buffers of `n` Gaussians with `nc` SH coefficients.
+    /// The statistics read the render's radii and pixel counts where it left them: the frame
+    /// was checked (and rebuilt if a later render overwrote it) first.
+    fn zero_gradients(&mut self, n: usize, nc: usize) -> Encoder {
         let (pb, sb) = (bytes_of::<ParamGrad>(n), bytes_of::<ShCoeff>(n * nc));
-        if let Some(f) = forward {
-            let b = &self.bufs;
-            upload_with(&self.ctx, &mut self.pool, b.radii, n, |out: &mut [u32]| out.copy_from_slice(&f.radii));
-            if let Some(o) = &f.observed {
-                upload_with(&self.ctx, &mut self.pool, b.observed, n, |out: &mut [u32]| out.copy_from_slice(o));
-            }
-        }
         let (p, b) = (&mut self.pool, &self.bufs);
         p.ensure(b.gout, pb + bytes_of::<ParamGrad>(1));
         p.ensure(b.gout_sh, sb + bytes_of::<ShCoeff>(1));
