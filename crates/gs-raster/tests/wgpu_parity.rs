@@ -187,9 +187,10 @@ fn parity_for_channel_subsets_and_single_gradients() {
 
 /// A render reads back only what its request needs: without `traversal`, a plane-depth render
 /// leaves T_final and the last contributors on the device (8 bytes a pixel fewer) and a colour
-/// render brings T_final alone; without `radii`, 4 bytes a Gaussian fewer. The images and the
-/// backward (which reads the device's copies, and takes its window count from the device's
-/// longest list) are the same bits.
+/// render brings T_final alone; without `radii`, 4 bytes a Gaussian fewer; plane depth without
+/// the normal or distance comes back as one plane made on the device (12 bytes a pixel
+/// fewer). The images and the backward (which reads the device's copies, and takes its window
+/// count from the device's longest list) are the same bits.
 #[test]
 fn a_render_reads_back_what_its_request_needs() {
     let Some(mut r) = gpu(WgpuOptions::default()) else { return };
@@ -209,6 +210,9 @@ fn a_render_reads_back_what_its_request_needs() {
         (RenderRequest { traversal: true, ..depth_only }, depth_only, 8 * npix),
         (RenderRequest { traversal: true, ..RenderRequest::default() }, RenderRequest::default(), 4 * npix),
         (RenderRequest::default(), RenderRequest { radii: false, ..RenderRequest::default() }, 4 * n),
+        // Plane depth alone: one plane made on the device instead of Ñ and D (4 planes); the
+        // backward reads them from the device.
+        (RenderRequest { normal: true, ..depth_only }, depth_only, 12 * npix),
     ] {
         let mut read = |req: &RenderRequest| {
             let before = r.context().transfers();
@@ -230,11 +234,18 @@ fn a_render_reads_back_what_its_request_needs() {
             assert!(a.last_contributor.iter().max().copied().unwrap_or(0) > 256, "the list must outgrow one backward window");
             assert!(b.last_contributor.is_empty());
             assert_eq!(b.final_t.is_empty(), !lean.color);
-        } else {
+        } else if !lean.radii {
             assert!(b.radii.is_empty() && a.radii.len() == g.len());
         }
-        for (x, y) in [(&a.color, &b.color), (&a.alpha, &b.alpha), (&a.plane_depth, &b.plane_depth)] {
+        for (x, y) in [(&a.color, &b.color), (&a.alpha, &b.alpha)] {
             assert_eq!(x.as_ref().map(|i| i.data()), y.as_ref().map(|i| i.data()));
+        }
+        // The device's plane depth against the host's from the same Ñ and D: equal but for the
+        // device's rounding of a·b + c and of the division (within 1e-6 relative).
+        let (x, y) = (a.plane_depth.as_ref().map(|i| i.data()), b.plane_depth.as_ref().map(|i| i.data()));
+        assert_eq!(x.map(<[f32]>::len), y.map(<[f32]>::len));
+        for (u, v) in x.unwrap_or_default().iter().zip(y.unwrap_or_default()) {
+            assert!((u - v).abs() <= 1e-6 * u.abs(), "{lean:?}: plane depth {u} against {v}");
         }
         assert_eq!(a_back, b_back, "{lean:?}: the backward");
     }

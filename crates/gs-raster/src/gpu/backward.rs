@@ -158,7 +158,12 @@ impl WgpuRasterizer {
         p.ensure(b.gacc, nn * rec + 4);
         p.ensure(b.gout, nn * bytes_of::<ParamGrad>(1) + bytes_of::<ParamGrad>(1));
         p.ensure(b.gout_sh, sh_bytes + bytes_of::<ShCoeff>(1));
-        self.upload_pixel_grads(cam, config, st, grads);
+        // A render that brought back its plane depth alone left Ñ and D on the device.
+        let geo = match (grads.plane_depth.is_some() || grads.expected_depth.is_some()) && st.geo.is_empty() {
+            true => self.read_geo(cam, &bands)?,
+            false => Vec::new(),
+        };
+        self.upload_pixel_grads(cam, config, st, if geo.is_empty() { &st.geo } else { &geo }, grads);
         let mut enc = self.disp.encoder();
         let (p, b) = (&self.pool, &self.bufs);
         // Intersections beyond their tile's last contributor get no partial: zeros.
@@ -170,13 +175,37 @@ impl WgpuRasterizer {
         Ok(enc)
     }
 
+    /// Per pixel Ñ (3), D and Σ w t_z of the current frame, read from the device's
+    /// accumulators (one round trip).
+    fn read_geo(&mut self, cam: &CamParams, bands: &[(u32, u32, u64, u64)]) -> Result<Vec<[f32; 5]>> {
+        let npix = cam.width as u64 * cam.height as u64;
+        self.pool.ensure(self.bufs.staging, 5 * npix * 4);
+        let (p, b) = (&self.pool, &self.bufs);
+        let staging = p.buffer(b.staging);
+        let mut enc = self.disp.encoder();
+        for k in 0..5u64 {
+            for &(_, _, p0, bp) in bands {
+                enc.encoder.copy_buffer_to_buffer(p.buffer(b.acc), p0 * 32 + (3 + k) * bp * 4, staging, (k * npix + p0) * 4, bp * 4);
+            }
+        }
+        self.disp.submit(enc);
+        let n = npix as usize;
+        let geo = self.ctx.read_mapped(staging, 5 * npix * 4, |bytes| {
+            let v: std::borrow::Cow<[f32]> = pod_vec(bytes);
+            (0..n).into_par_iter().map(|i| std::array::from_fn(|k| v[k * n + i])).collect()
+        })?;
+        Ok(geo)
+    }
+
     /// Per-pixel channel gradients, folded on the host exactly as the CPU backend does (rows
-    /// in parallel), written to `pixgrad` (one `PixelGrad` a pixel).
+    /// in parallel), written to `pixgrad` (one `PixelGrad` a pixel); `geo` is the frame's Ñ,
+    /// D and Σ w t_z per pixel where plane or expected depth gradients need them.
     fn upload_pixel_grads(
         &mut self,
         cam: &CamParams,
         config: &RasterConfig,
         st: &GpuState,
+        geo: &[[f32; 5]],
         grads: &OutputGradients,
     ) {
         let (w, h) = (cam.width as usize, cam.height as usize);
@@ -184,7 +213,7 @@ impl WgpuRasterizer {
             pg.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
                 for (x, px) in row.iter_mut().enumerate() {
                     let (channels, final_t) =
-                        crate::pixel::pixel_grads(cam, config, grads, &st.final_t, &st.geo, x, y);
+                        crate::pixel::pixel_grads(cam, config, grads, &st.final_t, geo, x, y);
                     *px = PixelGrad { channels, final_t };
                 }
             })

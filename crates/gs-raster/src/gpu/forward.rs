@@ -11,7 +11,7 @@ use crate::{
     StateInner,
 };
 use gs_core::sh::coeffs_for_degree;
-use gs_core::{Camera, Gaussians};
+use gs_core::{Camera, Gaussians, Image};
 use gs_gpu::{Encoder, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -30,7 +30,16 @@ struct Readback {
     counters: u64,
     observed: u64,
     planes_at: u64,
+    /// The plane depth made on the device ([`device_plane_depth`]).
+    plane_depth: Option<u64>,
     bytes: u64,
+}
+
+/// Whether a render's plane depth is made on the device and read back alone: plane depth
+/// without the normal, the distance or the expected depth (a source view's depth, the
+/// mesher's), so one plane comes back instead of the four it is made of.
+fn device_plane_depth(request: &RenderRequest) -> bool {
+    request.plane_depth && !request.normal && !request.distance && !request.expected_depth
 }
 
 impl Readback {
@@ -39,7 +48,9 @@ impl Readback {
         if request.color {
             planes.extend(0..3);
         }
-        if request.geo() || request.plane_depth {
+        // Plane depth alone comes back as one plane made on the device.
+        let depth_alone = device_plane_depth(request);
+        if request.geo() && !depth_alone {
             planes.extend(3..7);
         }
         if request.expected_depth {
@@ -61,8 +72,10 @@ impl Readback {
         let observed = counters + 64;
         let obs_bytes = if request.observed { n * 4 } else { 0 };
         let planes_at = (observed + obs_bytes).next_multiple_of(8);
-        let bytes = planes_at + planes.len() as u64 * npix * 4;
-        Self { planes, radii, final_t, last, counters, observed, planes_at, bytes }
+        let depth_at = planes_at + planes.len() as u64 * npix * 4;
+        let plane_depth = depth_alone.then_some(depth_at);
+        let bytes = depth_at + if depth_alone { npix * 4 } else { 0 };
+        Self { planes, radii, final_t, last, counters, observed, planes_at, plane_depth, bytes }
     }
 }
 
@@ -175,6 +188,7 @@ impl WgpuRasterizer {
         self.sort.prefix_scan().reserve(p, nn + 1);
         p.ensure(b.ranges, n_tiles * 8);
         p.ensure(b.acc, npix * 32);
+        p.ensure(b.depth_plane, npix * 4);
         p.ensure(b.final_t, npix * 4);
         p.ensure(b.last, npix * 4);
         p.ensure(b.counters, 64);
@@ -260,6 +274,9 @@ impl WgpuRasterizer {
         if total > 0 {
             self.emit_and_sort(&mut enc, cam, n, total)?;
             self.blend_windows(&mut enc, cam, bands, (visible, total))?;
+            if rb.plane_depth.is_some() {
+                self.plane_depth_bands(&mut enc, bands)?;
+            }
             self.copy_outputs(&mut enc, cam, request, bands, n, rb);
         }
         let (p, b) = (&self.pool, &self.bufs);
@@ -358,6 +375,19 @@ impl WgpuRasterizer {
         Ok(())
     }
 
+    /// `plane_depth_plane` per band of tile rows: the plane depth of each pixel from the
+    /// band's accumulators into `depth_plane`.
+    fn plane_depth_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)]) -> Result<()> {
+        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
+        for &(_, _, p0, bp) in bands {
+            d.make_room(enc, 1);
+            let binds = [p.range(b.acc, p0 * 32, bp * 32), p.range(b.depth_plane, p0 * 4, bp * 4)];
+            let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
+            d.dispatch_1d(enc, &self.kernels.plane_depth, &binds, pass)?;
+        }
+        Ok(())
+    }
+
     /// Copies T_final, last contributors, counters, observed counts and the requested planes
     /// to the staging buffer.
     fn copy_outputs(
@@ -381,6 +411,9 @@ impl WgpuRasterizer {
             e.copy_buffer_to_buffer(p.buffer(b.last), 0, staging, at, npix * 4);
         }
         e.copy_buffer_to_buffer(p.buffer(b.counters), 0, staging, rb.counters, 64);
+        if let Some(at) = rb.plane_depth {
+            e.copy_buffer_to_buffer(p.buffer(b.depth_plane), 0, staging, at, npix * 4);
+        }
         if request.observed && nn > 0 {
             e.copy_buffer_to_buffer(p.buffer(b.observed), 0, staging, rb.observed, nn * 4);
         }
@@ -443,6 +476,12 @@ impl WgpuRasterizer {
             )
         };
         let mut out = crate::pixel::assemble(cam, config, request, &acc, &final_t)?;
+        // The device's plane depth replaces the one assembled from planes that did not come
+        // back (without intersections both are 0).
+        if let Some(at) = rb.plane_depth.filter(|_| total > 0) {
+            let plane = f32s(at, npix);
+            out.plane_depth = Some(Image::from_vec(cam.width as usize, cam.height as usize, 1, plane).map_err(|e| RasterError::InvalidCamera(e.to_string()))?);
+        }
         out.radii = radii;
         out.observed = observed;
         out.stats = RenderStats {
@@ -452,7 +491,7 @@ impl WgpuRasterizer {
             backward_pairs: counters[6] as u64 | (counters[7] as u64) << 32,
             box_pairs: 0,
         };
-        let geo = if request.plane_depth || request.expected_depth {
+        let geo = if (request.plane_depth || request.expected_depth) && rb.plane_depth.is_none() {
             acc.par_iter().map(|a| [a[3], a[4], a[5], a[6], a[7]]).collect()
         } else {
             Vec::new()

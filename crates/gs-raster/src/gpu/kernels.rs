@@ -41,6 +41,11 @@ gs_gpu::wgsl_struct! {
         geometry_cut: f32,
         /// `RasterConfig::low_pass` (px²).
         low_pass: f32,
+        /// `RasterConfig::plane_depth_min_denominator`.
+        min_den: f32,
+        pad0: u32,
+        pad1: u32,
+        pad2: u32,
     }
 }
 
@@ -74,6 +79,10 @@ impl CamUniform {
             n: g.len() as u32,
             geometry_cut,
             low_pass: cfg.low_pass,
+            min_den: cfg.plane_depth_min_denominator,
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
         }
     }
 }
@@ -309,6 +318,11 @@ fn specs() -> Vec<Spec<'static>> {
             ],
         ),
         spec(
+            "plane_depth_plane",
+            &[include_str!("plane_depth.wgsl")],
+            &[B::read("acc", f), B::write("depth", f)],
+        ),
+        spec(
             "raster_bwd",
             &[include_str!("raster_bwd.wgsl")],
             &[
@@ -353,6 +367,7 @@ pub(crate) struct Kernels {
     pub tile_ranges: Kernel,
     pub isect_link: Kernel,
     pub raster_fwd: Kernel,
+    pub plane_depth: Kernel,
     pub raster_bwd: Kernel,
     pub grad_reduce: Kernel,
 }
@@ -373,9 +388,12 @@ fn generated_structs() -> [GeneratedStruct; 9] {
     ]
 }
 
-/// The generated WGSL declarations every kernel starts with.
+/// The generated WGSL declarations every kernel starts with, and the host's constants they
+/// share.
 fn decls() -> String {
-    gs_gpu::declarations(&generated_structs())
+    let mut d = gs_gpu::declarations(&generated_structs());
+    d.push_str(&format!("const PLANE_DEPTH_EPS: f32 = {:?};\n", crate::PLANE_DEPTH_EPS));
+    d
 }
 
 impl Kernels {
@@ -394,6 +412,7 @@ impl Kernels {
             tile_ranges: next()?,
             isect_link: next()?,
             raster_fwd: next()?,
+            plane_depth: next()?,
             raster_bwd: next()?,
             grad_reduce: next()?,
         })
@@ -418,7 +437,7 @@ mod tests {
             gs_gpu::check_layouts(&generated_structs(), &src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
             gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
         }
-        assert_eq!(std::mem::size_of::<CamUniform>(), 144);
+        assert_eq!(std::mem::size_of::<CamUniform>(), 160);
         assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);
         let sizes = [bytes_of::<ParamRecord>(1), bytes_of::<ShCoeff>(1), bytes_of::<Splat>(1)];
         assert_eq!(sizes, [44, 12, 68]);

@@ -96,7 +96,8 @@ pub(crate) struct GpuState {
     /// Intersections of the render (checked when the device state is rebuilt).
     total: u32,
     final_t: Vec<f32>,
-    /// Per pixel Ñ (3), D, Σ w t_z when plane or expected depth was rendered, else empty.
+    /// Per pixel Ñ (3), D, Σ w t_z when plane or expected depth was rendered and its planes
+    /// came back, else empty (a backward that needs it reads it from the device).
     geo: Vec<[f32; 5]>,
 }
 
@@ -118,6 +119,9 @@ struct Buffers {
     counters: BufId,
     ranges: BufId,
     acc: BufId,
+    /// The plane depth made on the device for a render that reads back nothing else of the
+    /// geometry.
+    depth_plane: BufId,
     final_t: BufId,
     last: BufId,
     observed: BufId,
@@ -150,6 +154,7 @@ impl Buffers {
             counters: b("counters"),
             ranges: b("ranges"),
             acc: b("acc"),
+            depth_plane: b("depth_plane"),
             final_t: b("final_t"),
             last: b("last"),
             observed: b("observed"),
