@@ -25,3 +25,12 @@ fn group_1d(ids: Ids) -> u32 {
 fn thread_1d(ids: Ids) -> u32 {
     return group_1d(ids) * 256u + ids.li;
 }
+
+// One step of a compensated (Kahan) f32 sum in a fixed order: `s` is (sum, compensation), the
+// result s + v. The loss kernels sum each image row with it before the host adds the rows in
+// f64, so a row of many values stays close to the f64 sum.
+fn kahan_add(s: vec2<f32>, v: f32) -> vec2<f32> {
+    let y = v - s.y;
+    let t = s.x + y;
+    return vec2<f32>(t, (t - s.x) - y);
+}

@@ -308,17 +308,13 @@ fn loss_gradient(ids: Ids) {
     grad[i] = g;
 }
 
-// Compensated (Kahan) f32 sum of `count` entries of `values` from `start`, in order.
+// Compensated f32 sum of `count` entries of `values` from `start`, in order (`kahan_add`).
 fn row_sum(start: u32, count: u32) -> f32 {
-    var s = 0.0;
-    var c = 0.0;
+    var s = vec2<f32>(0.0);
     for (var i = 0u; i < count; i++) {
-        let v = values[start + i] - c;
-        let t = s + v;
-        c = (t - s) - v;
-        s = t;
+        s = kahan_add(s, values[start + i]);
     }
-    return s;
+    return s.x;
 }
 
 // After `loss_gradient`, one thread per image row: the sums of its SSIM values, its |a − b|

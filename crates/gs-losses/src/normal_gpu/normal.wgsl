@@ -271,7 +271,7 @@ fn depth_gradient(ids: Ids) {
 }
 
 // Last pass, one thread per row: the row's L_nc values, its L_ns values (each pixel's right,
-// then down pair) and its active pairs, each summed along the row in order (compensated f32;
+// then down pair) and its active pairs, each summed along the row in order (`kahan_add`;
 // the counts are exact integers in f32), written as record n + y of `values`. The host reads
 // these records alone and adds the rows in order in f64.
 @compute @workgroup_size(256)
@@ -280,24 +280,14 @@ fn row_sums(ids: Ids) {
     if (y >= frame.height) {
         return;
     }
-    var nc = 0.0;
-    var nc_c = 0.0;
-    var ns = 0.0;
-    var ns_c = 0.0;
+    var nc = vec2<f32>(0.0);
+    var ns = vec2<f32>(0.0);
     var pairs = 0.0;
     for (var x = 0u; x < frame.width; x++) {
         let t = values[y * frame.width + x];
-        let a = t.nc - nc_c;
-        let s1 = nc + a;
-        nc_c = (s1 - nc) - a;
-        nc = s1;
-        for (var k = 0u; k < 2u; k++) {
-            let b = select(t.ns_down, t.ns_right, k == 0u) - ns_c;
-            let s2 = ns + b;
-            ns_c = (s2 - ns) - b;
-            ns = s2;
-        }
+        nc = kahan_add(nc, t.nc);
+        ns = kahan_add(kahan_add(ns, t.ns_right), t.ns_down);
         pairs += t.pairs;
     }
-    values[frame.n + y] = PixelTerms(nc, ns, 0.0, pairs);
+    values[frame.n + y] = PixelTerms(nc.x, ns.x, 0.0, pairs);
 }

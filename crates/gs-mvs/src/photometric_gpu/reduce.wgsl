@@ -1,7 +1,7 @@
 // L_p's sums on the device, after `ncc_patch` (docs/method.md §L_p): the twin of the host's
 // `add_source`, so that only the sums come back, not every patch's result.
 // - `ncc_rows`, one thread per (source, row): the row's patches inside the source and valid
-//   ones, and the sums of υω·cost and of cost over its valid patches in order (compensated f32).
+//   ones, and the sums of υω·cost and of cost over its valid patches in order (`kahan_add`).
 // - `ncc_scales`, one thread per source: 1 / |V| (0 without valid patches).
 // - `ncc_gradient`, one thread per reference pixel: its patch of each source in source order
 //   (found by binary search in the row's entries), υω·∂cost/∂(Ñ, D)·(1/|V|) added as the host
@@ -31,27 +31,22 @@ fn ncc_rows(ids: Ids) {
     }
     let k = t / frame.height;
     let y = t % frame.height;
-    var out = NccRowSums(0.0, 0.0, 0u, 0u);
-    var cw = 0.0;
-    var cc = 0.0;
+    var inside = 0u;
+    var valid = 0u;
+    var weighted = vec2<f32>(0.0);
+    var cost = vec2<f32>(0.0);
     for (var i = row_start(k, y); i < row_start(k, y + 1u); i++) {
         let r = results[i];
         if (r.status >= INSIDE) {
-            out.inside += 1u;
+            inside += 1u;
         }
         if (r.status == VALID) {
-            out.valid += 1u;
-            let a = weights[i] * r.cost - cw;
-            let s = out.weighted + a;
-            cw = (s - out.weighted) - a;
-            out.weighted = s;
-            let b = r.cost - cc;
-            let u = out.cost + b;
-            cc = (u - out.cost) - b;
-            out.cost = u;
+            valid += 1u;
+            weighted = kahan_add(weighted, weights[i] * r.cost);
+            cost = kahan_add(cost, r.cost);
         }
     }
-    row_sums[t] = out;
+    row_sums[t] = NccRowSums(weighted.x, cost.x, inside, valid);
 }
 
 @compute @workgroup_size(256)
