@@ -75,7 +75,6 @@ gs_gpu::wgsl_struct! {
     }
 }
 
-
 /// The kernel's storage bindings, by name (slot order).
 const BINDINGS: [Binding<'static>; 7] = [
     Binding::read("pairs", "array<NccPair>"),
@@ -229,7 +228,6 @@ impl PhotometricGpu {
                 Ok(Prepared { vis, g, scale, selected, picked })
             })
             .collect::<Result<Vec<Prepared>>>()?;
-        // Pairs, greys and the selected entries, source by source (row-major within each).
         // Pairs, greys and the selected entries with their υω, source by source (row-major
         // within each).
         let mut frame = NccFrame {

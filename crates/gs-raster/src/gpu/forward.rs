@@ -154,15 +154,14 @@ impl WgpuRasterizer {
             let out = self.forward_output(g, cam, config, request, &rb, bytes, visible, total as u32);
             (out, t2)
         })?;
-        let out = out?;
+        let (out, max_last) = out?;
         self.timings.render = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
-        let max_last = out.1;
         self.frame = Some(Frame {
             generation: self.generation,
             total: total as u32,
             max_last,
         });
-        Ok(out.0)
+        Ok(out)
     }
 
     /// Phase 1: projection (chunked), depth sort, per-Gaussian tile counts and their scan;
