@@ -180,15 +180,10 @@ impl WgpuRasterizer {
     fn read_geo(&mut self, cam: &CamParams, bands: &[(u32, u32, u64, u64)]) -> Result<Vec<[f32; 5]>> {
         let npix = cam.width as u64 * cam.height as u64;
         self.pool.ensure(self.bufs.staging, 5 * npix * 4);
-        let (p, b) = (&self.pool, &self.bufs);
-        let staging = p.buffer(b.staging);
         let mut enc = self.disp.encoder();
-        for k in 0..5u64 {
-            for &(_, _, p0, bp) in bands {
-                enc.encoder.copy_buffer_to_buffer(p.buffer(b.acc), p0 * 32 + (3 + k) * bp * 4, staging, (k * npix + p0) * 4, bp * 4);
-            }
-        }
+        self.copy_planes(&mut enc, &[3, 4, 5, 6, 7], bands, npix, 0);
         self.disp.submit(enc);
+        let staging = self.pool.buffer(self.bufs.staging);
         let n = npix as usize;
         let geo = self.ctx.read_mapped(staging, 5 * npix * 4, |bytes| {
             let v: std::borrow::Cow<[f32]> = pod_vec(bytes);

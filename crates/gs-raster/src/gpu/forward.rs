@@ -416,15 +416,17 @@ impl WgpuRasterizer {
         if request.observed && nn > 0 {
             e.copy_buffer_to_buffer(p.buffer(b.observed), 0, staging, rb.observed, nn * 4);
         }
-        for (k, &plane) in rb.planes.iter().enumerate() {
+        self.copy_planes(enc, &rb.planes, bands, npix, rb.planes_at);
+    }
+
+    /// Copies the accumulator `planes` (band-planar on the device) whole and in order to the
+    /// staging buffer from byte `at`, each `npix` values.
+    pub(super) fn copy_planes(&self, enc: &mut Encoder, planes: &[usize], bands: &[(u32, u32, u64, u64)], npix: u64, at: u64) {
+        let (p, b) = (&self.pool, &self.bufs);
+        let e = &mut enc.encoder;
+        for (k, &plane) in planes.iter().enumerate() {
             for &(_, _, p0, bp) in bands {
-                e.copy_buffer_to_buffer(
-                    p.buffer(b.acc),
-                    p0 * 32 + plane as u64 * bp * 4,
-                    staging,
-                    rb.planes_at + (k as u64 * npix + p0) * 4,
-                    bp * 4,
-                );
+                e.copy_buffer_to_buffer(p.buffer(b.acc), p0 * 32 + plane as u64 * bp * 4, p.buffer(b.staging), at + (k as u64 * npix + p0) * 4, bp * 4);
             }
         }
     }
