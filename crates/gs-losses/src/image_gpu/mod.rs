@@ -247,11 +247,10 @@ impl ImageLossGpu {
         let edge = [bytes_of::<EdgeTexel>(pixels), bytes_of::<EdgeRange>(1 + groups)];
         k.begin([2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, sums_at + read, bytes, edge[0], edge[1]], read + bytes);
         let [images, _, _, _, values, grad, _, _] = k.bufs;
-        let q = k.ctx.queue();
-        q.write_buffer(k.pool.buffer(images), 0, bytemuck::cast_slice(a));
-        q.write_buffer(k.pool.buffer(images), bytes, bytemuck::cast_slice(b));
+        k.ctx.write_buffer(k.pool.buffer(images), 0, bytemuck::cast_slice(a));
+        k.ctx.write_buffer(k.pool.buffer(images), bytes, bytemuck::cast_slice(b));
         if let Some(gg) = gt_gradient {
-            q.write_buffer(k.pool.buffer(images), 2 * bytes, bytemuck::cast_slice(gg));
+            k.ctx.write_buffer(k.pool.buffer(images), 2 * bytes, bytemuck::cast_slice(gg));
         }
         k.disp.write_frame(&frame);
         let p = &k.pool;

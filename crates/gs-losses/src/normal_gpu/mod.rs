@@ -180,9 +180,8 @@ impl NormalGpu {
         let k = &mut self.k;
         k.begin([bytes_of::<PixelInput>(n), bytes_of::<f32>(rays.len()), vec3, terms + sums, vec3, vec3, bytes_of::<DiffGrad>(n), plane], read.iter().sum());
         let [input_buf, ray_buf, nhat, values, _, gnt, _, gz] = k.bufs;
-        let q = k.ctx.queue();
-        q.write_buffer(k.pool.buffer(input_buf), 0, bytemuck::cast_slice(&inputs));
-        q.write_buffer(k.pool.buffer(ray_buf), 0, bytemuck::cast_slice(&rays));
+        k.ctx.write_buffer(k.pool.buffer(input_buf), 0, bytemuck::cast_slice(&inputs));
+        k.ctx.write_buffer(k.pool.buffer(ray_buf), 0, bytemuck::cast_slice(&rays));
         k.disp.write_frame(&frame);
         let p = &k.pool;
         let binds = k.bufs.map(|id| p.whole(id));
