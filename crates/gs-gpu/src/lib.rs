@@ -49,6 +49,7 @@
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
 
+mod arena;
 mod context;
 mod dispatch;
 mod kernel;
@@ -58,6 +59,7 @@ mod pool;
 mod scan;
 mod sort;
 
+pub use arena::{Arena, ArenaKey};
 pub use context::{GpuContext, GpuOptions, hardware_adapter_available, probe_adapter};
 pub use dispatch::{Dispatcher, Encoder, MAX_SLOTS, SLOT, grid};
 pub use kernel::{Binding, Kernel, PassUniform, kernel_source};

@@ -4,8 +4,10 @@
 //! Without any adapter the tests print `SKIPPED` and pass, except in CI (`CI=true`), where a
 //! missing adapter is a failure (the convention of gs-raster's tests/wgpu_parity.rs).
 
+use std::borrow::Cow;
+
 use gs_gpu::{
-    Binding, BufferPool, Dispatcher, GpuContext, GpuOptions, Kernel, PassUniform, RadixSort,
+    Arena, Binding, BufferPool, Dispatcher, GpuContext, GpuOptions, Kernel, PassUniform, RadixSort,
     ShrinkPolicy,
 };
 
@@ -269,4 +271,47 @@ fn the_ledger_counts_writes_readbacks_and_submissions() {
     assert_eq!((back[0], back[399], back[400], back[3999]), (1, 1, 7, 7));
     let d = clone.transfers() - before;
     assert_eq!(d, gs_gpu::Transfers { syncs: 1, bytes_down: 4000, bytes_up: 4400, submits: 1 });
+}
+
+fn read_arena(ctx: &GpuContext, arena: &Arena, offset: u32, floats: usize) -> Vec<f32> {
+    let bytes = ctx.download(arena.buffer(), 4 * offset as u64, 4 * floats as u64).unwrap();
+    bytemuck::pod_collect_to_vec(&bytes)
+}
+
+/// Keyed arrays are uploaded once and found again; unkeyed ones every call; a full arena
+/// evicts the least recently used array and uploads it again when asked.
+#[test]
+fn arena_keeps_keyed_arrays_and_evicts_the_least_recently_used() {
+    let Some(ctx) = context() else { return };
+    // Three slots of four floats.
+    let mut arena = Arena::new(&ctx, "test arena", 48);
+    let data = |v: f32| vec![v; 4];
+    let written = || ctx.transfers().bytes_up;
+    let before = written();
+    let first = arena.place(&ctx, &[(Some((1, 0)), 4), (None, 4)], |i| Cow::Owned(data(i as f32 + 1.0))).unwrap();
+    assert_eq!(written() - before, 32, "both arrays uploaded");
+    assert_eq!(read_arena(&ctx, &arena, first[0], 4), data(1.0));
+    assert_eq!(read_arena(&ctx, &arena, first[1], 4), data(2.0));
+    let before = written();
+    let again = arena.place(&ctx, &[(Some((1, 0)), 4), (None, 4)], |i| Cow::Owned(data(i as f32 + 5.0))).unwrap();
+    assert_eq!(written() - before, 16, "the keyed array is held, the unkeyed one uploaded");
+    assert_eq!(again[0], first[0]);
+    assert_eq!(read_arena(&ctx, &arena, again[0], 4), data(1.0));
+    assert_eq!(read_arena(&ctx, &arena, again[1], 4), data(6.0));
+    // Keys 2 and 3 take the free slot and the unkeyed ones' (those go first); key 1 is then
+    // used after them, so key 4 evicts key 2, which comes back on its next use.
+    arena.place(&ctx, &[(Some((2, 0)), 4)], |_| Cow::Owned(data(20.0))).unwrap();
+    arena.place(&ctx, &[(Some((3, 0)), 4)], |_| Cow::Owned(data(30.0))).unwrap();
+    arena.place(&ctx, &[(Some((1, 0)), 4)], |_| panic!("key 1 is held")).unwrap();
+    let four = arena.place(&ctx, &[(Some((4, 0)), 4)], |_| Cow::Owned(data(40.0))).unwrap();
+    assert_eq!(read_arena(&ctx, &arena, four[0], 4), data(40.0));
+    let before = written();
+    let two = arena.place(&ctx, &[(Some((2, 0)), 4)], |_| Cow::Owned(data(20.0))).unwrap();
+    assert_eq!(written() - before, 16, "key 2 was evicted and comes back");
+    assert_eq!(read_arena(&ctx, &arena, two[0], 4), data(20.0));
+    // Another part of one key is another array; a call needing more slots than fit fails.
+    let parts = arena.place(&ctx, &[(Some((2, 0)), 4), (Some((2, 1)), 4)], |_| Cow::Owned(data(21.0))).unwrap();
+    assert_ne!(parts[0], parts[1]);
+    assert_eq!(read_arena(&ctx, &arena, parts[0], 4), data(20.0));
+    assert!(arena.place(&ctx, &[(None, 4), (None, 4), (None, 4), (None, 4)], |_| Cow::Owned(data(0.0))).is_none());
 }

@@ -131,3 +131,35 @@ fn an_evaluation_reads_back_the_gradient_and_three_sums_a_row() {
     let t = ctx.transfers() - before;
     assert_eq!((t.syncs, t.bytes_down), (1, 4 * (w * h * c + 3 * h) as u64));
 }
+
+/// A view's photo and edge guide stay on the device under its key: the second evaluation of a
+/// view uploads the rendered image alone, and views taken in turn (other sizes too) give the
+/// results of evaluations that upload everything.
+#[test]
+fn a_views_photo_and_guide_are_uploaded_once() {
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let cfg = ImageLossConfig::default();
+    let views: Vec<(Image, Image, EdgeGuide)> = [(200, 150, 3, 1), (200, 150, 3, 2), (100, 75, 3, 3)]
+        .into_iter()
+        .map(|(w, h, c, seed)| {
+            let (a, b) = pair(w, h, c, seed);
+            let gt = Image::from_vec(w, h, c, b).unwrap();
+            let guide = EdgeGuide::from_gt(&gt).unwrap();
+            (Image::from_vec(w, h, c, a).unwrap(), gt, guide)
+        })
+        .collect();
+    let mut reference = ImageLossGpu::new(&ctx).unwrap();
+    for round in 0..3 {
+        for (key, (rendered, gt, guide)) in views.iter().enumerate() {
+            let before = ctx.transfers();
+            let kept = g.image_loss_of_view(rendered, gt, Some(guide), key as u64, &cfg).unwrap();
+            let up = (ctx.transfers() - before).bytes_up;
+            let whole = reference.image_loss(rendered, gt, Some(guide), &cfg).unwrap();
+            assert_eq!((kept.total, kept.grad_rendered.data()), (whole.total, whole.grad_rendered.data()), "view {key} round {round}");
+            let (n, pixels) = (rendered.data().len() as u64, (rendered.width() * rendered.height()) as u64);
+            // The rendered image, plus the photo and the guide on first use; uniforms besides.
+            let images = 4 * if round == 0 { 2 * n + pixels } else { n };
+            assert!(up >= images && up < images + 4096, "view {key} round {round}: {up} bytes written, {images} of images");
+        }
+    }
+}

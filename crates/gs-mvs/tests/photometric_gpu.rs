@@ -140,3 +140,37 @@ fn device_results_repeat_bit_for_bit() {
     assert_eq!(none.loss, 0.0);
     assert!(none.grad_normal.iter().chain(&none.grad_distance).all(|&x| x == 0.0));
 }
+
+/// Grey images keyed by view stay on the device: the second call with the same views uploads
+/// none of them, with the result of a call that uploads them all; views taken in another role
+/// (a source becoming the reference) are found under their keys.
+#[test]
+fn keyed_grey_images_are_uploaded_once() {
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let v = views(64, 48, 4, 2);
+    let config = PhotometricConfig::default();
+    let (reference, sources) = inputs(&v);
+    let grey_bytes: u64 = v.greys.iter().map(|i| 4 * i.data().len() as u64).sum();
+    let whole = g.loss(&reference, &sources, &config).unwrap();
+    let mut upload = |keys: &[u64], reference: &PhotometricReference<'_, f32>, sources: &[PhotometricSource<'_, f32>]| {
+        let before = ctx.transfers();
+        let out = g.loss_of_views(reference, sources, keys, &config).unwrap();
+        (out, (ctx.transfers() - before).bytes_up)
+    };
+    let (first, up_first) = upload(&[0, 1, 2, 3], &reference, &sources);
+    let (second, up_second) = upload(&[0, 1, 2, 3], &reference, &sources);
+    assert_eq!(first, whole);
+    assert_eq!(second, whole);
+    assert_eq!(up_first - up_second, grey_bytes, "the second call uploads no grey image");
+    // Camera 2 as the reference, 0 and 3 as its sources: every grey image is held.
+    let maps = common::box_scene().render(&v.cams[2]);
+    let swapped = PhotometricReference { camera: &v.cams[2], normal: (&maps.normal).into(), distance: (&maps.distance).into(), plane_depth: (&maps.plane_depth).into(), grey: (&v.greys[2]).into() };
+    let others: Vec<PhotometricSource<'_, f32>> =
+        [0, 3].iter().map(|&k| PhotometricSource { camera: &v.cams[k], plane_depth: (&v.maps[k].plane_depth).into(), grey: (&v.greys[k]).into() }).collect();
+    let (kept, up_kept) = upload(&[2, 0, 3], &swapped, &others);
+    let before = ctx.transfers();
+    assert_eq!(kept, g.loss(&swapped, &others, &config).unwrap());
+    let up_whole = (ctx.transfers() - before).bytes_up;
+    assert_eq!(up_whole - up_kept, 3 * grey_bytes / 4, "no grey image went up again");
+    assert!(g.loss_of_views(&swapped, &others, &[2, 0], &config).is_err(), "a key for each view");
+}

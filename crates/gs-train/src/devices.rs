@@ -64,19 +64,23 @@ impl LossDevices {
         Ok(Self::default())
     }
 
-    /// L_I of `rendered` against `gt`: on the device when there is an executor for it, else
-    /// [`gs_losses::image_loss()`] (the reference).
+    /// L_I of `rendered` against the photo `gt` of training slot `slot`: on the device when
+    /// there is an executor for it (which keeps each slot's photo and guide there, by
+    /// [`view_key`]), else [`gs_losses::image_loss()`] (the reference).
     pub fn image_loss(
         &self,
         rendered: &gs_core::Image,
         gt: &gs_core::Image,
         guide: Option<&gs_losses::EdgeGuide>,
+        slot: usize,
         cfg: &gs_losses::ImageLossConfig,
     ) -> gs_losses::Result<gs_losses::ImageLossOutput> {
         #[cfg(feature = "wgpu")]
         if let Some(d) = &self.image {
-            return d.borrow_mut().image_loss(rendered, gt, guide, cfg);
+            return d.borrow_mut().image_loss_of_view(rendered, gt, guide, view_key(slot, gt.width(), gt.height()), cfg);
         }
+        #[cfg(not(feature = "wgpu"))]
+        let _ = slot;
         gs_losses::image_loss(rendered, gt, guide, cfg)
     }
 
@@ -98,18 +102,25 @@ impl LossDevices {
         gs_losses::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)
     }
 
-    /// L_p of `reference` over `sources`: the patches on the device when there is an executor
-    /// for them, else [`gs_mvs::photometric_loss`] (the reference).
+    /// L_p of `reference` over `sources` (`slots`: the reference's training slot, then each
+    /// source's): the patches on the device when there is an executor for them (which keeps
+    /// each slot's grey image there, by [`view_key`]), else [`gs_mvs::photometric_loss`] (the
+    /// reference).
     pub fn photometric_loss(
         &self,
         reference: &gs_mvs::PhotometricReference<'_, f32>,
         sources: &[gs_mvs::PhotometricSource<'_, f32>],
+        slots: &[usize],
         config: &gs_mvs::PhotometricConfig,
     ) -> gs_mvs::Result<gs_mvs::PhotometricOutput<f32>> {
         #[cfg(feature = "wgpu")]
         if let Some(d) = &self.photometric {
-            return d.borrow_mut().loss(reference, sources, config);
+            let greys = std::iter::once(&reference.grey).chain(sources.iter().map(|s| &s.grey));
+            let keys: Vec<u64> = slots.iter().zip(greys).map(|(&slot, g)| view_key(slot, g.width, g.height)).collect();
+            return d.borrow_mut().loss_of_views(reference, sources, &keys, config);
         }
+        #[cfg(not(feature = "wgpu"))]
+        let _ = slots;
         gs_mvs::photometric_loss(reference, sources, config)
     }
 
@@ -171,4 +182,12 @@ impl LossDevices {
             _ => format!("every loss term on the CPU ({})", gs_raster::cpu_threads_in_words()),
         }
     }
+}
+
+/// The key under which a device executor keeps the photo data of training slot `slot` at
+/// `width` × `height` (a run's photo of one slot at one size never changes; the size is in the
+/// key because the coarse-to-fine schedule trains a slot at several).
+#[cfg(feature = "wgpu")]
+pub(crate) fn view_key(slot: usize, width: usize, height: usize) -> u64 {
+    ((slot as u64) << 40) ^ ((width as u64) << 20) ^ height as u64
 }

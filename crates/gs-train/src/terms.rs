@@ -215,7 +215,7 @@ impl LossTerm for ImageTerm {
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
-        let li = x.devices.image_loss(x.color, x.photo, x.guide, &cfg)?;
+        let li = x.devices.image_loss(x.color, x.photo, x.guide, x.slot, &cfg)?;
         (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
         GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
         Ok(())
@@ -289,7 +289,8 @@ impl LossTerm for PhotometricTerm {
                 Ok(PhotometricSource { camera: s.camera, plane_depth: s.plane_depth.into(), grey: grey.into() })
             })
             .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
-        let lp = x.devices.photometric_loss(&reference, &sources, &self.config)?;
+        let slots: Vec<usize> = std::iter::once(x.slot).chain(x.sources.iter().map(|s| s.slot)).collect();
+        let lp = x.devices.photometric_loss(&reference, &sources, &slots, &self.config)?;
         values.photometric = Some(lp.loss);
         let (gn, gd) = lp.grad_images();
         GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);

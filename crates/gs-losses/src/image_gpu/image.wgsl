@@ -9,11 +9,11 @@
 //   the edge term's.
 //
 // Generated before this file: `struct ImageFrame` (binding 0), the records `EdgeTexel` and
-// `EdgeRange`, and the storage bindings: planes of `frame.n` values (or `frame.pixels` for
-// pixel planes) in `images` (a, then b, then the pixel plane ∇I), `moments` (5 planes),
-// `partials` (3), `blurred` (3), `values` (SSIM, |a − b|, then the pixel plane |∇Ĩ − ∇I|, then
-// three sums a row) and `grad` (1); `edge`, one `EdgeTexel` per pixel; `edge_ranges`, the interior's `EdgeRange`,
-// then each range group's.
+// `EdgeRange`, and the storage bindings: `images`, the executor's arena, holding a, b and the
+// pixel plane ∇I at the frame's offsets; planes of `frame.n` values (or `frame.pixels` for pixel
+// planes) in `moments` (5 planes), `partials` (3), `blurred` (3), `values` (SSIM, |a − b|, then
+// the pixel plane |∇Ĩ − ∇I|, then three sums a row) and `grad` (1); `edge`, one `EdgeTexel` per
+// pixel; `edge_ranges`, the interior's `EdgeRange`, then each range group's.
 
 @group(0) @binding(0) var<uniform> frame: ImageFrame;
 
@@ -36,8 +36,8 @@ fn tap(k: u32) -> f32 {
 }
 
 fn product(plane: u32, i: u32) -> f32 {
-    let a = images[i];
-    let b = images[plane_at(1u, i)];
+    let a = images[frame.a_at + i];
+    let b = images[frame.b_at + i];
     switch plane {
         case 0u: { return a; }
         case 1u: { return b; }
@@ -149,7 +149,7 @@ fn inside(x: u32, y: u32) -> bool {
 }
 
 fn value_at(x: u32, y: u32, k: u32) -> f32 {
-    return images[(y * frame.width + x) * frame.channels + k];
+    return images[frame.a_at + (y * frame.width + x) * frame.channels + k];
 }
 
 // Edge pass 1: the channel means of the central differences, g_x and g_y, of interior pixels.
@@ -248,7 +248,7 @@ fn edge_terms(ids: Ids) {
     if (inside(x, y)) {
         grad_map = (max(gx, gy) - range.lo) * inv;
     }
-    let d = grad_map - images[plane_at(2u, p)];
+    let d = grad_map - images[frame.guide_at + p];
     values[plane_at(2u, p)] = abs(d);
     let up = frame.w_edge * sign0(d);
     var cx = 0.0;
@@ -293,8 +293,8 @@ fn loss_gradient(ids: Ids) {
     if (i >= frame.n) {
         return;
     }
-    let a = images[i];
-    let b = images[plane_at(1u, i)];
+    let a = images[frame.a_at + i];
+    let b = images[frame.b_at + i];
     values[plane_at(1u, i)] = abs(a - b);
     let b_mu = blur_column(0u, i, false);
     let b_aa = blur_column(1u, i, false);

@@ -14,7 +14,8 @@ use crate::gradient::GRAD_NORM_EPS;
 use crate::image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, check_inputs};
 use crate::ssim::{SSIM_C1, SSIM_C2, gaussian_window_1d};
 use gs_core::Image;
-use gs_gpu::{Binding, GpuContext, PassUniform};
+use gs_gpu::{Arena, ArenaKey, Binding, GpuContext, PassUniform};
+use std::borrow::Cow;
 
 gs_gpu::wgsl_struct! {
     /// Constants of one evaluation (binding 0; WGSL `struct ImageFrame`).
@@ -45,7 +46,12 @@ gs_gpu::wgsl_struct! {
         /// 1 when the edge term's values were written (a guide was given; with or without an
         /// interior).
         edge_values: u32,
+        /// Where a, b and the pixel plane ∇I start in the arena (`images`), in floats.
+        a_at: u32,
+        b_at: u32,
+        guide_at: u32,
         pad1: u32,
+        pad2: u32,
         /// The 11 window taps (the last lane of g2 unused).
         g0: [f32; 4],
         g1: [f32; 4],
@@ -134,9 +140,23 @@ pub fn image_kernel_source() -> String {
     gs_gpu::kernel_source(&[&declarations(&generated_structs()), include_str!("image.wgsl")], &BINDINGS)
 }
 
-/// The device executor of L_I: its context (shared), buffers and kernels.
+/// How much device memory the arena of photos and edge guides holds (bytes), at most one
+/// storage binding.
+const ARENA_BYTES: u64 = 512 << 20;
+
+/// What [`ImageLossGpu::run`] compares the rendered image with: b, the guide's ∇I, and the key
+/// under which both stay on the device between calls (none: uploaded every call).
+struct Targets<'a> {
+    b: &'a [f32],
+    guide: Option<&'a [f32]>,
+    key: Option<u64>,
+}
+
+/// The device executor of L_I: its context (shared), buffers, kernels and the arena that keeps
+/// each view's photo and edge guide on the device ([`ImageLossGpu::image_loss_of_view`]).
 pub struct ImageLossGpu {
     k: LossKernels<8>,
+    arena: Arena,
 }
 
 impl std::fmt::Debug for ImageLossGpu {
@@ -158,7 +178,8 @@ impl ImageLossGpu {
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let decls = declarations(&generated_structs());
         let frame = std::mem::size_of::<ImageFrame>();
-        Ok(Self { k: LossKernels::new(ctx, &decls, frame, include_str!("image.wgsl"), &BINDINGS, &PASSES.map(|p| p.0))? })
+        let k = LossKernels::new(ctx, &decls, frame, include_str!("image.wgsl"), &BINDINGS, &PASSES.map(|p| p.0))?;
+        Ok(Self { k, arena: Arena::new(ctx, "photo arena", ARENA_BYTES) })
     }
 
     /// Whether images of `dims` fit this device's storage bindings (else the reference runs):
@@ -189,7 +210,9 @@ impl ImageLossGpu {
         if !self.fits(dims) {
             return crate::ssim::ssim_backward(a, b, dims, crate::SsimRegion::Full, weight, grad_a);
         }
-        let t = self.run(a, b, None, dims, weight, 0.0, 0.0)?;
+        let Some(t) = self.run(a, Targets { b, guide: None, key: None }, dims, weight, 0.0, 0.0)? else {
+            return crate::ssim::ssim_backward(a, b, dims, crate::SsimRegion::Full, weight, grad_a);
+        };
         for (g, d) in grad_a.iter_mut().zip(&t.grad) {
             *g += d;
         }
@@ -198,21 +221,47 @@ impl ImageLossGpu {
 
     /// [`crate::image_loss()`] on the device: the same inputs, checks and output.
     pub fn image_loss(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
+        self.evaluate(rendered, gt, guide, None, cfg)
+    }
+
+    /// [`ImageLossGpu::image_loss`] of a view whose photo `gt` and `guide` stay on the device
+    /// under `view` between calls, uploaded only on first use and when evicted: the caller
+    /// names one photo and guide by one `view` (e.g. a training view at one resolution).
+    pub fn image_loss_of_view(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, view: u64, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
+        self.evaluate(rendered, gt, guide, Some(view), cfg)
+    }
+
+    fn evaluate(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, key: Option<u64>, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
         let guide = check_inputs(rendered, gt, guide, cfg)?;
         let dims = Dims::of(rendered);
-        if !self.fits(dims) {
-            return crate::image_loss(rendered, gt, guide, cfg);
-        }
         let b1 = cfg.beta1 as f64;
-        let t = self.run(rendered.data(), gt.data(), guide.map(|g| g.gradient.data()), dims, -b1, 1.0 - b1, cfg.beta2 as f64)?;
+        let targets = Targets { b: gt.data(), guide: guide.map(|g| g.gradient.data()), key };
+        let t = match self.fits(dims) {
+            true => self.run(rendered.data(), targets, dims, -b1, 1.0 - b1, cfg.beta2 as f64)?,
+            false => None,
+        };
+        let Some(t) = t else {
+            return crate::image_loss(rendered, gt, guide, cfg);
+        };
         ImageLossOutput::assemble(cfg, t.l1, t.ssim, t.edge, Image::from_vec(dims.width, dims.height, dims.channels, t.grad)?)
     }
 
-    /// One evaluation: SSIM at `w_ssim`, L1 at `w_l1` and, when `gt_gradient` (∇I) is given, the
-    /// edge term at `w_edge`; their means and the summed gradient.
-    #[allow(clippy::too_many_arguments)]
-    fn run(&mut self, a: &[f32], b: &[f32], gt_gradient: Option<&[f32]>, dims: Dims, w_ssim: f64, w_l1: f64, w_edge: f64) -> Result<Terms> {
+    /// One evaluation of `a` against `targets`: SSIM at `w_ssim`, L1 at `w_l1` and, when the
+    /// guide's ∇I is given, the edge term at `w_edge`; their means and the summed gradient.
+    /// `None` when the arena cannot hold the three images at once.
+    fn run(&mut self, a: &[f32], targets: Targets<'_>, dims: Dims, w_ssim: f64, w_l1: f64, w_edge: f64) -> Result<Option<Terms>> {
         let (n, pixels) = (dims.len(), dims.pixels());
+        let gt_gradient = targets.guide;
+        let part = |p: u32| targets.key.map(|k| -> ArenaKey { (k, p) });
+        let mut items = vec![(None, n), (part(0), n)];
+        let mut arrays = vec![a, targets.b];
+        if let Some(gg) = gt_gradient {
+            items.push((part(1), pixels));
+            arrays.push(gg);
+        }
+        let Some(at) = self.arena.place(&self.k.ctx, &items, |i| Cow::Borrowed(arrays[i])) else {
+            return Ok(None);
+        };
         let interior = dims.width >= 3 && dims.height >= 3;
         let groups = pixels.div_ceil(256).clamp(1, RANGE_GROUPS);
         let g = gaussian_window_1d().map(|v| v as f32);
@@ -232,7 +281,11 @@ impl ImageLossGpu {
             groups: groups as u32,
             grad_eps: GRAD_NORM_EPS as f32,
             edge_values: gt_gradient.is_some() as u32,
+            a_at: at[0],
+            b_at: at[1],
+            guide_at: at.get(2).copied().unwrap_or(0),
             pad1: 0,
+            pad2: 0,
             g0: [g[0], g[1], g[2], g[3]],
             g1: [g[4], g[5], g[6], g[7]],
             g2: [g[8], g[9], g[10], 0.0],
@@ -245,16 +298,12 @@ impl ImageLossGpu {
         let read = bytes_of::<f32>(ROW_SUMS * dims.height);
         let k = &mut self.k;
         let edge = [bytes_of::<EdgeTexel>(pixels), bytes_of::<EdgeRange>(1 + groups)];
-        k.begin([2 * bytes + pixel_bytes, 5 * bytes, 3 * bytes, 3 * bytes, sums_at + read, bytes, edge[0], edge[1]], read + bytes);
-        let [images, _, _, _, values, grad, _, _] = k.bufs;
-        k.ctx.write_buffer(k.pool.buffer(images), 0, bytemuck::cast_slice(a));
-        k.ctx.write_buffer(k.pool.buffer(images), bytes, bytemuck::cast_slice(b));
-        if let Some(gg) = gt_gradient {
-            k.ctx.write_buffer(k.pool.buffer(images), 2 * bytes, bytemuck::cast_slice(gg));
-        }
+        k.begin([4, 5 * bytes, 3 * bytes, 3 * bytes, sums_at + read, bytes, edge[0], edge[1]], read + bytes);
+        let [_, _, _, _, values, grad, _, _] = k.bufs;
         k.disp.write_frame(&frame);
         let p = &k.pool;
-        let binds = k.bufs.map(|id| p.whole(id));
+        let mut binds = k.bufs.map(|id| p.whole(id));
+        binds[0] = self.arena.bind();
         let mut enc = k.disp.encoder();
         k.ctx.push_error_scopes();
         let per_value = PassUniform { n: n as u32, ..Default::default() };
@@ -288,6 +337,7 @@ impl ImageLossGpu {
                     grad: grad.to_vec(),
                 }
             })
+            .map(Some)
             .map_err(gpu_error)
     }
 }

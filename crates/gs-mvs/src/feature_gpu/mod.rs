@@ -10,7 +10,6 @@
 //! When the maps of one call do not fit one storage binding of the device, the host evaluates
 //! the call (the reference).
 
-mod arena;
 
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{
@@ -18,7 +17,8 @@ use crate::feature_alignment::{
 };
 use crate::geometry::PairGeometry;
 use crate::visibility::{Visibility, visibility_unchecked};
-use arena::Arena;
+use gs_gpu::Arena;
+use std::borrow::Cow;
 use gs_features::FeatureMap;
 use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
 use rayon::prelude::*;
@@ -113,6 +113,9 @@ struct Buffers {
     staging: BufId,
 }
 
+/// How much device memory the feature arena holds by default (bytes), at most one storage binding.
+const ARENA_BYTES: u64 = 1 << 30;
+
 /// The device executor of L_f: its context, buffers, kernel and feature arena.
 pub struct FeatureGpu {
     ctx: GpuContext,
@@ -133,7 +136,7 @@ impl FeatureGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernel
     /// compiled, keeping up to 1 GiB of feature maps on the device.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        Self::with_arena_bytes(ctx, arena::ARENA_BYTES)
+        Self::with_arena_bytes(ctx, ARENA_BYTES)
     }
 
     /// [`FeatureGpu::new`] keeping up to `arena_bytes` of feature maps on the device (at least
@@ -150,7 +153,7 @@ impl FeatureGpu {
             staging: pool.add_staging("align readback"),
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<AlignFrame>() as u64);
-        let arena = Arena::new(&ctx, arena_bytes);
+        let arena = Arena::new(&ctx, "feature arena", arena_bytes);
         Ok(Self { ctx, pool, disp, kernel, bufs, arena })
     }
 
@@ -171,8 +174,9 @@ impl FeatureGpu {
             .zip(&geometry)
             .map(|(s, g)| visibility_unchecked(g, &reference.plane_depth, &s.plane_depth))
             .collect();
-        let maps: Vec<(u64, &FeatureMap)> = std::iter::once(reference).chain(sources).map(|v| (v.key, v.features)).collect();
-        let Some(offsets) = self.arena.place(&self.ctx, &maps) else {
+        let maps: Vec<&FeatureMap> = std::iter::once(reference).chain(sources).map(|v| v.features).collect();
+        let items: Vec<_> = std::iter::once(reference).chain(sources).map(|v| (Some((v.key, 0)), v.features.width() * v.features.height() * v.features.channels())).collect();
+        let Some(offsets) = self.arena.place(&self.ctx, &items, |i| Cow::Owned(maps[i].to_f32_vec())) else {
             return feature_loss_with_weights(&host_ref, &host_sources, &weights);
         };
         let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);

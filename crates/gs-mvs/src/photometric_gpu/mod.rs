@@ -6,6 +6,9 @@
 //! reference's own code, so the two executors choose the same patches and differ only in the
 //! patch arithmetic and the f32 sums (the tolerances are in `tests/photometric_gpu.rs`): one
 //! seed gives one result on one device (docs/method.md §L_p, docs/architecture.md §GPU).
+//!
+//! The grey images go into an arena (gs-gpu's [`Arena`]); keyed by view
+//! ([`PhotometricGpu::loss_of_views`]) they stay there between calls and are uploaded once.
 
 mod reduce;
 
@@ -19,7 +22,8 @@ use crate::photometric::{
 use crate::visibility::{Visibility, visibility_unchecked};
 use crate::geometry::PairGeometry;
 use rayon::prelude::*;
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
+use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
+use std::borrow::Cow;
 
 gs_gpu::wgsl_struct! {
     /// Constants of one L_p evaluation (binding 0 of the kernel; WGSL `struct NccFrame`).
@@ -40,6 +44,11 @@ gs_gpu::wgsl_struct! {
         sources: u32,
         /// Reference pixels (width · height).
         pixels: u32,
+        /// Where the reference grey image starts in `greys` (the arena), in floats.
+        ref_offset: u32,
+        pad0: u32,
+        pad1: u32,
+        pad2: u32,
     }
 }
 
@@ -115,7 +124,6 @@ struct Buffers {
     entries: BufId,
     normal: BufId,
     distance: BufId,
-    greys: BufId,
     rays: BufId,
     results: BufId,
     /// υω of each entry.
@@ -139,7 +147,13 @@ pub struct PhotometricGpu {
     /// The reduction's passes ([`reduce::PASSES`]).
     sums: Vec<Kernel>,
     bufs: Buffers,
+    /// The grey images, kept per view between calls when the caller keys them
+    /// ([`PhotometricGpu::loss_of_views`]).
+    greys: Arena,
 }
+
+/// How much device memory the arena of grey images holds (bytes), at most one storage binding.
+const ARENA_BYTES: u64 = 512 << 20;
 
 impl std::fmt::Debug for PhotometricGpu {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -181,7 +195,6 @@ impl PhotometricGpu {
             entries: pool.add_storage("ncc entries"),
             normal: pool.add_storage("ncc normal"),
             distance: pool.add_storage("ncc distance"),
-            greys: pool.add_storage("ncc greys"),
             rays: pool.add_storage("ncc rays"),
             results: pool.add_storage("ncc results"),
             weights: pool.add_storage("ncc weights"),
@@ -192,7 +205,8 @@ impl PhotometricGpu {
             staging: pool.add_staging("ncc readback"),
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<NccFrame>() as u64);
-        Ok(Self { ctx, pool, disp, kernel, sums, bufs })
+        let greys = Arena::new(&ctx, "ncc greys", ARENA_BYTES);
+        Ok(Self { ctx, pool, disp, kernel, sums, bufs, greys })
     }
 
     /// The adapter, in words.
@@ -207,6 +221,32 @@ impl PhotometricGpu {
         &mut self,
         reference: &PhotometricReference<'_, f32>,
         sources: &[PhotometricSource<'_, f32>],
+        config: &PhotometricConfig,
+    ) -> Result<PhotometricOutput<f32>> {
+        self.evaluate_views(reference, sources, None, config)
+    }
+
+    /// [`PhotometricGpu::loss`] with the grey images kept on the device between calls under
+    /// `keys` (the reference's, then each source's), uploaded only on first use and when
+    /// evicted: the caller names one grey image by one key (e.g. a training view's slot).
+    pub fn loss_of_views(
+        &mut self,
+        reference: &PhotometricReference<'_, f32>,
+        sources: &[PhotometricSource<'_, f32>],
+        keys: &[u64],
+        config: &PhotometricConfig,
+    ) -> Result<PhotometricOutput<f32>> {
+        if keys.len() != sources.len() + 1 {
+            return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.len(), sources.len())));
+        }
+        self.evaluate_views(reference, sources, Some(keys), config)
+    }
+
+    fn evaluate_views(
+        &mut self,
+        reference: &PhotometricReference<'_, f32>,
+        sources: &[PhotometricSource<'_, f32>],
+        keys: Option<&[u64]>,
         config: &PhotometricConfig,
     ) -> Result<PhotometricOutput<f32>> {
         check_inputs(reference, sources, config)?;
@@ -228,8 +268,13 @@ impl PhotometricGpu {
                 Ok(Prepared { vis, g, scale, selected, picked })
             })
             .collect::<Result<Vec<Prepared>>>()?;
-        // Pairs, greys and the selected entries with their υω, source by source (row-major
-        // within each).
+        // The grey images in the arena (reference first), then the pairs and the selected
+        // entries with their υω, source by source (row-major within each).
+        let greys: Vec<&[f32]> = std::iter::once(reference.grey.data).chain(sources.iter().map(|s| s.grey.data)).collect();
+        let items: Vec<_> = greys.iter().enumerate().map(|(i, g)| (keys.map(|k| (k[i], 0)), g.len())).collect();
+        let Some(offsets) = self.greys.place(&self.ctx, &items, |i| Cow::Borrowed(greys[i])) else {
+            return photometric_loss(reference, sources, config);
+        };
         let mut frame = NccFrame {
             width: w as u32,
             height: h as u32,
@@ -237,6 +282,7 @@ impl PhotometricGpu {
             pixels: (w * h) as u32,
             grey_width: reference.grey.width as u32,
             side: config.patch_size as u32,
+            ref_offset: offsets[0],
             ..Default::default()
         };
         frame.mode = match config.ncc {
@@ -250,14 +296,12 @@ impl PhotometricGpu {
             frame.grey_scale = first.scale as u32;
         }
         let mut pairs = Vec::with_capacity(sources.len());
-        let mut greys: Vec<f32> = reference.grey.data.to_vec();
         let picked = prepared.iter().map(|p| p.picked.len()).sum();
         let mut entries: Vec<Entry> = Vec::with_capacity(picked);
         let mut weights: Vec<f32> = Vec::with_capacity(picked);
         let mut ranges = Vec::with_capacity(sources.len());
-        for (p, source) in prepared.iter().zip(sources) {
-            pairs.push(pair_record(&p.g, greys.len(), source));
-            greys.extend_from_slice(source.grey.data);
+        for ((p, source), &offset) in prepared.iter().zip(sources).zip(&offsets[1..]) {
+            pairs.push(pair_record(&p.g, offset, source));
             ranges.push(entries.len()..entries.len() + p.picked.len());
             entries.extend_from_slice(&p.picked);
             weights.extend(p.picked.iter().map(|e| p.vis.weight(e[0] as usize)));
@@ -276,7 +320,7 @@ impl PhotometricGpu {
         let (row_sums, grads) = match entries.is_empty() {
             true => (vec![reduce::NccRowSums::default(); sources.len() * h], Vec::new()),
             false => {
-                let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, greys: &greys, rays: &rays };
+                let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, rays: &rays };
                 self.evaluate(&inputs, reference, &reduce::row_starts(&entries, &ranges, w, h))?
             }
         };
@@ -308,12 +352,11 @@ impl PhotometricGpu {
         let row_bytes = gs_gpu::bytes_of::<reduce::NccRowSums>((frame.sources * frame.height) as usize);
         let grad_bytes = gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize);
         self.pool.begin_frame();
-        let uploads: [(BufId, &[u8]); 8] = [
+        let uploads: [(BufId, &[u8]); 7] = [
             (b.pairs, bytemuck::cast_slice(inputs.pairs)),
             (b.entries, bytemuck::cast_slice(inputs.entries)),
             (b.normal, bytemuck::cast_slice(reference.normal.data)),
             (b.distance, bytemuck::cast_slice(reference.distance.data)),
-            (b.greys, bytemuck::cast_slice(inputs.greys)),
             (b.rays, bytemuck::cast_slice(inputs.rays)),
             (b.weights, bytemuck::cast_slice(inputs.weights)),
             (b.row_starts, bytemuck::cast_slice(row_starts)),
@@ -334,7 +377,8 @@ impl PhotometricGpu {
         }
         self.disp.write_frame(frame);
         let p = &self.pool;
-        let patch_binds = [b.pairs, b.entries, b.normal, b.distance, b.greys, b.rays, b.results].map(|id| p.whole(id));
+        let [pairs, entries, normal, distance, rays, results] = [b.pairs, b.entries, b.normal, b.distance, b.rays, b.results].map(|id| p.whole(id));
+        let patch_binds = [pairs, entries, normal, distance, self.greys.bind(), rays, results];
         let sum_binds = [b.entries, b.results, b.weights, b.row_starts, b.row_sums, b.scales, b.grads].map(|id| p.whole(id));
         let mut enc = self.disp.encoder();
         self.ctx.push_error_scopes();
@@ -364,12 +408,11 @@ struct Inputs<'a> {
     pairs: &'a [NccPair],
     entries: &'a [Entry],
     weights: &'a [f32],
-    greys: &'a [f32],
     rays: &'a [f32],
 }
 
-/// The pair record of `g` with the source grey image at `offset` in `greys`.
-fn pair_record(g: &PairGeometry<f32>, offset: usize, source: &PhotometricSource<'_, f32>) -> NccPair {
+/// The pair record of `g` with the source grey image at `offset` in `greys` (the arena).
+fn pair_record(g: &PairGeometry<f32>, offset: u32, source: &PhotometricSource<'_, f32>) -> NccPair {
     let row = |r: usize| [g.a[3 * r], g.a[3 * r + 1], g.a[3 * r + 2], 0.0];
     NccPair {
         a0: row(0),
@@ -378,7 +421,7 @@ fn pair_record(g: &PairGeometry<f32>, offset: usize, source: &PhotometricSource<
         kt: [g.kt[0], g.kt[1], g.kt[2], 0.0],
         src_w: g.src_w,
         src_h: g.src_h,
-        grey_offset: offset as u32,
+        grey_offset: offset,
         grey_width: source.grey.width as u32,
         grey_height: source.grey.height as u32,
         ..Default::default()

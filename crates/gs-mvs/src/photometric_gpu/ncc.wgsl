@@ -73,7 +73,7 @@ fn patch_tap(k: u32, ci: u32, cj: u32) -> Tap {
     let half = frame.side / 2u;
     let px = ci - half + k % frame.side;
     let py = cj - half + k / frame.side;
-    return Tap(vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0), greys[py * frame.grey_width + px]);
+    return Tap(vec3<f32>(rays[px], rays[frame.grey_width + py], 1.0), greys[frame.ref_offset + py * frame.grey_width + px]);
 }
 
 fn put_result(t: u32, status: u32, cost: f32, gn: vec3<f32>, gd: f32) {
