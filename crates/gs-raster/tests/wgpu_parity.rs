@@ -205,6 +205,9 @@ fn a_render_reads_back_what_its_request_needs() {
     let grads = Grads::new(32, 32, 5);
     let depth_only = RenderRequest { color: false, alpha: false, plane_depth: true, ..RenderRequest::default() };
     let n = g.len() as u64;
+    // Every render below guesses its buffers from this one (one readback each, the counters
+    // in it; a first render of a size reads them back once more before it blends).
+    r.render(&g, &cam, &RenderRequest::default(), &cfg).unwrap();
     // (a request, the same without what it saves, the bytes saved)
     for (full, lean, saved) in [
         (RenderRequest { traversal: true, ..depth_only }, depth_only, 8 * npix),

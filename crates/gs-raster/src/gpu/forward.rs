@@ -1,9 +1,16 @@
-//! The wgpu forward: projection, depth sort and intersection counts (first submission and a
-//! 32-byte readback), then emission, tile sort, tile ranges, links and the blend (second
-//! submission and the readback of the requested planes).
+//! The wgpu forward: projection, depth sort and intersection counts, then emission, tile sort,
+//! tile ranges, links and the blend, and the readback of the requested planes.
+//!
+//! The intersections size the buffers of the second half. A render of a size rendered before
+//! guesses them (and the blend's window count) from the last render of that size and runs in
+//! one submission and one readback; the counters that come back say whether the guess held
+//! (else it renders again, counting first: two submissions and readbacks, as every render of a
+//! new size does). The guess changes no value: the intersections sort before the padding, and
+//! the windows beyond the longest list blend nothing.
 
 use super::kernels::{ParamRecord, ShCoeff, Splat, TileRect};
 use gs_gpu::bytes_of;
+use super::kernels::{COUNTER_LONGEST_BLEND, COUNTER_LONGEST_TILE_LIST};
 use super::{CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
 use crate::cpu::project::CamParams;
 use crate::{
@@ -16,9 +23,20 @@ use gs_gpu::{Encoder, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// The counter holding the largest last contributor of any pixel (`raster_fwd`'s atomicMax:
-/// an integer maximum, the same whatever the order).
-const LONGEST_LIST: usize = 8;
+/// How much a guess adds to the last render's intersections and longest list (a quarter).
+const GUESS_MARGIN: u64 = 4;
+
+/// Image sizes whose last render a rasterizer remembers for its guesses.
+const GUESSED_SIZES: usize = 8;
+
+/// What the last render of one image size found: the guess of the next one of that size.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SizeGuess {
+    width: u32,
+    height: u32,
+    intersections: u64,
+    longest_list: u32,
+}
 
 /// Where each forward output lies in the staging buffer (`None`: not read back).
 struct Readback {
@@ -131,6 +149,13 @@ impl WgpuRasterizer {
         let t0 = Instant::now();
         self.model.prepare(&self.ctx, g)?;
         let t1 = Instant::now();
+        let rb = Readback::new(request, nn, npix);
+        let guess = self.guess_of(cam, config, nn);
+        if let Some((cap, windows)) = guess
+            && let Some((out, frame)) = self.render_guessed(g, cam, config, request, &bands, &rb, (cap, windows))?
+        {
+            return Ok(self.finish_render(out, frame, (t0, t1)));
+        }
         let (visible, total) = self.project_and_count(g, npix, n_tiles)?;
         if total > config.max_intersections as u64 || total > u32::MAX as u64 {
             return Err(RasterError::TooManyIntersections {
@@ -139,42 +164,109 @@ impl WgpuRasterizer {
             });
         }
         self.check_binding("the tile intersections", total * 4)?;
-        let rb = Readback::new(request, nn, npix);
-        self.blend(
-            cam,
-            request,
-            &bands,
-            g.len() as u32,
-            visible,
-            total as u32,
-            &rb,
-        )?;
-        let (out, t2) = self.ctx.read_mapped(self.pool.buffer(self.bufs.staging), rb.bytes, |bytes| {
+        // No tile list is longer than the visible Gaussians or the intersections.
+        let windows = (total as u32).min(visible as u32).max(1).div_ceil(FWD_WINDOW);
+        self.reserve_blend(total, &rb);
+        let mut enc = self.disp.encoder();
+        self.blend(&mut enc, cam, request, &bands, g.len() as u32, (total as u32, windows), &rb)?;
+        self.disp.submit(enc);
+        let out = self.ctx.read_mapped(self.pool.buffer(self.bufs.staging), rb.bytes, |bytes| {
             let t2 = Instant::now();
             let out = self.forward_output(g, cam, config, request, &rb, bytes, visible, total as u32);
-            (out, t2)
+            (out.map(|(out, max_last)| (out, max_last, longest_tile_list(bytes, &rb, total))), t2)
         })?;
-        let (out, max_last) = out?;
-        self.timings.render = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
-        self.frame = Some(Frame {
-            generation: self.generation,
-            total: total as u32,
-            max_last,
-        });
-        Ok(out)
+        let (out, t2) = out;
+        let (out, max_last, longest) = out?;
+        let frame = Frame { generation: self.generation, total: total as u32, max_last };
+        self.remember(cam, total, longest);
+        Ok(self.finish_render((out, t2), frame, (t0, t1)))
     }
 
-    /// Phase 1: projection (chunked), depth sort, per-Gaussian tile counts and their scan;
-    /// returns the visible Gaussians and the exact total of intersections.
-    fn project_and_count(
+    /// The render's timings and frame; returns its output.
+    fn finish_render(&mut self, (out, t2): (RenderOutput, Instant), frame: Frame, (t0, t1): (Instant, Instant)) -> RenderOutput {
+        self.timings.render = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
+        self.frame = Some(frame);
+        out
+    }
+
+    /// The guess for a render of `cam`'s size: the intersections' capacity and the blend's
+    /// window count, from the last render of that size plus a margin, within the request's
+    /// cap and one storage binding; `None` for a size not rendered before.
+    fn guess_of(&self, cam: &CamParams, config: &RasterConfig, n: u64) -> Option<(u32, u32)> {
+        let last = self.guesses.iter().find(|s| s.width == cam.width && s.height == cam.height)?;
+        let grow = |v: u64| v + v / GUESS_MARGIN + 1024;
+        let limit = (config.max_intersections as u64).min(u32::MAX as u64).min(self.ctx.max_storage_binding() / 4);
+        let cap = grow(last.intersections).min(limit);
+        let longest = grow(last.longest_list as u64).min(cap).min(n).max(1);
+        Some((cap as u32, (longest as u32).div_ceil(FWD_WINDOW)))
+    }
+
+    /// Remembers what a render of `cam`'s size found (the latest [`GUESSED_SIZES`] sizes).
+    fn remember(&mut self, cam: &CamParams, intersections: u64, longest_list: u32) {
+        self.guesses.retain(|s| s.width != cam.width || s.height != cam.height);
+        if self.guesses.len() == GUESSED_SIZES {
+            self.guesses.remove(0);
+        }
+        self.guesses.push(SizeGuess { width: cam.width, height: cam.height, intersections, longest_list });
+    }
+
+    /// The render in one submission with the intersections' buffers and the blend's windows
+    /// sized by `guess`; `None` when the counters that come back exceed it (nothing of it is
+    /// kept, and the caller renders again, counting first).
+    #[allow(clippy::too_many_arguments)]
+    fn render_guessed(
         &mut self,
         g: &Gaussians,
-        npix: u64,
-        n_tiles: u64,
-    ) -> Result<(usize, u64)> {
-        let n32 = g.len() as u32;
-        let nn = n32 as u64;
-        let nc = coeffs_for_degree(g.sh_degree) as u64;
+        cam: &CamParams,
+        config: &RasterConfig,
+        request: &RenderRequest,
+        bands: &[(u32, u32, u64, u64)],
+        rb: &Readback,
+        (cap, windows): (u32, u32),
+    ) -> Result<Option<((RenderOutput, Instant), Frame)>> {
+        let npix = cam.width as u64 * cam.height as u64;
+        let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
+        self.reserve_projection(g, npix, n_tiles);
+        self.reserve_blend(cap as u64, rb);
+        let mut enc = self.encode_projection(g)?;
+        self.blend(&mut enc, cam, request, bands, g.len() as u32, (cap, windows), rb)?;
+        self.disp.submit(enc);
+        let (out, t2) = self.ctx.read_mapped(self.pool.buffer(self.bufs.staging), rb.bytes, |bytes| {
+            let t2 = Instant::now();
+            let c = counters_of(bytes, rb);
+            let total = c[2] as u64 | (c[3] as u64) << 32;
+            let longest = c[COUNTER_LONGEST_TILE_LIST];
+            if total > cap as u64 || longest > windows.saturating_mul(FWD_WINDOW) {
+                return (None, t2);
+            }
+            let out = self.forward_output(g, cam, config, request, rb, bytes, c[0] as usize, total as u32);
+            (Some(out.map(|(out, max_last)| (out, max_last, total, longest))), t2)
+        })?;
+        let Some(out) = out else {
+            return Ok(None);
+        };
+        let (out, max_last, total, longest) = out?;
+        self.remember(cam, total, longest);
+        Ok(Some(((out, t2), Frame { generation: self.generation, total: total as u32, max_last })))
+    }
+
+    /// Phase 1 alone (a render of a size not rendered before, or whose guess fell short):
+    /// submitted with its counters' readback; returns the visible Gaussians and the exact
+    /// total of intersections.
+    fn project_and_count(&mut self, g: &Gaussians, npix: u64, n_tiles: u64) -> Result<(usize, u64)> {
+        self.reserve_projection(g, npix, n_tiles);
+        let mut enc = self.encode_projection(g)?;
+        let (p, b) = (&self.pool, &self.bufs);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.counters), 0, p.buffer(b.staging), 0, 32);
+        self.disp.submit(enc);
+        let head: Vec<u32> = bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(p.buffer(b.staging), 32)?);
+        Ok((head[0] as usize, head[2] as u64 | (head[3] as u64) << 32))
+    }
+
+    /// The buffers of phase 1 and the per-pixel outputs, before anything is encoded (a buffer
+    /// that grows loses its contents).
+    fn reserve_projection(&mut self, g: &Gaussians, npix: u64, n_tiles: u64) {
+        let nn = g.len() as u64;
         let (p, b) = (&mut self.pool, &self.bufs);
         let (splat, rect) = (bytes_of::<Splat>(1), bytes_of::<TileRect>(1));
         p.ensure(b.splat, (nn + 1) * splat);
@@ -192,6 +284,16 @@ impl WgpuRasterizer {
         p.ensure(b.last, npix * 4);
         p.ensure(b.counters, 64);
         p.ensure(b.staging, 64);
+    }
+
+    /// Phase 1 encoded: projection (chunked), depth sort, per-Gaussian tile counts and their
+    /// scan; the visible Gaussians and the total of intersections land in `counters`.
+    fn encode_projection(&self, g: &Gaussians) -> Result<Encoder> {
+        let n32 = g.len() as u32;
+        let nn = n32 as u64;
+        let nc = coeffs_for_degree(g.sh_degree) as u64;
+        let b = &self.bufs;
+        let (splat, rect) = (bytes_of::<Splat>(1), bytes_of::<TileRect>(1));
         let (param, sh) = (bytes_of::<ParamRecord>(1), bytes_of::<ShCoeff>(1));
         let (d, p, k, model) = (&self.disp, &self.pool, &self.kernels, &self.model);
         let mut enc = d.encoder();
@@ -241,49 +343,47 @@ impl WgpuRasterizer {
         self.sort
             .prefix_scan()
             .encode(d, &mut enc, p, counts, n32 + 1)?;
-        enc.encoder
-            .copy_buffer_to_buffer(p.buffer(b.counters), 0, p.buffer(b.staging), 0, 32);
-        d.submit(enc);
-        let head: Vec<u32> =
-            bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(p.buffer(b.staging), 32)?);
-        Ok((head[0] as usize, head[2] as u64 | (head[3] as u64) << 32))
+        Ok(enc)
     }
 
-    /// Phase 2: emit the (tile, emission index) pairs, sort them by tile, find the tile ranges
-    /// and links, blend, and copy the outputs to the staging buffer.
+    /// The buffers of phase 2 for `entries` intersections (the exact total, or a guess) and
+    /// the staging buffer of `rb`, before anything is encoded.
+    fn reserve_blend(&mut self, entries: u64, rb: &Readback) {
+        let (p, b) = (&mut self.pool, &self.bufs);
+        for k in [b.keys_b, b.vals_b, b.keys_c, b.vals_c, b.isect_gid, b.gids, b.isect_pos] {
+            p.ensure(k, entries * 4 + 4);
+        }
+        self.sort.reserve(p, entries);
+        p.ensure(b.staging, rb.bytes);
+    }
+
+    /// Phase 2 encoded: emit the (tile, emission index) pairs into `entries` slots (padding
+    /// after the intersections when `entries` is a guess), sort them by tile, find the tile
+    /// ranges and links, blend in `windows` windows, and copy the outputs to the staging buffer.
     #[allow(clippy::too_many_arguments)]
     fn blend(
-        &mut self,
+        &self,
+        enc: &mut Encoder,
         cam: &CamParams,
         request: &RenderRequest,
         bands: &[(u32, u32, u64, u64)],
         n: u32,
-        visible: usize,
-        total: u32,
+        (entries, windows): (u32, u32),
         rb: &Readback,
     ) -> Result<()> {
-        let tot = total as u64;
-        let (p, b) = (&mut self.pool, &self.bufs);
-        for k in [b.keys_b, b.vals_b, b.keys_c, b.vals_c, b.isect_gid, b.gids, b.isect_pos] {
-            p.ensure(k, tot * 4 + 4);
-        }
-        self.sort.reserve(p, tot);
-        p.ensure(b.staging, rb.bytes);
-        let mut enc = self.disp.encoder();
-        if total > 0 {
-            self.emit_and_sort(&mut enc, cam, n, total)?;
-            self.blend_windows(&mut enc, cam, bands, (visible, total))?;
+        if entries > 0 {
+            self.emit_and_sort(enc, cam, n, entries)?;
+            self.blend_windows(enc, cam, bands, windows)?;
             if rb.plane_depth.is_some() {
-                self.plane_depth_bands(&mut enc, bands)?;
+                self.plane_depth_bands(enc, bands)?;
             }
-            self.copy_outputs(&mut enc, cam, request, bands, n, rb);
+            self.copy_outputs(enc, cam, request, bands, n, rb);
         }
         let (p, b) = (&self.pool, &self.bufs);
         let nn = n as u64;
         if let Some(at) = rb.radii.filter(|_| nn > 0) {
             enc.encoder.copy_buffer_to_buffer(p.buffer(b.radii), 0, p.buffer(b.staging), at, nn * 4);
         }
-        self.disp.submit(enc);
         Ok(())
     }
 
@@ -294,7 +394,7 @@ impl WgpuRasterizer {
         enc: &mut Encoder,
         cam: &CamParams,
         n32: u32,
-        total: u32,
+        entries: u32,
     ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
@@ -317,36 +417,33 @@ impl WgpuRasterizer {
             };
             d.dispatch_1d(enc, &k.isect_emit, &binds, pass)?;
         }
+        let all = PassUniform {
+            n: entries,
+            ..Default::default()
+        };
+        d.dispatch_1d(enc, &k.pad_keys, &[p.whole(b.keys_b), p.whole(b.ranges), p.whole(b.counters)], all)?;
         let bits = (32 - (n_tiles.max(2) as u32 - 1).leading_zeros()).max(1);
         let bpair = (p.whole(b.keys_b), p.whole(b.vals_b));
         let cpair = (p.whole(b.keys_c), p.whole(b.vals_c));
-        let tiles_in_c = self.sort.encode(d, enc, p, [bpair, cpair], total, bits)?;
+        let tiles_in_c = self.sort.encode(d, enc, p, [bpair, cpair], entries, bits)?;
         enc.encoder
             .clear_buffer(p.buffer(b.ranges), 0, Some(n_tiles * 8));
         let (tk, tv) = if tiles_in_c { (b.keys_c, b.vals_c) } else { (b.keys_b, b.vals_b) };
-        let pass = PassUniform {
-            n: total,
-            ..Default::default()
-        };
-        d.dispatch_1d(enc, &k.tile_ranges, &[p.whole(tk), p.whole(b.ranges)], pass)?;
-        let links = [p.whole(tv), p.whole(b.isect_gid), p.whole(b.gids), p.whole(b.isect_pos)];
-        d.dispatch_1d(enc, &k.isect_link, &links, pass)?;
+        d.dispatch_1d(enc, &k.tile_ranges, &[p.whole(tk), p.whole(b.ranges), p.whole(b.counters)], all)?;
+        let links = [p.whole(tv), p.whole(b.isect_gid), p.whole(b.gids), p.whole(b.isect_pos), p.whole(b.counters)];
+        d.dispatch_1d(enc, &k.isect_link, &links, all)?;
         Ok(())
     }
 
-    /// The forward blend, per band of tile rows and window of tile-list positions; `lists`
-    /// is (visible Gaussians, intersections).
+    /// The forward blend, per band of tile rows and `windows` windows of tile-list positions.
     fn blend_windows(
         &self,
         enc: &mut Encoder,
         cam: &CamParams,
         bands: &[(u32, u32, u64, u64)],
-        (visible, total): (usize, u32),
+        windows: u32,
     ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
-        // No tile list is longer than the visible Gaussians or the intersections.
-        let longest = total.min(visible as u32).max(1);
-        let windows = longest.div_ceil(FWD_WINDOW);
         for &(r0, rows, p0, bp) in bands {
             for wi in 0..windows {
                 d.make_room(enc, 1);
@@ -510,6 +607,20 @@ impl WgpuRasterizer {
         }));
         out.final_t = final_t;
         out.last_contributor = last;
-        Ok((out, counters[LONGEST_LIST]))
+        Ok((out, counters[COUNTER_LONGEST_BLEND]))
     }
+}
+
+/// The 16 counters in the staging bytes of a render that copied them.
+fn counters_of(bytes: &[u8], rb: &Readback) -> Vec<u32> {
+    bytemuck::pod_collect_to_vec(&bytes[rb.counters as usize..rb.counters as usize + 64])
+}
+
+/// The longest tile list of a render with `total` intersections (its counters come back only
+/// when it has any).
+fn longest_tile_list(bytes: &[u8], rb: &Readback, total: u64) -> u32 {
+    if total == 0 {
+        return 0;
+    }
+    counters_of(bytes, rb)[COUNTER_LONGEST_TILE_LIST]
 }

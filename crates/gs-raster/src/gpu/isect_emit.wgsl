@@ -21,6 +21,10 @@ fn isect_emit(ids: Ids) {
     let end = min(area, pass_.nb);
     for (var j = pass_.shift; j < end; j++) {
         let o = offsets[k] + j;
+        // A render that sized its buffers by a guess finds out at readback that it was short.
+        if (o >= min(arrayLength(&tile_keys), min(arrayLength(&tile_vals), arrayLength(&isect_gid)))) {
+            break;
+        }
         tile_keys[o] = (y0 + j / rw) * cam.tiles_x + x0 + j % rw;
         tile_vals[o] = o;
         isect_gid[o] = gid;

@@ -291,7 +291,12 @@ fn specs() -> Vec<Spec<'static>> {
         spec(
             "tile_ranges",
             &[include_str!("tile_ranges.wgsl")],
-            &[B::read("tile_keys", u), B::write("ranges", u)],
+            &[B::write("tile_keys", u), B::write("ranges", u), B::read("counters", u)],
+        ),
+        spec(
+            "pad_keys",
+            &[include_str!("tile_ranges.wgsl")],
+            &[B::write("tile_keys", u), B::write("ranges", u), B::read("counters", u)],
         ),
         spec(
             "isect_link",
@@ -301,6 +306,7 @@ fn specs() -> Vec<Spec<'static>> {
                 B::read("isect_gid", u),
                 B::write("gids", u),
                 B::write("isect_pos", u),
+                B::read("counters", u),
             ],
         ),
         spec(
@@ -358,6 +364,13 @@ fn sources<'a>(decls: &'a str, spec: &Spec<'a>) -> Vec<&'a str> {
     s
 }
 
+/// The `counters` entry holding the longest list position any pixel blended (`raster_fwd`'s
+/// integer atomicMax, the same in any order): the backward's window count.
+pub(crate) const COUNTER_LONGEST_BLEND: usize = 8;
+/// The `counters` entry holding the longest tile list (`raster_fwd`, first window): a render
+/// that guessed its window count checks it.
+pub(crate) const COUNTER_LONGEST_TILE_LIST: usize = 9;
+
 /// The compiled kernels of the rasterizer.
 pub(crate) struct Kernels {
     pub project: Kernel,
@@ -365,6 +378,7 @@ pub(crate) struct Kernels {
     pub isect_count: Kernel,
     pub isect_emit: Kernel,
     pub tile_ranges: Kernel,
+    pub pad_keys: Kernel,
     pub isect_link: Kernel,
     pub raster_fwd: Kernel,
     pub plane_depth: Kernel,
@@ -393,6 +407,7 @@ fn generated_structs() -> [GeneratedStruct; 9] {
 fn decls() -> String {
     let mut d = gs_gpu::declarations(&generated_structs());
     d.push_str(&format!("const PLANE_DEPTH_EPS: f32 = {:?};\n", crate::PLANE_DEPTH_EPS));
+    d.push_str(&format!("const LONGEST_BLEND: u32 = {}u;\nconst LONGEST_TILE_LIST: u32 = {}u;\n", COUNTER_LONGEST_BLEND, COUNTER_LONGEST_TILE_LIST));
     d
 }
 
@@ -410,6 +425,7 @@ impl Kernels {
             isect_count: next()?,
             isect_emit: next()?,
             tile_ranges: next()?,
+            pad_keys: next()?,
             isect_link: next()?,
             raster_fwd: next()?,
             plane_depth: next()?,

@@ -1,18 +1,23 @@
 //! The wgpu (WGSL compute) backend: the same numbers as the CPU backend, on a GPU.
 //!
-//! Kernel structure of one [`WgpuRasterizer::render`] (two queue submissions, two readbacks):
+//! Kernel structure of one [`WgpuRasterizer::render`] (one queue submission and one readback
+//! for an image size rendered before; two for a new size, or when the guess below falls short):
 //! 1. `project` (one thread per Gaussian, dispatched in chunks of 2¹⁸ Gaussians so that no
 //!    binding exceeds the adapter's storage-binding limit): EWA projection, SH colour,
 //!    normal/distance, tile rectangle, depth key (culled Gaussians get key `u32::MAX`).
 //! 2. Radix sort of the depth keys (8 stable passes of 4 bits; per pass `radix_count` →
 //!    exclusive `scan` of the digit-major histogram → `radix_scatter`), values = Gaussian ids in
 //!    index order, so ties keep the CPU's (depth, index) order.
-//! 3. `isect_count` (tiles per sorted Gaussian + an exact 64-bit total) and its `scan`; the
-//!    totals are read back (8 + 4 bytes) to size the intersection buffers and check the cap.
+//! 3. `isect_count` (tiles per sorted Gaussian + an exact 64-bit total) and its `scan`. A render
+//!    of a new size reads the totals back (8 + 4 bytes) to size the intersection buffers and
+//!    check the cap; a render of a size rendered before sizes them, and the blend's window
+//!    count, by the last render of that size plus a quarter, and its readback's counters say
+//!    whether that held (else it renders again, counting first). `pad_keys` fills the unused
+//!    entries with keys that sort last, so the guess changes no value.
 //! 4. `isect_emit` writes (tile, emission index) pairs in depth order and each emission index's
 //!    Gaussian, a stable radix sort on the tile key (⌈log₂ tiles / 4⌉ passes) groups them per
-//!    tile, `tile_ranges` finds each tile's list, `isect_link` turns the sorted emission indices
-//!    into Gaussian ids (what the blends read) and records each emission index's list position.
+//!    tile, `tile_ranges` finds each tile's list (and `raster_fwd` the longest), `isect_link`
+//!    turns the sorted emission indices into Gaussian ids (what the blends read) and records each emission index's list position.
 //! 5. `raster_fwd`: one workgroup per 16×16 tile, one thread per pixel, front to back; writes
 //!    the eight accumulators channel-planar, T_final, last contributor, observed counts and
 //!    the pair counters (with the longest list position blended, an integer maximum: the
@@ -198,6 +203,9 @@ pub struct WgpuRasterizer {
     timings: CallTimings,
     /// The parameters the kernels read, resident between iterations in a training run.
     model: resident::Model,
+    /// What the last renders of a few image sizes found: the next render of such a size
+    /// guesses its buffers from it and runs in one submission (`forward.rs`).
+    guesses: Vec<forward::SizeGuess>,
 }
 
 /// Host-measured wall time of the phases of one call (see [`WgpuRasterizer::timings`]).
@@ -279,6 +287,7 @@ impl WgpuRasterizer {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             generation: 0,
             frame: None,
+            guesses: Vec::new(),
             timings: CallTimings::default(),
             model,
         })

@@ -36,6 +36,10 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     let th = min(cam.height - y0, TILE);
     let start = ranges[2u * tile];
     let len = ranges[2u * tile + 1u] - start;
+    // The longest tile list (a render that guessed its window count checks it at readback).
+    if ((pass_.mode & 1u) != 0u && lid.x == 0u && lid.y == 0u) {
+        atomicMax(&counters[LONGEST_TILE_LIST], len);
+    }
     let npix = pass_.n;
     let p = (py - pass_.base * TILE) * cam.width + px;
     let fx = f32(px) + 0.5;
@@ -131,6 +135,6 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
         add64(6u, last_k);
         // The longest list position blended (the backward's window count): an integer
         // maximum, the same in any order.
-        atomicMax(&counters[8], last_k);
+        atomicMax(&counters[LONGEST_BLEND], last_k);
     }
 }
