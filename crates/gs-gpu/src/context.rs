@@ -236,20 +236,48 @@ impl GpuContext {
         bytes: u64,
         read: impl FnOnce(&[u8]) -> R,
     ) -> Result<R> {
+        let pending = self.request_read(buffer, bytes);
+        self.finish_read(pending, read)
+    }
+
+    /// Asks for the first `bytes` of a `MAP_READ` buffer after the work submitted so far,
+    /// without waiting: several readbacks requested before one [`GpuContext::finish_read`]
+    /// cost the host one wait, not one each. The buffer stays mapped-to-be until its read is
+    /// finished; its owner must not use it before.
+    pub fn request_read(&self, buffer: &wgpu::Buffer, bytes: u64) -> PendingRead {
+        let (tx, rx) = std::sync::mpsc::channel();
+        if bytes > 0 {
+            self.ledger.read_back(bytes);
+            buffer.slice(0..bytes).map_async(wgpu::MapMode::Read, move |r| {
+                let _ = tx.send(r);
+            });
+        }
+        PendingRead { buffer: Some(buffer.clone()), bytes, rx }
+    }
+
+    /// Hands the bytes of a requested readback to `read`, waiting for the device only when
+    /// they have not arrived yet (an earlier wait may have brought them).
+    pub fn finish_read<R>(&self, mut pending: PendingRead, read: impl FnOnce(&[u8]) -> R) -> Result<R> {
+        let (Some(buffer), bytes) = (pending.buffer.take(), pending.bytes) else {
+            return Ok(read(&[]));
+        };
+        let rx = &pending.rx;
         if bytes == 0 {
             return Ok(read(&[]));
         }
-        self.ledger.read_back(bytes);
         let dev = |e: &dyn std::fmt::Display| GpuError::Device(e.to_string());
+        let mapped = match rx.try_recv() {
+            Ok(r) => r,
+            Err(_) => {
+                self.ledger.waited();
+                self.device
+                    .poll(wgpu::PollType::wait_indefinitely())
+                    .map_err(|e| dev(&e))?;
+                rx.recv().map_err(|e| dev(&e))?
+            }
+        };
+        mapped.map_err(|e| dev(&e))?;
         let slice = buffer.slice(0..bytes);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| dev(&e))?;
-        rx.recv().map_err(|e| dev(&e))?.map_err(|e| dev(&e))?;
         let out = read(&slice.get_mapped_range());
         buffer.unmap();
         Ok(out)
@@ -288,5 +316,23 @@ impl GpuContext {
         let mut out = self.read_buffer(&staging, bytes.next_multiple_of(4))?;
         out.truncate(bytes as usize);
         Ok(out)
+    }
+}
+
+/// A readback requested by [`GpuContext::request_read`] and not yet read; dropped unread, it
+/// gives up the mapping, so the buffer may be used again.
+#[derive(Debug)]
+pub struct PendingRead {
+    /// `None` once read.
+    buffer: Option<wgpu::Buffer>,
+    bytes: u64,
+    rx: std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
+}
+
+impl Drop for PendingRead {
+    fn drop(&mut self) {
+        if let Some(b) = self.buffer.take().filter(|_| self.bytes > 0) {
+            b.unmap();
+        }
     }
 }

@@ -46,9 +46,14 @@ impl std::ops::AddAssign for Transfers {
 pub(crate) struct Ledger(Arc<[AtomicU64; 4]>);
 
 impl Ledger {
+    /// A readback of `bytes` requested (the wait, if the host waits, counts apart).
     pub(crate) fn read_back(&self, bytes: u64) {
-        self.0[0].fetch_add(1, Ordering::Relaxed);
         self.0[1].fetch_add(bytes, Ordering::Relaxed);
+    }
+
+    /// The host waited for the device.
+    pub(crate) fn waited(&self) {
+        self.0[0].fetch_add(1, Ordering::Relaxed);
     }
 
     pub(crate) fn wrote(&self, bytes: u64) {

@@ -60,7 +60,7 @@ mod scan;
 mod sort;
 
 pub use arena::{Arena, ArenaKey};
-pub use context::{GpuContext, GpuOptions, hardware_adapter_available, probe_adapter};
+pub use context::{GpuContext, GpuOptions, PendingRead, hardware_adapter_available, probe_adapter};
 pub use dispatch::{Dispatcher, Encoder, MAX_SLOTS, SLOT, grid};
 pub use kernel::{Binding, Kernel, PassUniform, kernel_source};
 pub use ledger::Transfers;

@@ -273,6 +273,40 @@ fn the_ledger_counts_writes_readbacks_and_submissions() {
     assert_eq!(d, gs_gpu::Transfers { syncs: 1, bytes_down: 4000, bytes_up: 4400, submits: 1 });
 }
 
+/// Readbacks requested together cost one wait: the first read waits for the device, the
+/// second finds its bytes there. A readback dropped unread frees its buffer for the next.
+#[test]
+fn readbacks_requested_together_cost_one_wait() {
+    let Some(ctx) = context() else { return };
+    let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
+    let data = pool.add_storage("data");
+    let stage = [pool.add_staging("first"), pool.add_staging("second")];
+    pool.ensure(data, 64);
+    for s in stage {
+        pool.ensure(s, 64);
+    }
+    ctx.write_buffer(pool.buffer(data), 0, bytemuck::cast_slice(&[5u32; 16]));
+    let copy_all = || {
+        let mut enc = ctx.device().create_command_encoder(&Default::default());
+        for s in stage {
+            enc.copy_buffer_to_buffer(pool.buffer(data), 0, pool.buffer(s), 0, 64);
+        }
+        ctx.queue().submit(Some(enc.finish()));
+    };
+    copy_all();
+    let before = ctx.transfers();
+    let (a, b) = (ctx.request_read(pool.buffer(stage[0]), 64), ctx.request_read(pool.buffer(stage[1]), 32));
+    let first: Vec<u32> = ctx.finish_read(a, bytemuck::pod_collect_to_vec).unwrap();
+    let second: Vec<u32> = ctx.finish_read(b, bytemuck::pod_collect_to_vec).unwrap();
+    assert_eq!((first, second), (vec![5; 16], vec![5; 8]));
+    let d = ctx.transfers() - before;
+    assert_eq!((d.syncs, d.bytes_down), (1, 96), "one wait for both readbacks");
+    // Dropped unread: the buffer maps again.
+    copy_all();
+    drop(ctx.request_read(pool.buffer(stage[0]), 64));
+    assert_eq!(ctx.read_buffer(pool.buffer(stage[0]), 8).unwrap(), bytemuck::cast_slice::<u32, u8>(&[5, 5]));
+}
+
 fn read_arena(ctx: &GpuContext, arena: &Arena, offset: u32, floats: usize) -> Vec<f32> {
     let bytes = ctx.download(arena.buffer(), 4 * offset as u64, 4 * floats as u64).unwrap();
     bytemuck::pod_collect_to_vec(&bytes)

@@ -167,3 +167,35 @@ fn an_evaluation_reads_back_the_gradients_and_one_record_a_row() {
     let t = ctx.transfers() - before;
     assert_eq!((t.syncs, t.bytes_down), (1, (28 * w * h + 16 * h) as u64));
 }
+
+/// L_I and L_nc/L_ns started on one device before either is read cost the host one wait, with
+/// the results of the calls that wait each; a view too large for the device (here: none) or
+/// a finished evaluation leave the executors ready for the next.
+#[test]
+fn evaluations_started_together_cost_one_wait() {
+    let Some((mut normal, ctx)) = gpu_and_context() else { return };
+    let mut image = gs_losses::ImageLossGpu::new(&ctx).unwrap();
+    let (w, h) = (120, 90);
+    let v = view(w, h, 5);
+    let mut rng = Rng::new(6);
+    let photo = Image::from_vec(w, h, 3, (0..3 * w * h).map(|_| rng.uniform()).collect()).unwrap();
+    let rendered = Image::from_vec(w, h, 3, photo.data().iter().map(|p| (p + 0.1 * (rng.uniform() - 0.5)).clamp(0.0, 1.0)).collect()).unwrap();
+    let (icfg, ncfg) = (gs_losses::ImageLossConfig::default(), NormalLossConfig::default());
+    for round in 0..2 {
+        let before = ctx.transfers();
+        let started_i = image.start(&rendered, &photo, Some(&v.guide), Some(1), &icfg).unwrap();
+        let started_n = normal.start(&v.z, &v.normal, Some(&v.alpha), &v.guide, &v.k, &ncfg).unwrap();
+        let li = image.finish(started_i).unwrap();
+        let nl = normal.finish(started_n).unwrap();
+        assert_eq!((ctx.transfers() - before).syncs, 1, "round {round}: one wait for both");
+        let before = ctx.transfers();
+        let li_alone = image.image_loss(&rendered, &photo, Some(&v.guide), &icfg).unwrap();
+        let nl_alone = normal.normal_losses(&v.z, &v.normal, Some(&v.alpha), &v.guide, &v.k, &ncfg).unwrap();
+        assert_eq!((ctx.transfers() - before).syncs, 2, "one wait each");
+        assert_eq!((li.total, li.grad_rendered.data()), (li_alone.total, li_alone.grad_rendered.data()));
+        assert_eq!((nl.l_nc, nl.l_ns, nl.grad_normal.data(), nl.grad_plane_depth.data()), (nl_alone.l_nc, nl_alone.l_ns, nl_alone.grad_normal.data(), nl_alone.grad_plane_depth.data()));
+    }
+    // A started evaluation dropped unread leaves its executor ready for the next.
+    drop(image.start(&rendered, &photo, Some(&v.guide), None, &icfg).unwrap());
+    assert!(image.image_loss(&rendered, &photo, Some(&v.guide), &icfg).is_ok());
+}

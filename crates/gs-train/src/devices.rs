@@ -64,64 +64,67 @@ impl LossDevices {
         Ok(Self::default())
     }
 
-    /// L_I of `rendered` against the photo `gt` of training slot `slot`: on the device when
-    /// there is an executor for it (which keeps each slot's photo and guide there, by
-    /// [`view_key`]), else [`gs_losses::image_loss()`] (the reference).
-    pub fn image_loss(
-        &self,
+    /// L_I of `rendered` against the photo `gt` of training slot `slot`: started on the device
+    /// when there is an executor for it (which keeps each slot's photo and guide there, by
+    /// [`view_key`]), else [`gs_losses::image_loss()`] (the reference), made at once.
+    pub fn start_image_loss<'d>(
+        &'d self,
         rendered: &gs_core::Image,
         gt: &gs_core::Image,
         guide: Option<&gs_losses::EdgeGuide>,
         slot: usize,
         cfg: &gs_losses::ImageLossConfig,
-    ) -> gs_losses::Result<gs_losses::ImageLossOutput> {
+    ) -> gs_losses::Result<Deferred<'d, gs_losses::ImageLossOutput, gs_losses::LossError>> {
         #[cfg(feature = "wgpu")]
         if let Some(d) = &self.image {
-            return d.borrow_mut().image_loss_of_view(rendered, gt, guide, view_key(slot, gt.width(), gt.height()), cfg);
+            let pending = d.borrow_mut().start(rendered, gt, guide, Some(view_key(slot, gt.width(), gt.height())), cfg)?;
+            return Ok(Deferred::later(move || d.borrow_mut().finish(pending)));
         }
         #[cfg(not(feature = "wgpu"))]
         let _ = slot;
-        gs_losses::image_loss(rendered, gt, guide, cfg)
+        Ok(Deferred::ready(gs_losses::image_loss(rendered, gt, guide, cfg)?))
     }
 
-    /// L_nc and L_ns of a rendered view: on the device when there is an executor for them, else
-    /// [`gs_losses::normal_losses`] (the reference).
-    pub fn normal_losses(
-        &self,
+    /// L_nc and L_ns of a rendered view: started on the device when there is an executor for
+    /// them, else [`gs_losses::normal_losses`] (the reference), made at once.
+    pub fn start_normal_losses<'d>(
+        &'d self,
         plane_depth: &gs_core::Image,
         rendered_normal: &gs_core::Image,
         alpha: Option<&gs_core::Image>,
         guide: &gs_losses::EdgeGuide,
         intrinsics: &gs_core::Intrinsics,
         cfg: &gs_losses::NormalLossConfig,
-    ) -> gs_losses::Result<gs_losses::NormalLossOutput> {
+    ) -> gs_losses::Result<Deferred<'d, gs_losses::NormalLossOutput, gs_losses::LossError>> {
         #[cfg(feature = "wgpu")]
         if let Some(d) = &self.normal {
-            return d.borrow_mut().normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg);
+            let pending = d.borrow_mut().start(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?;
+            return Ok(Deferred::later(move || d.borrow_mut().finish(pending)));
         }
-        gs_losses::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)
+        Ok(Deferred::ready(gs_losses::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?))
     }
 
     /// L_p of `reference` over `sources` (`slots`: the reference's training slot, then each
-    /// source's): the patches on the device when there is an executor for them (which keeps
-    /// each slot's grey image there, by [`view_key`]), else [`gs_mvs::photometric_loss`] (the
-    /// reference).
-    pub fn photometric_loss(
-        &self,
+    /// source's): the patches started on the device when there is an executor for them (which
+    /// keeps each slot's grey image there, by [`view_key`]), else [`gs_mvs::photometric_loss`]
+    /// (the reference), made at once.
+    pub fn start_photometric_loss<'d>(
+        &'d self,
         reference: &gs_mvs::PhotometricReference<'_, f32>,
         sources: &[gs_mvs::PhotometricSource<'_, f32>],
         slots: &[usize],
         config: &gs_mvs::PhotometricConfig,
-    ) -> gs_mvs::Result<gs_mvs::PhotometricOutput<f32>> {
+    ) -> gs_mvs::Result<Deferred<'d, gs_mvs::PhotometricOutput<f32>, gs_mvs::MvsError>> {
         #[cfg(feature = "wgpu")]
         if let Some(d) = &self.photometric {
             let greys = std::iter::once(&reference.grey).chain(sources.iter().map(|s| &s.grey));
             let keys: Vec<u64> = slots.iter().zip(greys).map(|(&slot, g)| view_key(slot, g.width, g.height)).collect();
-            return d.borrow_mut().loss_of_views(reference, sources, &keys, config);
+            let pending = d.borrow_mut().start(reference, sources, Some(&keys), config)?;
+            return Ok(Deferred::later(move || d.borrow_mut().finish(pending)));
         }
         #[cfg(not(feature = "wgpu"))]
         let _ = slots;
-        gs_mvs::photometric_loss(reference, sources, config)
+        Ok(Deferred::ready(gs_mvs::photometric_loss(reference, sources, config)?))
     }
 
     /// L_f of `reference` against `sources` (each view's key its training slot): the feature
@@ -181,6 +184,28 @@ impl LossDevices {
             (Some(a), Some((last, first))) => format!("{} and {last} on wgpu ({a}); the other terms on the CPU", first.join(", ")),
             _ => format!("every loss term on the CPU ({})", gs_raster::cpu_threads_in_words()),
         }
+    }
+}
+
+/// A term's result made at once (on the CPU) or started on a device and read when asked:
+/// the device executors' readbacks started before the first is read cost the host one wait.
+pub struct Deferred<'d, T, E>(Box<dyn FnOnce() -> Result<T, E> + 'd>);
+
+impl<'d, T: 'd, E: 'd> Deferred<'d, T, E> {
+    /// A result already made.
+    pub fn ready(value: T) -> Self {
+        Self(Box::new(move || Ok(value)))
+    }
+
+    /// A result that `read` reads (waiting for the device if it has not answered).
+    #[cfg(feature = "wgpu")]
+    fn later(read: impl FnOnce() -> Result<T, E> + 'd) -> Self {
+        Self(Box::new(read))
+    }
+
+    /// The result.
+    pub fn wait(self) -> Result<T, E> {
+        (self.0)()
     }
 }
 

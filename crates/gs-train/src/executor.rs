@@ -317,8 +317,17 @@ impl StepExecutor for ReferenceExecutor {
         };
         let mut values = LossValues::default();
         let mut grads = GradientBuffers::default();
-        for term in plan.terms(run.config) {
-            term.evaluate(&inputs, &plan.weights, &mut grads, &mut values)?;
+        // Every term started before the first is read: the device executors' readbacks then
+        // cost the host one wait. Each term's time is its start and its fold (the wait counts
+        // to the first term read).
+        let terms = plan.terms(run.config);
+        let mut folds = Vec::with_capacity(terms.len());
+        for term in &terms {
+            folds.push(term.start(&inputs, &plan.weights)?);
+            profile.add(phase, term.part(), clock.lap());
+        }
+        for (term, fold) in terms.iter().zip(folds) {
+            fold.apply(&mut grads, &mut values)?;
             profile.add(phase, term.part(), clock.lap());
         }
         values.total = plan.weights.total(&values);

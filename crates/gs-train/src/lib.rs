@@ -81,5 +81,5 @@ pub use profile::{Part, StepProfile};
 pub use refine::RefineReport;
 pub use sh_policy::ShBandDecision;
 pub use source_depths::SourceDepths;
-pub use terms::{GradientBuffers, LossTerm, LossValues, TermInputs};
+pub use terms::{Fold, GradientBuffers, LossTerm, LossValues, TermInputs};
 pub use trainer::{StepReport, TrainState, Trainer};

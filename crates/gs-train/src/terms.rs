@@ -192,6 +192,29 @@ pub trait LossTerm {
 
     /// The part of the iteration its time counts to ([`crate::profile`]).
     fn part(&self) -> Part;
+
+    /// [`LossTerm::evaluate`] in two steps: a term with a device executor submits its work
+    /// here and reads it in the returned [`Fold`], so that the terms started before the first
+    /// fold cost the host one wait for the device; the others evaluate in the fold (the
+    /// default). The folds run in the terms' order.
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
+        Ok(Fold::new(move |grads, values| self.evaluate(x, w, grads, values)))
+    }
+}
+
+/// What a started term does to the gradients and values when its result is read.
+pub struct Fold<'a>(Box<dyn FnOnce(&mut GradientBuffers, &mut LossValues) -> Result<()> + 'a>);
+
+impl<'a> Fold<'a> {
+    /// A fold that runs `f`.
+    pub fn new(f: impl FnOnce(&mut GradientBuffers, &mut LossValues) -> Result<()> + 'a) -> Self {
+        Self(Box::new(f))
+    }
+
+    /// Reads the term's result into `grads` and `values`.
+    pub fn apply(self, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        (self.0)(grads, values)
+    }
 }
 
 fn channel<'a>(c: &'a Option<Image>, name: &str) -> Result<&'a Image> {
@@ -214,11 +237,18 @@ impl LossTerm for ImageTerm {
     }
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        self.start(x, w)?.apply(grads, values)
+    }
+
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
-        let li = x.devices.image_loss(x.color, x.photo, x.guide, x.slot, &cfg)?;
-        (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
-        GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
-        Ok(())
+        let started = x.devices.start_image_loss(x.color, x.photo, x.guide, x.slot, &cfg)?;
+        Ok(Fold::new(move |grads, values| {
+            let li = started.wait()?;
+            (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
+            GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
+            Ok(())
+        }))
     }
 }
 
@@ -239,13 +269,17 @@ impl LossTerm for NormalTerms {
     }
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        self.start(x, w)?.apply(grads, values)
+    }
+
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
         let cfg = NormalLossConfig {
             lambda_nc: if self.consistency { w.lambda_nc } else { 0.0 },
             lambda_ns: if self.smoothing { w.lambda_ns } else { 0.0 },
             ..self.config
         };
         let r = x.render;
-        let nl = x.devices.normal_losses(
+        let started = x.devices.start_normal_losses(
             channel(&r.plane_depth, "plane depth")?,
             channel(&r.normal, "normal")?,
             r.alpha.as_ref(),
@@ -253,11 +287,14 @@ impl LossTerm for NormalTerms {
             &x.camera.intrinsics,
             &cfg,
         )?;
-        values.normal_consistency = self.consistency.then_some(nl.l_nc);
-        values.normal_smoothing = self.smoothing.then_some(nl.l_ns);
-        GradientBuffers::add(&mut grads.normal, nl.grad_normal, 1.0);
-        GradientBuffers::add(&mut grads.plane_depth, nl.grad_plane_depth, 1.0);
-        Ok(())
+        Ok(Fold::new(move |grads, values| {
+            let nl = started.wait()?;
+            values.normal_consistency = self.consistency.then_some(nl.l_nc);
+            values.normal_smoothing = self.smoothing.then_some(nl.l_ns);
+            GradientBuffers::add(&mut grads.normal, nl.grad_normal, 1.0);
+            GradientBuffers::add(&mut grads.plane_depth, nl.grad_plane_depth, 1.0);
+            Ok(())
+        }))
     }
 }
 
@@ -273,6 +310,10 @@ impl LossTerm for PhotometricTerm {
     }
 
     fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        self.start(x, w)?.apply(grads, values)
+    }
+
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
         let r = x.render;
         let reference = PhotometricReference {
             camera: x.camera,
@@ -290,12 +331,15 @@ impl LossTerm for PhotometricTerm {
             })
             .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
         let slots: Vec<usize> = std::iter::once(x.slot).chain(x.sources.iter().map(|s| s.slot)).collect();
-        let lp = x.devices.photometric_loss(&reference, &sources, &slots, &self.config)?;
-        values.photometric = Some(lp.loss);
-        let (gn, gd) = lp.grad_images();
-        GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);
-        GradientBuffers::add(&mut grads.distance, gd, w.lambda_p);
-        Ok(())
+        let started = x.devices.start_photometric_loss(&reference, &sources, &slots, &self.config)?;
+        Ok(Fold::new(move |grads, values| {
+            let lp = started.wait()?;
+            values.photometric = Some(lp.loss);
+            let (gn, gd) = lp.grad_images();
+            GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);
+            GradientBuffers::add(&mut grads.distance, gd, w.lambda_p);
+            Ok(())
+        }))
     }
 }
 

@@ -14,7 +14,7 @@ use crate::gradient::GRAD_NORM_EPS;
 use crate::image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, check_inputs};
 use crate::ssim::{SSIM_C1, SSIM_C2, gaussian_window_1d};
 use gs_core::Image;
-use gs_gpu::{Arena, ArenaKey, Binding, GpuContext, PassUniform};
+use gs_gpu::{Arena, ArenaKey, Binding, GpuContext, PassUniform, PendingRead};
 use std::borrow::Cow;
 
 gs_gpu::wgsl_struct! {
@@ -165,6 +165,23 @@ impl std::fmt::Debug for ImageLossGpu {
     }
 }
 
+/// An evaluation submitted to the device (its readback requested), not read yet.
+struct Submitted {
+    read: PendingRead,
+    dims: Dims,
+    /// Whether the edge term's values were written.
+    edge: bool,
+}
+
+/// An L_I evaluation started by [`ImageLossGpu::start`]: on the device, or already made on the
+/// host (images too large for the device's bindings).
+pub struct PendingImageLoss(Pending);
+
+enum Pending {
+    Device(Submitted, ImageLossConfig),
+    Host(ImageLossOutput),
+}
+
 /// What one evaluation read back: the three terms' means and ∂/∂a.
 struct Terms {
     ssim: f64,
@@ -210,9 +227,10 @@ impl ImageLossGpu {
         if !self.fits(dims) {
             return crate::ssim::ssim_backward(a, b, dims, crate::SsimRegion::Full, weight, grad_a);
         }
-        let Some(t) = self.run(a, Targets { b, guide: None, key: None }, dims, weight, 0.0, 0.0)? else {
+        let Some(submitted) = self.submit(a, Targets { b, guide: None, key: None }, dims, weight, 0.0, 0.0)? else {
             return crate::ssim::ssim_backward(a, b, dims, crate::SsimRegion::Full, weight, grad_a);
         };
+        let t = self.collect(submitted)?;
         for (g, d) in grad_a.iter_mut().zip(&t.grad) {
             *g += d;
         }
@@ -221,35 +239,54 @@ impl ImageLossGpu {
 
     /// [`crate::image_loss()`] on the device: the same inputs, checks and output.
     pub fn image_loss(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
-        self.evaluate(rendered, gt, guide, None, cfg)
+        let pending = self.start(rendered, gt, guide, None, cfg)?;
+        self.finish(pending)
     }
 
     /// [`ImageLossGpu::image_loss`] of a view whose photo `gt` and `guide` stay on the device
     /// under `view` between calls, uploaded only on first use and when evicted: the caller
     /// names one photo and guide by one `view` (e.g. a training view at one resolution).
     pub fn image_loss_of_view(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, view: u64, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
-        self.evaluate(rendered, gt, guide, Some(view), cfg)
+        let pending = self.start(rendered, gt, guide, Some(view), cfg)?;
+        self.finish(pending)
     }
 
-    fn evaluate(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, key: Option<u64>, cfg: &ImageLossConfig) -> Result<ImageLossOutput> {
+    /// Submits [`ImageLossGpu::image_loss_of_view`] (`view` `None`: nothing kept) and returns
+    /// at once; [`ImageLossGpu::finish`] reads the result. Readbacks of several executors on
+    /// one device started before the first finish cost the host one wait. Finish an
+    /// evaluation before starting the next on this executor.
+    pub fn start(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, view: Option<u64>, cfg: &ImageLossConfig) -> Result<PendingImageLoss> {
         let guide = check_inputs(rendered, gt, guide, cfg)?;
         let dims = Dims::of(rendered);
         let b1 = cfg.beta1 as f64;
-        let targets = Targets { b: gt.data(), guide: guide.map(|g| g.gradient.data()), key };
-        let t = match self.fits(dims) {
-            true => self.run(rendered.data(), targets, dims, -b1, 1.0 - b1, cfg.beta2 as f64)?,
+        let targets = Targets { b: gt.data(), guide: guide.map(|g| g.gradient.data()), key: view };
+        let submitted = match self.fits(dims) {
+            true => self.submit(rendered.data(), targets, dims, -b1, 1.0 - b1, cfg.beta2 as f64)?,
             false => None,
         };
-        let Some(t) = t else {
-            return crate::image_loss(rendered, gt, guide, cfg);
-        };
-        ImageLossOutput::assemble(cfg, t.l1, t.ssim, t.edge, Image::from_vec(dims.width, dims.height, dims.channels, t.grad)?)
+        Ok(PendingImageLoss(match submitted {
+            Some(s) => Pending::Device(s, *cfg),
+            None => Pending::Host(crate::image_loss(rendered, gt, guide, cfg)?),
+        }))
     }
 
-    /// One evaluation of `a` against `targets`: SSIM at `w_ssim`, L1 at `w_l1` and, when the
-    /// guide's ∇I is given, the edge term at `w_edge`; their means and the summed gradient.
-    /// `None` when the arena cannot hold the three images at once.
-    fn run(&mut self, a: &[f32], targets: Targets<'_>, dims: Dims, w_ssim: f64, w_l1: f64, w_edge: f64) -> Result<Option<Terms>> {
+    /// The result of a started evaluation (waiting for the device if it has not answered).
+    pub fn finish(&mut self, pending: PendingImageLoss) -> Result<ImageLossOutput> {
+        match pending.0 {
+            Pending::Host(out) => Ok(out),
+            Pending::Device(s, cfg) => {
+                let dims = s.dims;
+                let t = self.collect(s)?;
+                ImageLossOutput::assemble(&cfg, t.l1, t.ssim, t.edge, Image::from_vec(dims.width, dims.height, dims.channels, t.grad)?)
+            }
+        }
+    }
+
+    /// One evaluation of `a` against `targets` submitted: SSIM at `w_ssim`, L1 at `w_l1` and,
+    /// when the guide's ∇I is given, the edge term at `w_edge`; [`ImageLossGpu::collect`]
+    /// reads their means and the summed gradient. `None` when the arena cannot hold the three
+    /// images at once.
+    fn submit(&mut self, a: &[f32], targets: Targets<'_>, dims: Dims, w_ssim: f64, w_l1: f64, w_edge: f64) -> Result<Option<Submitted>> {
         let (n, pixels) = (dims.len(), dims.pixels());
         let gt_gradient = targets.guide;
         let part = |p: u32| targets.key.map(|k| -> ArenaKey { (k, p) });
@@ -325,19 +362,26 @@ impl ImageLossGpu {
         enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, staging, read, bytes);
         k.disp.submit(enc);
         k.ctx.pop_error_scopes().map_err(gpu_error)?;
-        k.ctx
-            .read_mapped(staging, read + bytes, |m| {
+        let read = k.ctx.request_read(staging, read + bytes);
+        Ok(Some(Submitted { read, dims, edge: gt_gradient.is_some() }))
+    }
+
+    /// The means and gradient of a submitted evaluation.
+    fn collect(&mut self, s: Submitted) -> Result<Terms> {
+        let (n, pixels, height) = (s.dims.len(), s.dims.pixels(), s.dims.height);
+        self.k
+            .ctx
+            .finish_read(s.read, |m| {
                 let all = bytemuck::cast_slice::<u8, f32>(m);
-                let (sums, grad) = all.split_at(ROW_SUMS * dims.height);
+                let (sums, grad) = all.split_at(ROW_SUMS * height);
                 let rows = |k: usize| sums.chunks_exact(ROW_SUMS).map(|r| r[k] as f64).sum::<f64>();
                 Terms {
                     ssim: rows(0) / n as f64,
                     l1: rows(1) / n as f64,
-                    edge: gt_gradient.map(|_| rows(2) / pixels as f64),
+                    edge: s.edge.then(|| rows(2) / pixels as f64),
                     grad: grad.to_vec(),
                 }
             })
-            .map(Some)
             .map_err(gpu_error)
     }
 }

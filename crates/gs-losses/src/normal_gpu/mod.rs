@@ -12,7 +12,7 @@ use crate::image_loss::EdgeGuide;
 use crate::normal::{NORMALIZE_EPS, ray_x, ray_y};
 use crate::normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, check_inputs, smoothing_sum};
 use gs_core::{Image, Intrinsics};
-use gs_gpu::{Binding, GpuContext, PassUniform};
+use gs_gpu::{Binding, GpuContext, PassUniform, PendingRead};
 
 gs_gpu::wgsl_struct! {
     /// Constants of one evaluation (binding 0; WGSL `struct NormalFrame`).
@@ -149,13 +149,30 @@ impl NormalGpu {
         intrinsics: &Intrinsics,
         cfg: &NormalLossConfig,
     ) -> Result<NormalLossOutput> {
+        let pending = self.start(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?;
+        self.finish(pending)
+    }
+
+    /// Submits [`NormalGpu::normal_losses`] and returns at once; [`NormalGpu::finish`] reads
+    /// the result. Readbacks of several executors on one device started before the first
+    /// finish cost the host one wait. Finish an evaluation before starting the next on this
+    /// executor.
+    pub fn start(
+        &mut self,
+        plane_depth: &Image,
+        rendered_normal: &Image,
+        alpha: Option<&Image>,
+        guide: &EdgeGuide,
+        intrinsics: &Intrinsics,
+        cfg: &NormalLossConfig,
+    ) -> Result<PendingNormalLosses> {
         check_inputs(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?;
         let (w, h) = (plane_depth.width(), plane_depth.height());
         let n = w * h;
         // The largest records are the inputs and ∂/∂(dx, dy), 24 bytes a pixel.
         let largest = bytes_of::<PixelInput>(1).max(bytes_of::<DiffGrad>(1));
         if n == 0 || n > u32::MAX as usize || n as u64 * largest > self.k.ctx.max_storage_binding() {
-            return crate::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg);
+            return Ok(PendingNormalLosses(Pending::Host(crate::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?)));
         }
         let frame = NormalFrame {
             width: w as u32,
@@ -199,9 +216,20 @@ impl NormalGpu {
         }
         k.disp.submit(enc);
         k.ctx.pop_error_scopes().map_err(gpu_error)?;
-        let (nhat, rows, g_nt, g_z) = k
+        let read = k.ctx.request_read(staging, at);
+        Ok(PendingNormalLosses(Pending::Device { read, cfg: *cfg, size: (w, h), sizes: (vec3, sums) }))
+    }
+
+    /// The result of a started evaluation (waiting for the device if it has not answered).
+    pub fn finish(&mut self, pending: PendingNormalLosses) -> Result<NormalLossOutput> {
+        let (read, cfg, (w, h), (vec3, sums)) = match pending.0 {
+            Pending::Host(out) => return Ok(out),
+            Pending::Device { read, cfg, size, sizes } => (read, cfg, size, sizes),
+        };
+        let (nhat, rows, g_nt, g_z) = self
+            .k
             .ctx
-            .read_mapped(staging, at, |m| {
+            .finish_read(read, |m| {
                 let (nhat, rest) = m.split_at(vec3 as usize);
                 let (rows, rest) = rest.split_at(sums as usize);
                 let (g_nt, g_z) = rest.split_at(vec3 as usize);
@@ -210,8 +238,24 @@ impl NormalGpu {
                 (f(nhat), bytemuck::cast_slice::<u8, PixelTerms>(rows).to_vec(), f(g_nt), f(g_z))
             })
             .map_err(gpu_error)?;
-        NormalLossOutput::assemble(cfg, (w, h), term_sums(&rows, n), nhat, g_z, g_nt)
+        NormalLossOutput::assemble(&cfg, (w, h), term_sums(&rows, w * h), nhat, g_z, g_nt)
     }
+}
+
+/// L_nc and L_ns started by [`NormalGpu::start`]: on the device, or already made on the host
+/// (a view too large for the device's bindings).
+pub struct PendingNormalLosses(Pending);
+
+enum Pending {
+    Device {
+        read: PendingRead,
+        cfg: NormalLossConfig,
+        /// The view's width and height.
+        size: (usize, usize),
+        /// Bytes of N̂ (and of ∂/∂Ñ) and of the rows' sums in the readback.
+        sizes: (u64, u64),
+    },
+    Host(NormalLossOutput),
 }
 
 /// The per-pixel input records from the planar images: z, Ñ, δ and A (0 without alpha).

@@ -22,7 +22,7 @@ use crate::photometric::{
 use crate::visibility::{Visibility, visibility_unchecked};
 use crate::geometry::PairGeometry;
 use rayon::prelude::*;
-use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
+use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, PendingRead, ShrinkPolicy};
 use std::borrow::Cow;
 
 gs_gpu::wgsl_struct! {
@@ -223,7 +223,8 @@ impl PhotometricGpu {
         sources: &[PhotometricSource<'_, f32>],
         config: &PhotometricConfig,
     ) -> Result<PhotometricOutput<f32>> {
-        self.evaluate_views(reference, sources, None, config)
+        let pending = self.start(reference, sources, None, config)?;
+        self.finish(pending)
     }
 
     /// [`PhotometricGpu::loss`] with the grey images kept on the device between calls under
@@ -236,23 +237,29 @@ impl PhotometricGpu {
         keys: &[u64],
         config: &PhotometricConfig,
     ) -> Result<PhotometricOutput<f32>> {
-        if keys.len() != sources.len() + 1 {
-            return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.len(), sources.len())));
-        }
-        self.evaluate_views(reference, sources, Some(keys), config)
+        let pending = self.start(reference, sources, Some(keys), config)?;
+        self.finish(pending)
     }
 
-    fn evaluate_views(
+    /// Submits [`PhotometricGpu::loss_of_views`] (`keys` `None`: nothing kept) and returns
+    /// once the device has the work; [`PhotometricGpu::finish`] reads the result. Readbacks of
+    /// several executors on one device started before the first finish cost the host one
+    /// wait. Finish an evaluation before starting the next on this executor.
+    pub fn start(
         &mut self,
         reference: &PhotometricReference<'_, f32>,
         sources: &[PhotometricSource<'_, f32>],
         keys: Option<&[u64]>,
         config: &PhotometricConfig,
-    ) -> Result<PhotometricOutput<f32>> {
+    ) -> Result<PendingPhotometric> {
+        if keys.is_some_and(|k| k.len() != sources.len() + 1) {
+            return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.map_or(0, <[u64]>::len), sources.len())));
+        }
+        let host = |r| Ok(PendingPhotometric(Pending::Ready(r)));
         check_inputs(reference, sources, config)?;
         let grey_values = reference.grey.data.len() + sources.iter().map(|s| s.grey.data.len()).sum::<usize>();
         if 4 * grey_values as u64 > self.ctx.max_storage_binding() {
-            return photometric_loss(reference, sources, config);
+            return host(photometric_loss(reference, sources, config)?);
         }
         let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
         // υ/ω, the pair geometry and the seeded selection of each source, sources in parallel
@@ -273,7 +280,7 @@ impl PhotometricGpu {
         let greys: Vec<&[f32]> = std::iter::once(reference.grey.data).chain(sources.iter().map(|s| s.grey.data)).collect();
         let items: Vec<_> = greys.iter().enumerate().map(|(i, g)| (keys.map(|k| (k[i], 0)), g.len())).collect();
         let Some(offsets) = self.greys.place(&self.ctx, &items, |i| Cow::Borrowed(greys[i])) else {
-            return photometric_loss(reference, sources, config);
+            return host(photometric_loss(reference, sources, config)?);
         };
         let mut frame = NccFrame {
             width: w as u32,
@@ -307,46 +314,52 @@ impl PhotometricGpu {
             weights.extend(p.picked.iter().map(|e| p.vis.weight(e[0] as usize)));
         }
         if std::mem::size_of::<NccResult>() as u64 * entries.len() as u64 > self.ctx.max_storage_binding() {
-            return photometric_loss(reference, sources, config);
+            return host(photometric_loss(reference, sources, config)?);
         }
-        let mut out = PhotometricOutput {
-            loss: 0.0,
-            per_source: Vec::with_capacity(sources.len()),
-            grad_normal: vec![0.0; w * h * 3],
-            grad_distance: vec![0.0; w * h],
-            width: w,
-            height: h,
-        };
-        let (row_sums, grads) = match entries.is_empty() {
-            true => (vec![reduce::NccRowSums::default(); sources.len() * h], Vec::new()),
-            false => {
-                let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, rays: &rays };
-                self.evaluate(&inputs, reference, &reduce::row_starts(&entries, &ranges, w, h))?
-            }
-        };
-        reduce::unpack_gradient(&mut out, &grads);
-        for (p, rows) in prepared.iter().zip(row_sums.chunks_exact(h.max(1))) {
-            let counted = SourceStats {
+        // What the host counted of each source; the device adds the patches' sums.
+        let counted: Vec<SourceStats> = prepared
+            .iter()
+            .map(|p| SourceStats {
                 visibility: p.vis.stats(),
                 n_candidates: p.selected.iter().filter(|&&s| s != 0).count(),
                 n_sampled: p.picked.len(),
                 ..Default::default()
-            };
-            let stats = reduce::source_stats(counted, rows);
-            out.loss += stats.loss;
-            out.per_source.push(stats);
+            })
+            .collect();
+        let done = Done { counted, width: w, height: h };
+        if entries.is_empty() {
+            return host(done.output(&vec![reduce::NccRowSums::default(); sources.len() * h], &[]));
         }
-        Ok(out)
+        let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, rays: &rays };
+        let (read, row_bytes) = self.submit(&inputs, reference, &reduce::row_starts(&entries, &ranges, w, h))?;
+        Ok(PendingPhotometric(Pending::Device { read, row_bytes, done }))
     }
 
-    /// Uploads the inputs, runs the patch kernel over every entry and the reduction, and reads
-    /// back each (source, row)'s sums and the gradient image in one round trip.
-    fn evaluate(
+    /// The result of a started evaluation (waiting for the device if it has not answered).
+    pub fn finish(&mut self, pending: PendingPhotometric) -> Result<PhotometricOutput<f32>> {
+        let (read, row_bytes, done) = match pending.0 {
+            Pending::Ready(out) => return Ok(out),
+            Pending::Device { read, row_bytes, done } => (read, row_bytes, done),
+        };
+        let (rows, grads): (Vec<reduce::NccRowSums>, Vec<reduce::PlaneGrad>) = self
+            .ctx
+            .finish_read(read, |m| {
+                let (rows, grads) = m.split_at(row_bytes as usize);
+                (bytemuck::pod_collect_to_vec(rows), bytemuck::pod_collect_to_vec(grads))
+            })
+            .map_err(gpu_error)?;
+        Ok(done.output(&rows, &grads))
+    }
+
+    /// Uploads the inputs, runs the patch kernel over every entry and the reduction, and
+    /// requests the readback of each (source, row)'s sums and the gradient image (one round
+    /// trip); returns it with the bytes of the sums.
+    fn submit(
         &mut self,
         inputs: &Inputs<'_>,
         reference: &PhotometricReference<'_, f32>,
         row_starts: &[u32],
-    ) -> Result<(Vec<reduce::NccRowSums>, Vec<reduce::PlaneGrad>)> {
+    ) -> Result<(PendingRead, u64)> {
         let (b, frame) = (&self.bufs, inputs.frame);
         let result_bytes = std::mem::size_of::<NccResult>() as u64;
         let row_bytes = gs_gpu::bytes_of::<reduce::NccRowSums>((frame.sources * frame.height) as usize);
@@ -393,12 +406,45 @@ impl PhotometricGpu {
         enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes);
         self.disp.submit(enc);
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
-        self.ctx
-            .read_mapped(staging, row_bytes + grad_bytes, |m| {
-                let (rows, grads) = m.split_at(row_bytes as usize);
-                (bytemuck::pod_collect_to_vec(rows), bytemuck::pod_collect_to_vec(grads))
-            })
-            .map_err(gpu_error)
+        Ok((self.ctx.request_read(staging, row_bytes + grad_bytes), row_bytes))
+    }
+}
+
+/// L_p started by [`PhotometricGpu::start`]: on the device, or already made (on the host, or
+/// without a patch to evaluate).
+pub struct PendingPhotometric(Pending);
+
+enum Pending {
+    Device { read: PendingRead, row_bytes: u64, done: Done },
+    Ready(PhotometricOutput<f32>),
+}
+
+/// What the output needs besides the device's sums: the host's counts per source and the size.
+struct Done {
+    counted: Vec<SourceStats>,
+    width: usize,
+    height: usize,
+}
+
+impl Done {
+    /// The output from each (source, row)'s sums and the gradient image.
+    fn output(self, rows: &[reduce::NccRowSums], grads: &[reduce::PlaneGrad]) -> PhotometricOutput<f32> {
+        let (w, h) = (self.width, self.height);
+        let mut out = PhotometricOutput {
+            loss: 0.0,
+            per_source: Vec::with_capacity(self.counted.len()),
+            grad_normal: vec![0.0; w * h * 3],
+            grad_distance: vec![0.0; w * h],
+            width: w,
+            height: h,
+        };
+        reduce::unpack_gradient(&mut out, grads);
+        for (counted, rows) in self.counted.into_iter().zip(rows.chunks_exact(h.max(1))) {
+            let stats = reduce::source_stats(counted, rows);
+            out.loss += stats.loss;
+            out.per_source.push(stats);
+        }
+        out
     }
 }
 
