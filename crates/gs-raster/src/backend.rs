@@ -186,6 +186,43 @@ impl Rasterizer {
         }
     }
 
+    /// [`Rasterizer::backward_and_step`] submitted, its outcome read by
+    /// [`Rasterizer::finish_step`] after later work whose wait for the device brings it
+    /// ([`crate::WgpuRasterizer::start_step`]). The CPU backend refuses.
+    #[allow(clippy::too_many_arguments)]
+    pub fn start_step(
+        &mut self,
+        gaussians: &Gaussians,
+        camera: &Camera,
+        config: &RasterConfig,
+        forward: &RenderOutput,
+        grads: &OutputGradients,
+        adam: &mut Adam,
+        extras: StepExtras<'_>,
+    ) -> Result<StartedStep> {
+        match &mut self.inner {
+            Inner::Cpu => {
+                let _ = (gaussians, camera, config, forward, grads, adam, extras);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident; use gs_raster::backward and gs_raster::adam_step".into()))
+            }
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => Ok(StartedStep { pending: r.start_step(gaussians, camera, config, forward, grads, adam, extras)? }),
+        }
+    }
+
+    /// The outcome of a step started by [`Rasterizer::start_step`] (waiting for the device if
+    /// it has not answered).
+    pub fn finish_step(&mut self, started: StartedStep) -> Result<DeviceStep> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.finish_step(started.pending),
+            _ => {
+                let _ = started;
+                Err(crate::RasterError::BackendUnavailable("a step is finished on the rasterizer that started it".into()))
+            }
+        }
+    }
+
     /// Renders like [`crate::render`].
     pub fn render(
         &mut self,
@@ -263,4 +300,11 @@ mod tests {
         ));
         assert_eq!(Rasterizer::new(Backend::Auto).unwrap().backend(), Backend::Cpu);
     }
+}
+
+/// A device step started by [`Rasterizer::start_step`], its outcome not read yet.
+#[derive(Debug)]
+pub struct StartedStep {
+    #[cfg(feature = "wgpu")]
+    pending: crate::PendingStep,
 }

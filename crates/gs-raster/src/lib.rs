@@ -78,12 +78,12 @@ mod types;
 mod validate;
 pub use validate::MAX_LOW_PASS;
 
-pub use backend::{Backend, Rasterizer, cpu_description, cpu_threads_in_words};
+pub use backend::{Backend, Rasterizer, StartedStep, cpu_description, cpu_threads_in_words};
 pub use cpu::project::{JACOBIAN_CLAMP, LOW_PASS, MIN_COMPENSATION};
 pub use cpu::{backward, render, render_naive};
 #[cfg(feature = "wgpu")]
 pub use gpu::{
-    CallTimings, GpuTimings, WgpuOptions, WgpuRasterizer,
+    CallTimings, GpuTimings, PendingStep, WgpuOptions, WgpuRasterizer,
     hardware_adapter_available, probe_adapter,
 };
 pub use types::{

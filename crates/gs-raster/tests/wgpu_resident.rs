@@ -209,3 +209,38 @@ fn the_residency_refuses_other_models_until_released() {
     let (mut moments, mut counts) = (adam.clone(), stats.clone());
     assert!(r.read_resident(&mut g.clone(), Some((&mut moments, &mut counts))).is_err(), "nothing is resident");
 }
+
+/// A step started and finished after the next render costs no wait of its own: the render's
+/// wait brings its flag. The model moves as with the step that waits.
+#[test]
+fn a_started_step_is_read_after_the_next_render_without_a_wait() {
+    let (Some(mut waits), Some(mut defers)) = (gpu(WgpuOptions::default()), gpu(WgpuOptions::default())) else { return };
+    let cfg = RasterConfig::default();
+    let cams = cameras(32, 24);
+    let (mut ga, mut gb) = (random_scene(60, 1, 12, 1.0, (-3.0, -2.0)), random_scene(60, 1, 12, 1.0, (-3.0, -2.0)));
+    let (mut aa, mut ab) = (optimiser(ga.len()), optimiser(gb.len()));
+    let stats = DensifyStats::new(ga.len());
+    waits.make_resident(&ga, &aa, &stats).unwrap();
+    defers.make_resident(&gb, &ab, &stats).unwrap();
+    let req = RenderRequest::default();
+    let grads = Grads::new(32, 24, 2);
+    let color = OutputGradients { color: Some(&grads.color), ..Default::default() };
+    let mut started = None;
+    for s in 0..3 {
+        let out = waits.render(&ga, &cams[s], &req, &cfg).unwrap();
+        assert!(waits.backward_and_step(&ga, &cams[s], &cfg, &out, &color, &mut aa, StepExtras::default()).unwrap().means_finite);
+        let out = defers.render(&gb, &cams[s], &req, &cfg).unwrap();
+        if let Some(step) = started.take() {
+            let before = defers.context().transfers();
+            assert!(defers.finish_step(step).unwrap().means_finite);
+            assert_eq!((defers.context().transfers() - before).syncs, 0, "the render's wait brought the flag");
+        }
+        started = Some(defers.start_step(&gb, &cams[s], &cfg, &out, &color, &mut ab, StepExtras::default()).unwrap());
+    }
+    assert!(defers.finish_step(started.take().unwrap()).unwrap().means_finite);
+    waits.read_resident(&mut ga, None).unwrap();
+    defers.read_resident(&mut gb, None).unwrap();
+    for ((what, a), (_, b)) in parameters(&ga).iter().zip(parameters(&gb).iter()) {
+        assert_eq!(a, b, "{what}: the same step, read later");
+    }
+}

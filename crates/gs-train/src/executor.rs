@@ -91,6 +91,10 @@ pub struct ReferenceExecutor {
     adam_on_device: bool,
     /// What the state's host copy misses of the resident model since its last step.
     behind: Behind,
+    /// The last device step, its divergence flag not read yet (with its iteration): read
+    /// after the next render, whose wait for the device brings it, or before the host reads
+    /// the model.
+    step: Option<(gs_raster::StartedStep, u64)>,
 }
 
 /// What of a resident model the host's [`TrainState`] lacks: a device step moves the
@@ -110,7 +114,7 @@ impl ReferenceExecutor {
     pub fn new(rasterizer: Rasterizer, views: usize, uses: TermsUsed, smoothing: bool) -> Self {
         let (devices, devices_error) = devices_of(&rasterizer, uses);
         let adam_on_device = rasterizer.backend() == gs_raster::Backend::Wgpu && !smoothing;
-        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device, behind: Behind::default() }
+        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device, behind: Behind::default(), step: None }
     }
 
     /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches; `state`
@@ -240,12 +244,30 @@ impl ReferenceExecutor {
     ) -> Result<()> {
         let accumulate = plan.refine.accumulate.then_some(plan.scale as f32);
         let extras = gs_raster::StepExtras { extra_opacity, accumulate };
-        let step = self.rasterizer.backward_and_step(&state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
+        let step = self.rasterizer.start_step(&state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
         self.behind = Behind { parameters: true, optimiser: true };
-        if !step.means_finite {
-            return Err(TrainError::Diverged { iteration: plan.iteration, problem: "gradient of the means is not finite".into() });
+        self.step = Some((step, plan.iteration));
+        Ok(())
+    }
+
+    /// Reads the divergence flag of the last device step, if it has not been read (no wait
+    /// after a render: the render's wait brought it).
+    fn check_step(&mut self) -> Result<()> {
+        if let Some((started, iteration)) = self.step.take()
+            && !self.rasterizer.finish_step(started)?.means_finite
+        {
+            return Err(TrainError::Diverged { iteration, problem: "gradient of the means is not finite".into() });
         }
         Ok(())
+    }
+
+    /// `result` of work after the last device step, unless that step diverged (then its
+    /// error, which explains the failure better).
+    fn after_step<T>(&mut self, result: Result<T>) -> Result<T> {
+        let checked = self.check_step();
+        let value = result?;
+        checked?;
+        Ok(value)
     }
 }
 
@@ -268,11 +290,13 @@ impl StepExecutor for ReferenceExecutor {
         // cost the backward one more render to rebuild that state). Renders are pure, so the
         // order changes no value.
         let max_age = run.config.source_depth_max_age;
-        let rendered_depths = self.render_source_depths(run, state, plan)?;
+        let rendered_depths = self.render_source_depths(run, state, plan);
+        let rendered_depths = self.after_step(rendered_depths)?;
         profile.add(phase, Part::SourceDepths, clock.lap());
         // A step on the device gathers its statistics from the radii there.
         let request = RenderRequest { radii: !self.adam_on_device, ..plan.render };
-        let out = self.rasterizer.render(&state.gaussians, camera, &request, run.raster)?;
+        let out = self.rasterizer.render(&state.gaussians, camera, &request, run.raster).map_err(TrainError::from);
+        let out = self.after_step(out)?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
         let corrected = match &state.exposure {
@@ -386,6 +410,7 @@ impl StepExecutor for ReferenceExecutor {
     }
 
     fn pull(&mut self, state: &mut TrainState) -> Result<()> {
+        self.check_step()?;
         if self.behind != Behind::default() {
             self.rasterizer.read_resident(&mut state.gaussians, Some((&mut state.adam, &mut state.stats)))?;
             self.behind = Behind::default();

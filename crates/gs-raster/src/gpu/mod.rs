@@ -45,6 +45,7 @@ mod forward;
 mod kernels;
 mod resident;
 mod resident_rows;
+pub use resident::PendingStep;
 
 use crate::cpu::project::CamParams;
 use crate::{RasterError, RenderRequest, Result};

@@ -21,7 +21,7 @@ use gs_core::sh::coeffs_for_degree;
 use gs_core::{Adam, Camera, DensifyStats, Gaussians, GroupStep, Param};
 use gs_gpu::{
     Binding, BufId, BufferPool, Dispatcher, Encoder, GeneratedStruct, GpuContext, Kernel,
-    PassUniform, ShrinkPolicy, bytes_of,
+    PassUniform, PendingRead, ShrinkPolicy, bytes_of,
 };
 use rayon::prelude::*;
 use std::time::Instant;
@@ -81,6 +81,15 @@ struct Residency {
     sh_degree: u32,
 }
 
+/// A resident step started by [`WgpuRasterizer::start_step`] whose divergence flag has not
+/// been read; dropped unread, the flag is given up.
+#[derive(Debug)]
+pub struct PendingStep {
+    read: PendingRead,
+    /// When the backward was submitted (its device time counts from here).
+    submitted: Instant,
+}
+
 /// The model's buffers (their own pool: a resident model must never be reallocated by the
 /// shrink policy of a render's frame), the Adam kernels and their dispatcher.
 pub(super) struct Model {
@@ -93,6 +102,9 @@ pub(super) struct Model {
     v_sh: BufId,
     extra: BufId,
     flags: BufId,
+    /// The divergence flag's own readback buffer: a step's flag may be read after the next
+    /// render, which uses the rasterizer's staging buffer.
+    flag_staging: BufId,
     stats: BufId,
     resident: Option<Residency>,
     disp: Dispatcher,
@@ -157,6 +169,7 @@ impl Model {
         let (params, sh, m_params, v_params) = (b("params"), b("sh"), b("m_params"), b("v_params"));
         let (m_sh, v_sh, extra, flags) = (b("m_sh"), b("v_sh"), b("extra_opacity"), b("adam_flags"));
         let stats = b("densify_stats");
+        let flag_staging = pool.add_staging("adam flag readback");
         let decls = gs_gpu::declarations(&adam_structs());
         let specs = adam_specs();
         // Each kernel by its entry point's name, so that the list's order cannot mix them up.
@@ -178,6 +191,7 @@ impl Model {
             v_sh,
             extra,
             flags,
+            flag_staging,
             stats,
             resident: None,
         })
@@ -375,6 +389,25 @@ impl WgpuRasterizer {
         adam: &mut Adam,
         extras: StepExtras<'_>,
     ) -> Result<DeviceStep> {
+        let pending = self.start_step(g, camera, config, forward, grads, adam, extras)?;
+        self.finish_step(pending)
+    }
+
+    /// [`backward_and_step`](Self::backward_and_step) submitted, with the read of its
+    /// divergence flag requested and not waited for: read by
+    /// [`finish_step`](Self::finish_step), after later work (a render) whose wait brings it at
+    /// no cost. Finish a step before starting the next.
+    #[allow(clippy::too_many_arguments)]
+    pub fn start_step(
+        &mut self,
+        g: &Gaussians,
+        camera: &Camera,
+        config: &RasterConfig,
+        forward: &RenderOutput,
+        grads: &OutputGradients,
+        adam: &mut Adam,
+        extras: StepExtras<'_>,
+    ) -> Result<PendingStep> {
         if !self.model.holds(g) {
             return Err(RasterError::Gpu("a device step needs the model resident (make_resident) with these Gaussians".into()));
         }
@@ -394,13 +427,23 @@ impl WgpuRasterizer {
             let t1 = Instant::now();
             r.disp.submit(enc);
             let uniform = AdamUniform::begin_step(adam, nc, &extras, forward.observed.is_some())?;
-            let (step, t2) = r.step_on_device(g.len(), &uniform, extras)?;
-            r.timings.backward = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
-            Ok(step)
+            let read = r.step_on_device(g.len(), &uniform, extras)?;
+            r.timings.backward = GpuTimings { upload: t1 - t0, ..GpuTimings::default() };
+            Ok(PendingStep { read, submitted: t1 })
         });
         // The device's parameters moved: the last render's state is no longer theirs.
         self.frame = None;
         out
+    }
+
+    /// The outcome of a started step (waiting for the device if it has not answered). The
+    /// backward's device time counts until its flag arrived.
+    pub fn finish_step(&mut self, pending: PendingStep) -> Result<DeviceStep> {
+        let PendingStep { read, submitted } = pending;
+        let step = self.ctx.finish_read(read, |flags| DeviceStep { means_finite: u32::from_le_bytes(flags.try_into().expect("4 bytes")) == 0 })?;
+        let t2 = Instant::now();
+        self.timings.backward.device = t2 - submitted;
+        Ok(step)
     }
 
     /// An encoder that zeroes the gradient buffers of `n` Gaussians with `nc` SH coefficients.
@@ -419,8 +462,8 @@ impl WgpuRasterizer {
 
     /// Runs the statistics kernel (when the uniform says so, on the last render's radii and
     /// pixel counts) and the Adam kernels of `n` Gaussians on the gradients in `gout` /
-    /// `gout_sh`, and reads back the divergence flag; also returns when the readback arrived.
-    fn step_on_device(&mut self, n: usize, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<(DeviceStep, Instant)> {
+    /// `gout_sh`, and requests the readback of the divergence flag.
+    fn step_on_device(&mut self, n: usize, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<PendingRead> {
         let nc = uniform.nc as usize;
         let m = &mut self.model;
         match extras.extra_opacity {
@@ -429,9 +472,9 @@ impl WgpuRasterizer {
         }
         m.pool.ensure(m.flags, 4);
         m.disp.write_frame(uniform);
+        m.pool.ensure(m.flag_staging, 4);
         // The statistics read the radii and pixel counts the checked render (or
         // `zero_gradients`) left in their buffers, which hold `n` of each.
-        self.pool.ensure(self.bufs.staging, 4);
         let (m, p, b) = (&self.model, &self.pool, &self.bufs);
         let mut enc = m.disp.encoder();
         enc.encoder.clear_buffer(m.pool.buffer(m.flags), 0, Some(4));
@@ -470,14 +513,10 @@ impl WgpuRasterizer {
             ];
             m.disp.dispatch_1d(&mut enc, &m.adam_sh, &binds, pass)?;
         }
-        let staging = p.buffer(b.staging);
+        let staging = m.pool.buffer(m.flag_staging);
         enc.encoder.copy_buffer_to_buffer(m.pool.buffer(m.flags), 0, staging, 0, 4);
         m.disp.submit(enc);
-        self.ctx.read_mapped(staging, 4, |flags| {
-            let step = DeviceStep { means_finite: u32::from_le_bytes(flags.try_into().expect("4 bytes")) == 0 };
-            (step, Instant::now())
-        })
-        .map_err(RasterError::from)
+        Ok(self.ctx.request_read(staging, 4))
     }
 }
 
