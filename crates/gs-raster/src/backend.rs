@@ -176,14 +176,8 @@ impl Rasterizer {
         adam: &mut Adam,
         extras: StepExtras<'_>,
     ) -> Result<DeviceStep> {
-        match &mut self.inner {
-            Inner::Cpu => {
-                let _ = (gaussians, camera, config, forward, grads, adam, extras);
-                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident; use gs_raster::backward and gs_raster::adam_step".into()))
-            }
-            #[cfg(feature = "wgpu")]
-            Inner::Wgpu(r) => r.backward_and_step(gaussians, camera, config, forward, grads, adam, extras),
-        }
+        let started = self.start_step(gaussians, camera, config, forward, grads, adam, extras)?;
+        self.finish_step(started)
     }
 
     /// [`Rasterizer::backward_and_step`] submitted, its outcome read by

@@ -261,13 +261,13 @@ impl ReferenceExecutor {
         Ok(())
     }
 
-    /// `result` of work after the last device step, unless that step diverged (then its
-    /// error, which explains the failure better).
-    fn after_step<T>(&mut self, result: Result<T>) -> Result<T> {
-        let checked = self.check_step();
-        let value = result?;
-        checked?;
-        Ok(value)
+    /// The error of work after the last device step, unless that step diverged: then the
+    /// divergence, which explains the failure better.
+    fn instead_of(&mut self, error: TrainError) -> TrainError {
+        match self.check_step() {
+            Err(diverged) => diverged,
+            Ok(()) => error,
+        }
     }
 }
 
@@ -290,13 +290,13 @@ impl StepExecutor for ReferenceExecutor {
         // cost the backward one more render to rebuild that state). Renders are pure, so the
         // order changes no value.
         let max_age = run.config.source_depth_max_age;
-        let rendered_depths = self.render_source_depths(run, state, plan);
-        let rendered_depths = self.after_step(rendered_depths)?;
+        let rendered_depths = self.render_source_depths(run, state, plan).map_err(|e| self.instead_of(e))?;
         profile.add(phase, Part::SourceDepths, clock.lap());
         // A step on the device gathers its statistics from the radii there.
         let request = RenderRequest { radii: !self.adam_on_device, ..plan.render };
-        let out = self.rasterizer.render(&state.gaussians, camera, &request, run.raster).map_err(TrainError::from);
-        let out = self.after_step(out)?;
+        let out = self.rasterizer.render(&state.gaussians, camera, &request, run.raster).map_err(|e| self.instead_of(e.into()))?;
+        // The render's wait brought the last step's divergence flag.
+        self.check_step()?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
         let corrected = match &state.exposure {
