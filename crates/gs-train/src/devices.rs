@@ -66,7 +66,7 @@ impl LossDevices {
 
     /// L_I of `rendered` against the photo `gt` of training slot `slot`: started on the device
     /// when there is an executor for it (which keeps each slot's photo and guide there, by
-    /// [`view_key`]), else [`gs_losses::image_loss()`] (the reference), made at once.
+    /// `view_key`), else [`gs_losses::image_loss()`] (the reference), made at once.
     pub fn start_image_loss<'d>(
         &'d self,
         rendered: &gs_core::Image,
@@ -106,7 +106,7 @@ impl LossDevices {
 
     /// L_p of `reference` over `sources` (`slots`: the reference's training slot, then each
     /// source's): the patches started on the device when there is an executor for them (which
-    /// keeps each slot's grey image there, by [`view_key`]), else [`gs_mvs::photometric_loss`]
+    /// keeps each slot's grey image there, by `view_key`), else [`gs_mvs::photometric_loss`]
     /// (the reference), made at once.
     pub fn start_photometric_loss<'d>(
         &'d self,

@@ -203,7 +203,10 @@ pub trait LossTerm {
 }
 
 /// What a started term does to the gradients and values when its result is read.
-pub struct Fold<'a>(Box<dyn FnOnce(&mut GradientBuffers, &mut LossValues) -> Result<()> + 'a>);
+pub struct Fold<'a>(Box<FoldFn<'a>>);
+
+/// The body of a [`Fold`].
+type FoldFn<'a> = dyn FnOnce(&mut GradientBuffers, &mut LossValues) -> Result<()> + 'a;
 
 impl<'a> Fold<'a> {
     /// A fold that runs `f`.
