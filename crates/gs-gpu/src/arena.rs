@@ -1,13 +1,14 @@
 //! Per-view constants kept on the device between calls (docs/architecture.md §GPU): equal
 //! slots in one storage buffer (one binding), each holding one `f32` array under the caller's
-//! key, evicted least recently used. An array is uploaded on first use and whenever it was
+//! key. The buffer starts at a few slots and doubles when full (the arrays held are copied on
+//! the device), up to the budget; then the least recently used array is evicted. An array is uploaded on first use and whenever it was
 //! evicted; an array without a key (one call's input) is uploaded every call into a slot no
 //! other array of that call uses.
 //!
 //! The caller's contract: one key names one content for the arena's life (e.g. a view's photo
 //! at one resolution). The arena checks the length, not the values.
 
-use crate::{Bind, BufId, BufferPool, GpuContext, ShrinkPolicy};
+use crate::{Bind, GpuContext};
 use std::borrow::Cow;
 
 /// A key: the caller's name of a view (or anything constant) and the part of it (two arrays of
@@ -22,10 +23,11 @@ struct Slot {
     used: u64,
 }
 
-/// The arena: its own pool (never shrunk by another frame's policy), slot size and contents.
+/// The arena: its buffer, slot size and contents.
 pub struct Arena {
-    pool: BufferPool,
-    data: BufId,
+    label: &'static str,
+    /// 4 bytes until the first array arrives.
+    data: wgpu::Buffer,
     /// The budget in bytes.
     bytes: u64,
     slot_floats: usize,
@@ -39,25 +41,52 @@ impl std::fmt::Debug for Arena {
     }
 }
 
+/// Slots an arena starts with (it doubles when full, up to its budget).
+const FIRST_SLOTS: usize = 8;
+
 impl Arena {
-    /// An empty arena on `ctx`'s device holding at most `bytes` (and one storage binding).
+    /// An empty arena holding at most `bytes` (and one storage binding of the device it is
+    /// used on); it allocates as its arrays arrive.
     pub fn new(ctx: &GpuContext, label: &'static str, bytes: u64) -> Self {
-        let mut pool = BufferPool::new(ctx, ShrinkPolicy::never());
-        let data = pool.add_storage(label);
-        Self { pool, data, bytes, slot_floats: 0, slots: Vec::new(), clock: 0 }
+        Self { label, data: storage(ctx, label, 4), bytes, slot_floats: 0, slots: Vec::new(), clock: 0 }
     }
 
     /// The offsets (in floats) of the arrays `items` names (key, length), in order, uploading
     /// those not held (`upload(i)` gives item i's values, asked only when it is uploaded);
-    /// `None` when they cannot all be held at once within one binding.
+    /// `None` when they cannot all be held at once within the budget and one binding.
     pub fn place<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], upload: impl Fn(usize) -> Cow<'d, [f32]>) -> Option<Vec<u32>> {
         let largest = items.iter().map(|&(_, floats)| floats).max()?;
+        let held = |arena: &Self, key: Option<ArenaKey>, floats: usize| {
+            key.is_some_and(|k| arena.slots.iter().any(|s| s.is_some_and(|s| s.key == Some(k) && s.floats == floats)))
+        };
         let mut keyed: Vec<ArenaKey> = items.iter().filter_map(|&(k, _)| k).collect();
         keyed.sort_unstable();
         keyed.dedup();
         let needed = keyed.len() + items.iter().filter(|(k, _)| k.is_none()).count();
-        if largest > self.slot_floats || self.slots.len() < needed {
-            self.resize(ctx, largest.max(self.slot_floats), needed)?;
+        if largest > self.slot_floats {
+            // Larger arrays than the slots: new slots, everything held dropped.
+            self.slots.clear();
+            self.slot_floats = largest;
+            let fit = self.fit(ctx);
+            if fit < needed {
+                self.slot_floats = 0;
+                return None;
+            }
+            self.grow(ctx, needed.max(FIRST_SLOTS).min(fit))?;
+        }
+        let missing = items.iter().filter(|&&(k, f)| !held(self, k, f)).count();
+        let free = self.slots.iter().filter(|s| s.is_none()).count();
+        if self.slots.len() < needed || missing > free {
+            // Room for this call's arrays first by growing (doubling, within the budget), then
+            // by evicting.
+            let want = (2 * self.slots.len()).max(self.slots.len() + missing - free.min(missing)).max(needed);
+            let fit = self.fit(ctx);
+            if want.min(fit) < needed {
+                return None;
+            }
+            if self.slots.len() < fit {
+                self.grow(ctx, want.min(fit))?;
+            }
         }
         self.clock += 1;
         let mut offsets = Vec::with_capacity(items.len());
@@ -68,18 +97,32 @@ impl Arena {
         Some(offsets)
     }
 
-    /// Re-creates the slots at `slot_floats` each, as many as the budget and one binding hold
-    /// (at least `needed`, else `None`); everything held is dropped.
-    fn resize(&mut self, ctx: &GpuContext, slot_floats: usize, needed: usize) -> Option<()> {
-        let slot_bytes = 4 * slot_floats as u64;
-        let fit = ctx.max_storage_binding().min(self.bytes) / slot_bytes.max(1);
-        let count = usize::try_from(fit).ok()?;
-        if count < needed || count.checked_mul(slot_floats)? > u32::MAX as usize {
+    /// How many slots of the current size the budget and one binding hold.
+    fn fit(&self, ctx: &GpuContext) -> usize {
+        let slot_bytes = 4 * self.slot_floats.max(1) as u64;
+        let count = ctx.max_storage_binding().min(self.bytes) / slot_bytes;
+        usize::try_from(count).unwrap_or(usize::MAX).min(u32::MAX as usize / self.slot_floats.max(1))
+    }
+
+    /// Grows to `count` slots (at least those held), copying the arrays held on the device;
+    /// `None` when that many do not fit.
+    fn grow(&mut self, ctx: &GpuContext, count: usize) -> Option<()> {
+        let count = count.max(self.slots.len());
+        if count > self.fit(ctx) {
             return None;
         }
-        self.pool.ensure(self.data, slot_bytes * count as u64);
-        self.slot_floats = slot_floats;
-        self.slots = vec![None; count];
+        let bytes = 4 * (count * self.slot_floats) as u64;
+        let buffer = storage(ctx, self.label, bytes);
+        if self.slots.iter().any(Option::is_some) {
+            // Queue order: writes queued so far land in the old buffer before this copy.
+            let mut enc = ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(self.label) });
+            let held = 4 * (self.slots.len() * self.slot_floats) as u64;
+            enc.copy_buffer_to_buffer(&self.data, 0, &buffer, 0, held.min(bytes));
+            ctx.ledger().submitted();
+            ctx.queue().submit(Some(enc.finish()));
+        }
+        self.data = buffer;
+        self.slots.resize(count, None);
         Some(())
     }
 
@@ -98,18 +141,24 @@ impl Arena {
             unused.min_by_key(|(_, s)| s.map(|s| (s.key.is_some(), s.used))).map_or(0, |(i, _)| i)
         });
         let offset = 4 * (i * self.slot_floats) as u64;
-        ctx.write_buffer(self.pool.buffer(self.data), offset, bytemuck::cast_slice(&values()));
+        ctx.write_buffer(&self.data, offset, bytemuck::cast_slice(&values()));
         self.slots[i] = Some(Slot { key, floats, used: clock });
         i
     }
 
     /// The arena bound whole.
     pub fn bind(&self) -> Bind<'_> {
-        self.pool.whole(self.data)
+        Bind::whole(&self.data)
     }
 
     /// The arena's buffer (for copies into or out of a slot).
     pub fn buffer(&self) -> &wgpu::Buffer {
-        self.pool.buffer(self.data)
+        &self.data
     }
+}
+
+/// A storage buffer of `bytes` (at least 4) that copies may read and write.
+fn storage(ctx: &GpuContext, label: &'static str, bytes: u64) -> wgpu::Buffer {
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
+    ctx.device().create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: bytes.max(4), usage, mapped_at_creation: false })
 }

@@ -349,3 +349,30 @@ fn arena_keeps_keyed_arrays_and_evicts_the_least_recently_used() {
     assert_eq!(read_arena(&ctx, &arena, parts[0], 4), data(20.0));
     assert!(arena.place(&ctx, &[(None, 4), (None, 4), (None, 4), (None, 4)], |_| Cow::Owned(data(0.0))).is_none());
 }
+
+/// An arena starts small and doubles when full, keeping what it holds (copied on the device,
+/// nothing uploaded again), until its budget; larger arrays start it again.
+#[test]
+fn arena_grows_and_keeps_its_arrays() {
+    let Some(ctx) = context() else { return };
+    let mut arena = Arena::new(&ctx, "test arena", 64 * 16);
+    let data = |k: u64| vec![k as f32; 4];
+    let mut at = Vec::new();
+    for k in 0..20u64 {
+        let before = ctx.transfers().bytes_up;
+        at.push(arena.place(&ctx, &[(Some((k, 0)), 4)], |_| Cow::Owned(data(k))).unwrap()[0]);
+        assert_eq!(ctx.transfers().bytes_up - before, 16, "key {k}: only its own array goes up");
+    }
+    assert!(arena.buffer().size() < 64 * 16, "grown as needed (to {} bytes), not to the budget", arena.buffer().size());
+    for k in 0..20u64 {
+        let again = arena.place(&ctx, &[(Some((k, 0)), 4)], |_| panic!("key {k} is held")).unwrap()[0];
+        assert_eq!(again, at[k as usize]);
+        assert_eq!(read_arena(&ctx, &arena, again, 4), data(k), "key {k} after the growth");
+    }
+    // Arrays twice as long: new slots, the old arrays uploaded again when asked.
+    let long = arena.place(&ctx, &[(Some((1, 0)), 8)], |_| Cow::Owned(vec![7.0; 8])).unwrap();
+    assert_eq!(read_arena(&ctx, &arena, long[0], 8), vec![7.0; 8]);
+    let before = ctx.transfers().bytes_up;
+    arena.place(&ctx, &[(Some((2, 0)), 4)], |_| Cow::Owned(data(2))).unwrap();
+    assert_eq!(ctx.transfers().bytes_up - before, 16);
+}
