@@ -1,12 +1,9 @@
 //! The wgpu forward: projection, depth sort and intersection counts, then emission, tile sort,
 //! tile ranges, links and the blend, and the readback of the requested planes.
 //!
-//! The intersections size the buffers of the second half. A render of a size rendered before
-//! guesses them (and the blend's window count) from the last render of that size and runs in
-//! one submission and one readback; the counters that come back say whether the guess held
-//! (else it renders again, counting first: two submissions and readbacks, as every render of a
-//! new size does). The guess changes no value: the intersections sort before the padding, and
-//! the windows beyond the longest list blend nothing.
+//! The intersections size the buffers of the second half: a render of a new size counts them
+//! first (two submissions and readbacks); one of a size rendered before guesses them
+//! (`guess.rs`: one submission and readback, rendering again when the guess fell short).
 
 use super::kernels::{ParamRecord, ShCoeff, Splat, TileRect};
 use gs_gpu::bytes_of;
@@ -23,23 +20,8 @@ use gs_gpu::{Encoder, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// How much a guess adds to the last render's intersections and longest list (a quarter).
-const GUESS_MARGIN: u64 = 4;
-
-/// Image sizes whose last render a rasterizer remembers for its guesses.
-const GUESSED_SIZES: usize = 8;
-
-/// What the last render of one image size found: the guess of the next one of that size.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct SizeGuess {
-    width: u32,
-    height: u32,
-    intersections: u64,
-    longest_list: u32,
-}
-
 /// Where each forward output lies in the staging buffer (`None`: not read back).
-struct Readback {
+pub(super) struct Readback {
     /// Accumulator planes read back (colour 0..3, Ñ and D 3..7, depth sum 7).
     planes: Vec<usize>,
     radii: Option<u64>,
@@ -50,7 +32,7 @@ struct Readback {
     planes_at: u64,
     /// The plane depth made on the device ([`device_plane_depth`]).
     plane_depth: Option<u64>,
-    bytes: u64,
+    pub(super) bytes: u64,
 }
 
 /// Whether a render's plane depth is made on the device and read back alone: plane depth
@@ -189,67 +171,6 @@ impl WgpuRasterizer {
         out
     }
 
-    /// The guess for a render of `cam`'s size: the intersections' capacity and the blend's
-    /// window count, from the last render of that size plus a margin, within the request's
-    /// cap and one storage binding; `None` for a size not rendered before.
-    fn guess_of(&self, cam: &CamParams, config: &RasterConfig, n: u64) -> Option<(u32, u32)> {
-        let last = self.guesses.iter().find(|s| s.width == cam.width && s.height == cam.height)?;
-        let grow = |v: u64| v + v / GUESS_MARGIN + 1024;
-        let limit = (config.max_intersections as u64).min(u32::MAX as u64).min(self.ctx.max_storage_binding() / 4);
-        let cap = grow(last.intersections).min(limit);
-        let longest = grow(last.longest_list as u64).min(cap).min(n).max(1);
-        Some((cap as u32, (longest as u32).div_ceil(FWD_WINDOW)))
-    }
-
-    /// Remembers what a render of `cam`'s size found (the latest [`GUESSED_SIZES`] sizes).
-    fn remember(&mut self, cam: &CamParams, intersections: u64, longest_list: u32) {
-        self.guesses.retain(|s| s.width != cam.width || s.height != cam.height);
-        if self.guesses.len() == GUESSED_SIZES {
-            self.guesses.remove(0);
-        }
-        self.guesses.push(SizeGuess { width: cam.width, height: cam.height, intersections, longest_list });
-    }
-
-    /// The render in one submission with the intersections' buffers and the blend's windows
-    /// sized by `guess`; `None` when the counters that come back exceed it (nothing of it is
-    /// kept, and the caller renders again, counting first).
-    #[allow(clippy::too_many_arguments)]
-    fn render_guessed(
-        &mut self,
-        g: &Gaussians,
-        cam: &CamParams,
-        config: &RasterConfig,
-        request: &RenderRequest,
-        bands: &[(u32, u32, u64, u64)],
-        rb: &Readback,
-        (cap, windows): (u32, u32),
-    ) -> Result<Option<((RenderOutput, Instant), Frame)>> {
-        let npix = cam.width as u64 * cam.height as u64;
-        let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
-        self.reserve_projection(g, npix, n_tiles);
-        self.reserve_blend(cap as u64, rb);
-        let mut enc = self.encode_projection(g)?;
-        self.blend(&mut enc, cam, request, bands, g.len() as u32, (cap, windows), rb)?;
-        self.disp.submit(enc);
-        let (out, t2) = self.ctx.read_mapped(self.pool.buffer(self.bufs.staging), rb.bytes, |bytes| {
-            let t2 = Instant::now();
-            let c = counters_of(bytes, rb);
-            let total = c[2] as u64 | (c[3] as u64) << 32;
-            let longest = c[COUNTER_LONGEST_TILE_LIST];
-            if total > cap as u64 || longest > windows.saturating_mul(FWD_WINDOW) {
-                return (None, t2);
-            }
-            let out = self.forward_output(g, cam, config, request, rb, bytes, c[0] as usize, total as u32);
-            (Some(out.map(|(out, max_last)| (out, max_last, total, longest))), t2)
-        })?;
-        let Some(out) = out else {
-            return Ok(None);
-        };
-        let (out, max_last, total, longest) = out?;
-        self.remember(cam, total, longest);
-        Ok(Some(((out, t2), Frame { generation: self.generation, total: total as u32, max_last })))
-    }
-
     /// Phase 1 alone (a render of a size not rendered before, or whose guess fell short):
     /// submitted with its counters' readback; returns the visible Gaussians and the exact
     /// total of intersections.
@@ -265,7 +186,7 @@ impl WgpuRasterizer {
 
     /// The buffers of phase 1 and the per-pixel outputs, before anything is encoded (a buffer
     /// that grows loses its contents).
-    fn reserve_projection(&mut self, g: &Gaussians, npix: u64, n_tiles: u64) {
+    pub(super) fn reserve_projection(&mut self, g: &Gaussians, npix: u64, n_tiles: u64) {
         let nn = g.len() as u64;
         let (p, b) = (&mut self.pool, &self.bufs);
         let (splat, rect) = (bytes_of::<Splat>(1), bytes_of::<TileRect>(1));
@@ -288,7 +209,7 @@ impl WgpuRasterizer {
 
     /// Phase 1 encoded: projection (chunked), depth sort, per-Gaussian tile counts and their
     /// scan; the visible Gaussians and the total of intersections land in `counters`.
-    fn encode_projection(&self, g: &Gaussians) -> Result<Encoder> {
+    pub(super) fn encode_projection(&self, g: &Gaussians) -> Result<Encoder> {
         let n32 = g.len() as u32;
         let nn = n32 as u64;
         let nc = coeffs_for_degree(g.sh_degree) as u64;
@@ -348,7 +269,7 @@ impl WgpuRasterizer {
 
     /// The buffers of phase 2 for `entries` intersections (the exact total, or a guess) and
     /// the staging buffer of `rb`, before anything is encoded.
-    fn reserve_blend(&mut self, entries: u64, rb: &Readback) {
+    pub(super) fn reserve_blend(&mut self, entries: u64, rb: &Readback) {
         let (p, b) = (&mut self.pool, &self.bufs);
         for k in [b.keys_b, b.vals_b, b.keys_c, b.vals_c, b.isect_gid, b.gids, b.isect_pos] {
             p.ensure(k, entries * 4 + 4);
@@ -361,7 +282,7 @@ impl WgpuRasterizer {
     /// after the intersections when `entries` is a guess), sort them by tile, find the tile
     /// ranges and links, blend in `windows` windows, and copy the outputs to the staging buffer.
     #[allow(clippy::too_many_arguments)]
-    fn blend(
+    pub(super) fn blend(
         &self,
         enc: &mut Encoder,
         cam: &CamParams,
@@ -532,7 +453,7 @@ impl WgpuRasterizer {
     /// staging bytes, with the longest list position any pixel blended (the backward's
     /// window count).
     #[allow(clippy::too_many_arguments)]
-    fn forward_output(
+    pub(super) fn forward_output(
         &self,
         g: &Gaussians,
         cam: &CamParams,
@@ -612,7 +533,7 @@ impl WgpuRasterizer {
 }
 
 /// The 16 counters in the staging bytes of a render that copied them.
-fn counters_of(bytes: &[u8], rb: &Readback) -> Vec<u32> {
+pub(super) fn counters_of(bytes: &[u8], rb: &Readback) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(&bytes[rb.counters as usize..rb.counters as usize + 64])
 }
 

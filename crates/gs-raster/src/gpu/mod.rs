@@ -42,6 +42,7 @@
 
 mod backward;
 mod forward;
+mod guess;
 mod kernels;
 mod resident;
 mod resident_rows;
@@ -206,7 +207,7 @@ pub struct WgpuRasterizer {
     model: resident::Model,
     /// What the last renders of a few image sizes found: the next render of such a size
     /// guesses its buffers from it and runs in one submission (`forward.rs`).
-    guesses: Vec<forward::SizeGuess>,
+    guesses: Vec<guess::SizeGuess>,
 }
 
 /// Host-measured wall time of the phases of one call (see [`WgpuRasterizer::timings`]).
