@@ -1,9 +1,9 @@
 //! Per-view constants kept on the device between calls (docs/architecture.md §GPU): equal
 //! slots in one storage buffer (one binding), each holding one `f32` array under the caller's
 //! key. The buffer starts at a few slots and doubles when full (the arrays held are copied on
-//! the device), up to the budget; then the least recently used array is evicted. An array is uploaded on first use and whenever it was
-//! evicted; an array without a key (one call's input) is uploaded every call into a slot no
-//! other array of that call uses.
+//! the device), up to the budget; then the least recently used array is evicted. An array is
+//! uploaded on first use and whenever it was evicted; an array without a key (one call's
+//! input) is uploaded every call into a slot no other array of that call uses.
 //!
 //! The caller's contract: one key names one content for the arena's life (e.g. a view's photo
 //! at one resolution). The arena checks the length, not the values.
@@ -56,9 +56,6 @@ impl Arena {
     /// `None` when they cannot all be held at once within the budget and one binding.
     pub fn place<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], upload: impl Fn(usize) -> Cow<'d, [f32]>) -> Option<Vec<u32>> {
         let largest = items.iter().map(|&(_, floats)| floats).max()?;
-        let held = |arena: &Self, key: Option<ArenaKey>, floats: usize| {
-            key.is_some_and(|k| arena.slots.iter().any(|s| s.is_some_and(|s| s.key == Some(k) && s.floats == floats)))
-        };
         let mut keyed: Vec<ArenaKey> = items.iter().filter_map(|&(k, _)| k).collect();
         keyed.sort_unstable();
         keyed.dedup();
@@ -74,7 +71,7 @@ impl Arena {
             }
             self.grow(ctx, needed.max(FIRST_SLOTS).min(fit))?;
         }
-        let missing = items.iter().filter(|&&(k, f)| !held(self, k, f)).count();
+        let missing = items.iter().filter(|&&(k, f)| self.holding(k, f).is_none()).count();
         let free = self.slots.iter().filter(|s| s.is_none()).count();
         if self.slots.len() < needed || missing > free {
             // Room for this call's arrays first by growing (doubling, within the budget), then
@@ -131,8 +128,7 @@ impl Arena {
     /// recently used.
     fn slot_of<'d>(&mut self, ctx: &GpuContext, key: Option<ArenaKey>, floats: usize, values: impl FnOnce() -> Cow<'d, [f32]>) -> usize {
         let clock = self.clock;
-        let held = key.and_then(|k| self.slots.iter().position(|s| s.is_some_and(|s| s.key == Some(k) && s.floats == floats)));
-        if let Some(i) = held {
+        if let Some(i) = self.holding(key, floats) {
             self.slots[i] = Some(Slot { key, floats, used: clock });
             return i;
         }
@@ -144,6 +140,12 @@ impl Arena {
         ctx.write_buffer(&self.data, offset, bytemuck::cast_slice(&values()));
         self.slots[i] = Some(Slot { key, floats, used: clock });
         i
+    }
+
+    /// The slot holding the array `key` names with `floats` values (never one without a key).
+    fn holding(&self, key: Option<ArenaKey>, floats: usize) -> Option<usize> {
+        let key = key?;
+        self.slots.iter().position(|s| s.is_some_and(|s| s.key == Some(key) && s.floats == floats))
     }
 
     /// The arena bound whole.

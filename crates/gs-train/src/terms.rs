@@ -186,19 +186,19 @@ pub struct TermInputs<'a> {
 
 /// One term (or a group of terms that share their computation) of the loss.
 pub trait LossTerm {
-    /// Evaluates the term on `x`: records its unweighted value(s) in `values` and adds its
-    /// gradient, weighted by `w`, into `grads`.
-    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()>;
+    /// Starts the term on `x`; its [`Fold`] records the unweighted value(s) in `values` and
+    /// adds the gradient, weighted by `w`, into `grads`. A term with a device executor submits
+    /// its work here and reads it in the fold, so that the terms started before the first fold
+    /// cost the host one wait for the device; the others evaluate in the fold. The folds run
+    /// in the terms' order.
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>>;
 
     /// The part of the iteration its time counts to ([`crate::profile`]).
     fn part(&self) -> Part;
 
-    /// [`LossTerm::evaluate`] in two steps: a term with a device executor submits its work
-    /// here and reads it in the returned [`Fold`], so that the terms started before the first
-    /// fold cost the host one wait for the device; the others evaluate in the fold (the
-    /// default). The folds run in the terms' order.
-    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
-        Ok(Fold::new(move |grads, values| self.evaluate(x, w, grads, values)))
+    /// Evaluates the term on `x`: [`LossTerm::start`], then its fold.
+    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+        self.start(x, w)?.apply(grads, values)
     }
 }
 
@@ -239,10 +239,6 @@ impl LossTerm for ImageTerm {
         Part::ImageLoss
     }
 
-    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
-        self.start(x, w)?.apply(grads, values)
-    }
-
     fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
         let started = x.devices.start_image_loss(x.color, x.photo, x.guide, x.slot, &cfg)?;
@@ -269,10 +265,6 @@ pub struct NormalTerms {
 impl LossTerm for NormalTerms {
     fn part(&self) -> Part {
         Part::NormalLosses
-    }
-
-    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
-        self.start(x, w)?.apply(grads, values)
     }
 
     fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
@@ -310,10 +302,6 @@ pub struct PhotometricTerm {
 impl LossTerm for PhotometricTerm {
     fn part(&self) -> Part {
         Part::Photometric
-    }
-
-    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
-        self.start(x, w)?.apply(grads, values)
     }
 
     fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
@@ -354,7 +342,14 @@ impl LossTerm for FeatureTerm {
         Part::Features
     }
 
-    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
+        Ok(Fold::new(move |grads, values| self.align(x, w, grads, values)))
+    }
+}
+
+impl FeatureTerm {
+    /// L_f (on its device executor where there is one), made when the term is folded.
+    fn align(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
         fn view<'a>(camera: &'a Camera, plane_depth: &'a Image, features: &'a FeatureMap, slot: usize) -> AlignView<'a> {
             AlignView { camera, plane_depth: plane_depth.into(), features, key: slot as u64 }
         }
@@ -380,10 +375,12 @@ impl LossTerm for OpacityTerm {
         Part::Optimizer
     }
 
-    fn evaluate(&self, x: &TermInputs<'_>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) -> Result<()> {
-        let logits = &x.gaussians.opacity_logits;
-        let g = grads.opacity_logits.get_or_insert_with(|| vec![0.0; logits.len()]);
-        values.opacity_entropy = Some(opacity_entropy(logits, w.lambda_o, g)?);
-        Ok(())
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
+        Ok(Fold::new(move |grads, values| {
+            let logits = &x.gaussians.opacity_logits;
+            let g = grads.opacity_logits.get_or_insert_with(|| vec![0.0; logits.len()]);
+            values.opacity_entropy = Some(opacity_entropy(logits, w.lambda_o, g)?);
+            Ok(())
+        }))
     }
 }

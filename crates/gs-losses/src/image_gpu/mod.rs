@@ -144,7 +144,7 @@ pub fn image_kernel_source() -> String {
 /// storage binding.
 const ARENA_BYTES: u64 = 512 << 20;
 
-/// What [`ImageLossGpu::run`] compares the rendered image with: b, the guide's ∇I, and the key
+/// What [`ImageLossGpu::submit`] compares the rendered image with: b, the guide's ∇I, and the key
 /// under which both stay on the device between calls (none: uploaded every call).
 struct Targets<'a> {
     b: &'a [f32],

@@ -10,17 +10,15 @@
 //! When the maps of one call do not fit one storage binding of the device, the host evaluates
 //! the call (the reference).
 
-
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{
     AlignView, COS_EPS, FeatureOutput, FeatureSource, add_source, check_inputs, feature_loss_with_weights,
 };
 use crate::geometry::PairGeometry;
 use crate::visibility::{Visibility, visibility_unchecked};
-use gs_gpu::Arena;
-use std::borrow::Cow;
 use gs_features::FeatureMap;
-use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
+use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
+use std::borrow::Cow;
 use rayon::prelude::*;
 
 gs_gpu::wgsl_struct! {
@@ -174,9 +172,9 @@ impl FeatureGpu {
             .zip(&geometry)
             .map(|(s, g)| visibility_unchecked(g, &reference.plane_depth, &s.plane_depth))
             .collect();
-        let maps: Vec<&FeatureMap> = std::iter::once(reference).chain(sources).map(|v| v.features).collect();
-        let items: Vec<_> = std::iter::once(reference).chain(sources).map(|v| (Some((v.key, 0)), v.features.width() * v.features.height() * v.features.channels())).collect();
-        let Some(offsets) = self.arena.place(&self.ctx, &items, |i| Cow::Owned(maps[i].to_f32_vec())) else {
+        let maps: Vec<(u64, &FeatureMap)> = std::iter::once(reference).chain(sources).map(|v| (v.key, v.features)).collect();
+        let items: Vec<_> = maps.iter().map(|(key, m)| (Some((*key, 0)), m.width() * m.height() * m.channels())).collect();
+        let Some(offsets) = self.arena.place(&self.ctx, &items, |i| Cow::Owned(maps[i].1.to_f32_vec())) else {
             return feature_loss_with_weights(&host_ref, &host_sources, &weights);
         };
         let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);

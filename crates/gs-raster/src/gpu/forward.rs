@@ -483,7 +483,7 @@ impl WgpuRasterizer {
             (
                 rb.final_t.map_or_else(Vec::new, |at| f32s(at, npix)),
                 rb.last.map_or_else(Vec::new, |at| u32s(at, npix)),
-                u32s(rb.counters, 16),
+                counters_of(bytes, rb),
                 request.observed.then(|| u32s(rb.observed, n)),
             )
         } else {
