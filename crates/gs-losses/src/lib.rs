@@ -8,6 +8,8 @@
 //!   normal Ñ, with ∂/∂z and ∂/∂Ñ (the caller chains ∂/∂z into Ñ and D).
 //! - [`opacity_entropy`]: L_o (§L_o), the mean binary entropy of the opacities, with ∂/∂logit
 //!   (a parameter-space term: it reads the model, not a render).
+//! - [`smallest_scale_mean`]: L_s (§L_s), PGSR's flattening term, the mean smallest scale, with
+//!   ∂/∂log-scale (parameter-space too).
 //! - [`EdgeGuide`]: ∇I and δ = (1 − ∇I)² of a ground-truth image, computed once per view.
 //! - Metrics: [`psnr`], [`ssim_metric`], [`Lpips`] (AlexNet, v0.1, bundled f16 weights).
 //!
@@ -45,6 +47,7 @@
 mod device;
 pub mod dims;
 pub mod error;
+pub mod flatness;
 pub mod gradient;
 #[cfg(feature = "wgpu")]
 pub mod image_gpu;
@@ -62,6 +65,7 @@ pub mod ssim;
 
 pub use dims::Dims;
 pub use error::{LossError, Result};
+pub use flatness::smallest_scale_mean;
 pub use gs_core::float::Real;
 pub use image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, image_loss};
 pub use lpips::Lpips;

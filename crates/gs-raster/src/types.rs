@@ -318,12 +318,21 @@ pub struct DeviceStep {
 /// What a device step takes besides the render and its gradients.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct StepExtras<'a> {
-    /// A loss term's own ∂L/∂ opacity logit per Gaussian, added to the rasterizer's.
+    /// A loss term's own ∂L/∂ opacity logit per Gaussian (L_o), added to the rasterizer's.
     pub extra_opacity: Option<&'a [f32]>,
+    /// A loss term's own ∂L/∂ log-scale per Gaussian (L_s), added to the rasterizer's.
+    pub extra_log_scales: Option<&'a [[f32; 3]]>,
     /// Accumulate the densification statistics of this view on the device
     /// ([`gs_core::DensifyStats::accumulate`]), its radii counting this many times (the
     /// render's downscale); pixel-weighted when the render counted pixels (`observed`).
     pub accumulate: Option<f32>,
+}
+
+impl StepExtras<'_> {
+    /// Whether a loss term adds parameter gradients of its own.
+    pub fn any_extra(&self) -> bool {
+        self.extra_opacity.is_some() || self.extra_log_scales.is_some()
+    }
 }
 
 /// One Adam step of every parameter of `g` on the host with the gradients `grads`: the CPU

@@ -59,7 +59,7 @@ fn host_and_device(degree: u32, steps: usize, extra: bool, pixels: bool) {
     let (Some(mut host), Some(mut dev)) = (gpu(WgpuOptions::default()), gpu(WgpuOptions::default())) else { return };
     let label = format!(
         "degree {degree}, {steps} steps{}{}",
-        if extra { ", extra opacity gradient" } else { "" },
+        if extra { ", extra opacity and log-scale gradients" } else { "" },
         if pixels { ", pixel-weighted statistics" } else { "" }
     );
     let cfg = RasterConfig { antialiased: true, low_pass: 0.1, ..RasterConfig::default() };
@@ -86,11 +86,17 @@ fn host_and_device(degree: u32, steps: usize, extra: bool, pixels: bool) {
         let cam = &cams[s % cams.len()];
         let grads = Grads::new(w, h, 3 + s as u64);
         let extra_opacity: Option<Vec<f32>> = extra.then(|| (0..n).map(|i| ((i % 7) as f32 - 3.0) * 1e-3).collect());
+        // L_s's shape: on one axis of each Gaussian.
+        let extra_scales: Option<Vec<[f32; 3]>> =
+            extra.then(|| (0..n).map(|i| std::array::from_fn(|k| if k == i % 3 { 2e-3 + (i % 5) as f32 * 1e-4 } else { 0.0 })).collect());
         // Host: the wgpu backward, read back, then the host's Adam.
         let out = host.render(&gh, cam, &req, &cfg).unwrap();
         let mut g = host.backward(&gh, cam, &cfg, &out, &grads.all()).unwrap();
         if let Some(x) = &extra_opacity {
             g.opacity_logits.iter_mut().zip(x).for_each(|(a, b)| *a += b);
+        }
+        if let Some(x) = &extra_scales {
+            g.log_scales.iter_mut().zip(x).for_each(|(a, b)| (0..3).for_each(|k| a[k] += b[k]));
         }
         let scale = 1.0 + s as f32;
         sh.accumulate(&out.radii, out.observed.as_deref(), &g.mean2d, &g.mean2d_abs, scale);
@@ -103,7 +109,7 @@ fn host_and_device(degree: u32, steps: usize, extra: bool, pixels: bool) {
             // rebuilds its own render's state, radii and pixel counts included.
             dev.render(&gd, &cams[(s + 1) % cams.len()], &dreq, &cfg).unwrap();
         }
-        let extras = StepExtras { extra_opacity: extra_opacity.as_deref(), accumulate: Some(scale) };
+        let extras = StepExtras { extra_opacity: extra_opacity.as_deref(), extra_log_scales: extra_scales.as_deref(), accumulate: Some(scale) };
         let before = dev.context().transfers();
         let step = dev.backward_and_step(&gd, cam, &cfg, &out, &grads.all(), &mut ad, extras).unwrap();
         assert!(step.means_finite);
@@ -136,7 +142,7 @@ fn the_device_step_matches_the_host_at_sh_degree_3() {
 }
 
 #[test]
-fn the_device_step_matches_the_host_at_sh_degree_1_with_an_opacity_term_and_pixel_weights() {
+fn the_device_step_matches_the_host_at_sh_degree_1_with_parameter_terms_and_pixel_weights() {
     host_and_device(1, 3, true, true);
 }
 

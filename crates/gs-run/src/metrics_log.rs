@@ -34,17 +34,26 @@ pub const HELDOUT_POINTS: u64 = 10;
 #[derive(Default)]
 struct Sums {
     n: u32,
-    terms: [(f64, u32); 8],
+    terms: [(f64, u32); 9],
 }
 
-const TERMS: [&str; 8] =
-    ["total", "l1", "edge", "normal_consistency", "normal_smoothing", "photometric", "features", "opacity_entropy"];
+const TERMS: [&str; 9] =
+    ["total", "l1", "edge", "normal_consistency", "normal_smoothing", "photometric", "features", "opacity_entropy", "flatness"];
 
 impl Sums {
     fn add(&mut self, r: &StepReport) {
         let l = &r.losses;
-        let values =
-            [Some(l.total), Some(l.l1), l.edge, l.normal_consistency, l.normal_smoothing, l.photometric, l.features, l.opacity_entropy];
+        let values = [
+            Some(l.total),
+            Some(l.l1),
+            l.edge,
+            l.normal_consistency,
+            l.normal_smoothing,
+            l.photometric,
+            l.features,
+            l.opacity_entropy,
+            l.flatness,
+        ];
         for (slot, v) in self.terms.iter_mut().zip(values) {
             if let Some(v) = v {
                 slot.0 += v;

@@ -229,7 +229,7 @@ impl ReferenceExecutor {
     }
 
     /// The backward and the Adam step on the device ([`Rasterizer::backward_and_step`]), with
-    /// the loss terms' own opacity gradient `extra_opacity`; the densification statistics
+    /// the parameter-space terms' own gradients (L_o, L_s) from `parameter_grads`; the densification statistics
     /// accumulate there too when the plan says so.
     #[allow(clippy::too_many_arguments)]
     fn device_step(
@@ -240,10 +240,14 @@ impl ReferenceExecutor {
         camera: &gs_core::Camera,
         out: &gs_raster::RenderOutput,
         grads: &gs_raster::OutputGradients,
-        extra_opacity: Option<&[f32]>,
+        parameter_grads: &GradientBuffers,
     ) -> Result<()> {
         let accumulate = plan.refine.accumulate.then_some(plan.scale as f32);
-        let extras = gs_raster::StepExtras { extra_opacity, accumulate };
+        let extras = gs_raster::StepExtras {
+            extra_opacity: parameter_grads.opacity_logits.as_deref(),
+            extra_log_scales: parameter_grads.log_scales.as_deref(),
+            accumulate,
+        };
         let step = self.rasterizer.start_step(&state.gaussians, camera, run.raster, out, grads, &mut state.adam, extras)?;
         self.behind = Behind { parameters: true, optimiser: true };
         self.step = Some((step, plan.iteration));
@@ -304,8 +308,8 @@ impl StepExecutor for ReferenceExecutor {
             None => None,
         };
         profile.add(phase, Part::Render, clock.lap());
-        if plan.weights.lambda_o > 0.0 && self.behind.parameters {
-            // L_o reads the opacity logits, which moved on the device only.
+        if (plan.weights.lambda_o > 0.0 || plan.weights.lambda_s > 0.0) && self.behind.parameters {
+            // L_o and L_s read the opacity logits and log-scales, which moved on the device only.
             self.rasterizer.read_resident(&mut state.gaussians, None)?;
             self.behind.parameters = false;
         }
@@ -371,12 +375,15 @@ impl StepExecutor for ReferenceExecutor {
         let output_grads = grads.as_output(Some(&grad_color));
         if self.adam_on_device {
             // Backward and Adam in one device submission: their time is the backward's.
-            self.device_step(run, state, plan, camera, &out, &output_grads, grads.opacity_logits.as_deref())?;
+            self.device_step(run, state, plan, camera, &out, &output_grads, &grads)?;
             profile.add(phase, Part::Backward, clock.lap());
         } else {
             let mut g = self.rasterizer.backward(&state.gaussians, camera, run.raster, &out, &output_grads)?;
             if let Some(go) = &grads.opacity_logits {
                 g.opacity_logits.iter_mut().zip(go).for_each(|(a, b)| *a += b);
+            }
+            if let Some(gs) = &grads.log_scales {
+                g.log_scales.iter_mut().zip(gs).for_each(|(a, b)| (0..3).for_each(|k| a[k] += b[k]));
             }
             // Rendered through the 3D smoothing filter: back to the raw parameters for Adam
             // and density control (the trainer applies the filter again after them).

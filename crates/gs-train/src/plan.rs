@@ -10,7 +10,7 @@
 
 use crate::config::{Phase, TrainConfig};
 use crate::config::LossWeights;
-use crate::terms::{FeatureTerm, ImageTerm, LossTerm, NormalTerms, OpacityTerm, PhotometricTerm};
+use crate::terms::{FeatureTerm, FlatnessTerm, ImageTerm, LossTerm, NormalTerms, OpacityTerm, PhotometricTerm};
 use gs_core::{ExponentialLr, Rng};
 use gs_losses::NormalLossConfig;
 use gs_mvs::{PhotometricConfig, SourceViewSelector};
@@ -87,6 +87,9 @@ impl StepPlan {
         if self.weights.lambda_o > 0.0 {
             terms.push(Box::new(OpacityTerm));
         }
+        if self.weights.lambda_s > 0.0 {
+            terms.push(Box::new(FlatnessTerm));
+        }
         terms
     }
 
@@ -154,6 +157,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         lambda_f: if phase.features && !sources.is_empty() { w.lambda_f } else { 0.0 },
         tau: w.tau,
         lambda_o: if it > config.warmup_end { w.lambda_o } else { 0.0 },
+        lambda_s: w.lambda_s,
     };
     let mut refine = if gathering {
         RefinePlan {

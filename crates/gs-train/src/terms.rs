@@ -1,6 +1,6 @@
 //! The loss-term contract (docs/method.md §Losses): every term of
-//! L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f + λ_o·L_o reads the rendered view (or, L_o, the
-//! model), records its unweighted value(s) in [`LossValues`] and adds its weighted gradient into
+//! L = L_I + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f + λ_o·L_o + λ_s·L_s reads the rendered view (or,
+//! L_o and L_s, the model), records its unweighted value(s) in [`LossValues`] and adds its weighted gradient into
 //! [`GradientBuffers`]: the renderer's output-gradient buffers, or the parameter gradients that
 //! join the rasterizer's.
 //! The weights come from one place (the [`LossWeights`] of the step plan: the configuration's,
@@ -16,7 +16,7 @@ use crate::profile::Part;
 use crate::devices::LossDevices;
 use gs_core::{Camera, Gaussians, Image};
 use gs_features::FeatureMap;
-use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, opacity_entropy};
+use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, opacity_entropy, smallest_scale_mean};
 use gs_mvs::{
     AlignView, PhotometricConfig, PhotometricReference, PhotometricSource,
 };
@@ -38,6 +38,8 @@ pub mod term_name {
     pub const FEATURES: &str = "L_f";
     /// The opacity entropy.
     pub const OPACITY: &str = "L_o";
+    /// The flattening term (the mean smallest scale).
+    pub const FLATNESS: &str = "L_s";
     /// The edge weight of L_nc and L_ns.
     pub const DELTA: &str = "δ";
 }
@@ -61,13 +63,15 @@ pub struct LossValues {
     pub features: Option<f64>,
     /// L_o, the mean opacity entropy.
     pub opacity_entropy: Option<f64>,
+    /// L_s, the mean smallest scale.
+    pub flatness: Option<f64>,
     /// The weighted total L.
     pub total: f64,
 }
 
 impl LossValues {
     /// The optional terms' values by name ([`term_name`]), in the order of L.
-    pub fn optional_terms(&self) -> [(&'static str, Option<f64>); 6] {
+    pub fn optional_terms(&self) -> [(&'static str, Option<f64>); 7] {
         [
             (term_name::EDGE, self.edge),
             (term_name::NORMAL_CONSISTENCY, self.normal_consistency),
@@ -75,12 +79,13 @@ impl LossValues {
             (term_name::PHOTOMETRIC, self.photometric),
             (term_name::FEATURES, self.features),
             (term_name::OPACITY, self.opacity_entropy),
+            (term_name::FLATNESS, self.flatness),
         ]
     }
 }
 
 impl LossWeights {
-    /// L = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L_edge + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f + λ_o·L_o of
+    /// L = (1 − β1)·L1 + β1·(1 − SSIM) + β2·L_edge + λ1·L_nc + λ2·L_ns + λ3·L_p + λ4·L_f + λ_o·L_o + λ_s·L_s of
     /// recorded values (absent terms count 0). The step plan's weights are zero for the terms
     /// its phase leaves off.
     pub fn total(&self, v: &LossValues) -> f64 {
@@ -94,6 +99,7 @@ impl LossWeights {
             + w(self.lambda_p) * v.photometric.unwrap_or(0.0)
             + w(self.lambda_f) * v.features.unwrap_or(0.0)
             + w(self.lambda_o) * v.opacity_entropy.unwrap_or(0.0)
+            + w(self.lambda_s) * v.flatness.unwrap_or(0.0)
     }
 }
 
@@ -110,6 +116,8 @@ pub struct GradientBuffers {
     pub plane_depth: Option<Image>,
     /// ∂L/∂opacity logit of the parameter-space terms (L_o), added to the rasterizer's.
     pub opacity_logits: Option<Vec<f32>>,
+    /// ∂L/∂log-scale of the parameter-space terms (L_s), added to the rasterizer's.
+    pub log_scales: Option<Vec<[f32; 3]>>,
 }
 
 impl GradientBuffers {
@@ -380,6 +388,25 @@ impl LossTerm for OpacityTerm {
             let logits = &x.gaussians.opacity_logits;
             let g = grads.opacity_logits.get_or_insert_with(|| vec![0.0; logits.len()]);
             values.opacity_entropy = Some(opacity_entropy(logits, w.lambda_o, g)?);
+            Ok(())
+        }))
+    }
+}
+
+/// L_s, PGSR's flattening term: the mean smallest scale of the model (a parameter-space term;
+/// docs/method.md §L_s).
+pub struct FlatnessTerm;
+
+impl LossTerm for FlatnessTerm {
+    fn part(&self) -> Part {
+        Part::Optimizer
+    }
+
+    fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
+        Ok(Fold::new(move |grads, values| {
+            let rows = &x.gaussians.log_scales;
+            let g = grads.log_scales.get_or_insert_with(|| vec![[0.0; 3]; rows.len()]);
+            values.flatness = Some(smallest_scale_mean(rows, w.lambda_s, g)?);
             Ok(())
         }))
     }

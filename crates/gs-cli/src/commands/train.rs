@@ -287,7 +287,7 @@ pub struct TrainReport {
 pub(super) fn describe(r: &StepReport) -> String {
     let l = &r.losses;
     let mut s = format!("L {:.4} L1 {:.4}", l.total, l.l1);
-    for (name, v) in [("nc", l.normal_consistency), ("ns", l.normal_smoothing), ("Lp", l.photometric), ("Lf", l.features), ("Lo", l.opacity_entropy)] {
+    for (name, v) in [("nc", l.normal_consistency), ("ns", l.normal_smoothing), ("Lp", l.photometric), ("Lf", l.features), ("Lo", l.opacity_entropy), ("Ls", l.flatness)] {
         if let Some(v) = v {
             s.push_str(&format!(" {name} {v:.4}"));
         }

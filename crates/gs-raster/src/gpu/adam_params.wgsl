@@ -1,5 +1,6 @@
 // The parameters other than SH: means, log-scales, rotation and opacity logit, each with its
-// group's step, plus the extra opacity-logit gradient of a loss term when `adam.extra_opacity`.
+// group's step, plus the parameter-space loss terms' own gradients (L_o's on the opacity logit,
+// L_s's on the log-scales) when `adam.extra`.
 @compute @workgroup_size(256)
 fn adam_params(ids: Ids) {
     let i = thread_1d(ids);
@@ -11,6 +12,15 @@ fn adam_params(ids: Ids) {
     if (!(is_finite(g.mean[0]) && is_finite(g.mean[1]) && is_finite(g.mean[2]))) {
         atomicOr(&flags[0], 1u);
     }
+    var gl = g.log_scale;
+    var go = g.opacity_logit;
+    if (adam.extra != 0u) {
+        let e = extra[i];
+        go += e.opacity_logit;
+        for (var k = 0u; k < 3u; k++) {
+            gl[k] += e.log_scale[k];
+        }
+    }
     var p = params[i];
     var m = m_params[i];
     var v = v_params[i];
@@ -19,7 +29,7 @@ fn adam_params(ids: Ids) {
         p.mean[k] = a.x;
         m.mean[k] = a.y;
         v.mean[k] = a.z;
-        let b = adam_scalar(p.log_scale[k], m.log_scale[k], v.log_scale[k], g.log_scale[k], adam.step_log_scales, adam.bc2_log_scales);
+        let b = adam_scalar(p.log_scale[k], m.log_scale[k], v.log_scale[k], gl[k], adam.step_log_scales, adam.bc2_log_scales);
         p.log_scale[k] = b.x;
         m.log_scale[k] = b.y;
         v.log_scale[k] = b.z;
@@ -34,10 +44,6 @@ fn adam_params(ids: Ids) {
     p.rot_x = x.x; m.rot_x = x.y; v.rot_x = x.z;
     p.rot_y = y.x; m.rot_y = y.y; v.rot_y = y.z;
     p.rot_z = z.x; m.rot_z = z.y; v.rot_z = z.z;
-    var go = g.opacity_logit;
-    if (adam.extra_opacity != 0u) {
-        go += extra_opacity[i];
-    }
     let o = adam_scalar(p.opacity_logit, m.opacity_logit, v.opacity_logit, go, adam.step_opacity, adam.bc2_opacity);
     p.opacity_logit = o.x;
     m.opacity_logit = o.y;

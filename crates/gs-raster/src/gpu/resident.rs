@@ -32,8 +32,8 @@ gs_gpu::wgsl_struct! {
     pub(crate) struct AdamUniform as "AdamStep" {
         /// SH coefficients per Gaussian on the device (the active degree's).
         nc: u32,
-        /// 1 when a loss term adds its own opacity-logit gradient (binding `extra_opacity`).
-        extra_opacity: u32,
+        /// 1 when loss terms add their own parameter gradients (binding `extra`).
+        extra: u32,
         /// 1 when the step accumulates the densification statistics (densify_stats.wgsl).
         accumulate: u32,
         /// 1 when each view counts the pixels the Gaussian is in front of (binding `observed`).
@@ -55,6 +55,17 @@ gs_gpu::wgsl_struct! {
         bc2_log_scales: f32,
         step_rotations: f32,
         bc2_rotations: f32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// The parameter-space loss terms' own gradients of one Gaussian (WGSL `struct
+    /// ExtraGrad`; [`StepExtras`]), added to the backward's by adam_params.wgsl. 16 bytes.
+    pub(crate) struct ExtraGrad as "ExtraGrad" {
+        /// ∂L/∂ opacity logit (L_o).
+        opacity_logit: f32,
+        /// ∂L/∂ log-scale (L_s).
+        log_scale: [f32; 3],
     }
 }
 
@@ -114,9 +125,10 @@ pub(super) struct Model {
 }
 
 /// The structs of the Adam kernels (declarations and layout test).
-fn adam_structs() -> [GeneratedStruct; 5] {
+fn adam_structs() -> [GeneratedStruct; 6] {
     [
         GeneratedStruct::of::<AdamUniform>(),
+        GeneratedStruct::of::<ExtraGrad>(),
         GeneratedStruct::of::<ParamRecord>(),
         GeneratedStruct::of::<ShCoeff>(),
         GeneratedStruct::of::<ParamGrad>(),
@@ -140,7 +152,7 @@ fn adam_specs() -> [(&'static str, &'static str, Vec<Binding<'static>>); 3] {
                 B::write("m_params", par),
                 B::write("v_params", par),
                 B::read("grads", "array<ParamGrad>"),
-                B::read("extra_opacity", "array<f32>"),
+                B::read("extra", "array<ExtraGrad>"),
                 B::write("flags", "array<atomic<u32>>"),
             ],
         ),
@@ -167,7 +179,7 @@ impl Model {
         let mut pool = BufferPool::new(ctx, ShrinkPolicy::default());
         let mut b = |l| pool.add_storage(l);
         let (params, sh, m_params, v_params) = (b("params"), b("sh"), b("m_params"), b("v_params"));
-        let (m_sh, v_sh, extra, flags) = (b("m_sh"), b("v_sh"), b("extra_opacity"), b("adam_flags"));
+        let (m_sh, v_sh, extra, flags) = (b("m_sh"), b("v_sh"), b("extra_grads"), b("adam_flags"));
         let stats = b("densify_stats");
         let flag_staging = pool.add_staging("adam flag readback");
         let decls = gs_gpu::declarations(&adam_structs());
@@ -346,7 +358,7 @@ impl AdamUniform {
         let (means, dc, rest, opacity, scales, rot) = (means?, dc?, rest?, opacity?, scales?, rot?);
         Ok(Self {
             nc: nc as u32,
-            extra_opacity: extras.extra_opacity.is_some() as u32,
+            extra: extras.any_extra() as u32,
             accumulate: extras.accumulate.is_some() as u32,
             pixel_weighted: pixel_weighted as u32,
             radius_scale: extras.accumulate.unwrap_or(1.0),
@@ -416,6 +428,11 @@ impl WgpuRasterizer {
         {
             return Err(RasterError::InvalidGradients(format!("{} extra opacity gradients for {} Gaussians", x.len(), g.len())));
         }
+        if let Some(x) = extras.extra_log_scales
+            && x.len() != g.len()
+        {
+            return Err(RasterError::InvalidGradients(format!("{} extra log-scale gradients for {} Gaussians", x.len(), g.len())));
+        }
         let checked = self.checked_frame(g, camera, config, forward, grads)?;
         let t0 = Instant::now();
         let out = self.scoped(|r| {
@@ -466,9 +483,14 @@ impl WgpuRasterizer {
     fn step_on_device(&mut self, n: usize, uniform: &AdamUniform, extras: StepExtras<'_>) -> Result<PendingRead> {
         let nc = uniform.nc as usize;
         let m = &mut self.model;
-        match extras.extra_opacity {
-            Some(x) => upload_with(&self.ctx, &mut m.pool, m.extra, n, |out: &mut [f32]| out.copy_from_slice(x)),
-            None => m.pool.ensure(m.extra, 4),
+        match extras.any_extra() {
+            true => upload_with(&self.ctx, &mut m.pool, m.extra, n, |out: &mut [ExtraGrad]| {
+                for (i, e) in out.iter_mut().enumerate() {
+                    e.opacity_logit = extras.extra_opacity.map_or(0.0, |x| x[i]);
+                    e.log_scale = extras.extra_log_scales.map_or([0.0; 3], |x| x[i]);
+                }
+            }),
+            false => m.pool.ensure(m.extra, bytes_of::<ExtraGrad>(1)),
         }
         m.pool.ensure(m.flags, 4);
         m.disp.write_frame(uniform);
@@ -492,9 +514,10 @@ impl WgpuRasterizer {
                 ];
                 m.disp.dispatch_1d(&mut enc, &m.densify_stats, &binds, pass)?;
             }
-            let extra = match extras.extra_opacity {
-                Some(_) => m.pool.range(m.extra, bb * 4, c * 4),
-                None => m.pool.whole(m.extra),
+            let xr = bytes_of::<ExtraGrad>(1);
+            let extra = match extras.any_extra() {
+                true => m.pool.range(m.extra, bb * xr, c * xr),
+                false => m.pool.whole(m.extra),
             };
             let binds = [
                 m.pool.range(m.params, bb * rec, c * rec),

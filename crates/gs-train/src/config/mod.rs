@@ -136,6 +136,9 @@ pub struct LossWeights {
     /// λ_o, L_o (the opacity entropy; from the end of the colour warm-up on).
     #[serde(default)]
     pub lambda_o: f32,
+    /// λ_s, L_s (PGSR's flattening term, the mean smallest scale; the whole run).
+    #[serde(default)]
+    pub lambda_s: f32,
 }
 
 impl Default for LossWeights {
@@ -150,6 +153,7 @@ impl Default for LossWeights {
             lambda_f: LAMBDA_F,
             tau: normal_loss::TAU,
             lambda_o: gs_losses::opacity::LAMBDA_O,
+            lambda_s: gs_losses::flatness::LAMBDA_S,
         }
     }
 }

@@ -48,6 +48,7 @@ impl TrainConfig {
             ("lambda_f", w.lambda_f),
             ("tau", w.tau),
             ("lambda_o", w.lambda_o),
+            ("lambda_s", w.lambda_s),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(format!("{name} = {v} must be finite and ≥ 0"));
