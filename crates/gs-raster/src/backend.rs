@@ -114,6 +114,12 @@ impl Rasterizer {
         }
     }
 
+    /// Whether [`render_views`](Self::render_views) saves waits over renders one by one (a
+    /// device backend; on the CPU it renders them one by one).
+    pub fn renders_together(&self) -> bool {
+        !matches!(self.inner, Inner::Cpu)
+    }
+
     /// Whether a model is resident on this rasterizer's device (never on the CPU backend).
     pub fn is_resident(&self) -> bool {
         match &self.inner {
@@ -229,6 +235,22 @@ impl Rasterizer {
             Inner::Cpu => crate::render(gaussians, camera, request, config),
             #[cfg(feature = "wgpu")]
             Inner::Wgpu(r) => r.render(gaussians, camera, request, config),
+        }
+    }
+
+    /// Renders `views` in order, each like [`Rasterizer::render`] (the same outputs). On wgpu
+    /// the renders of sizes rendered before are submitted one after another and read back
+    /// with one wait; the last view's device state is the one a backward reuses.
+    pub fn render_views(
+        &mut self,
+        gaussians: &Gaussians,
+        views: &[(&Camera, RenderRequest)],
+        config: &RasterConfig,
+    ) -> Result<Vec<RenderOutput>> {
+        match &mut self.inner {
+            Inner::Cpu => views.iter().map(|(camera, request)| crate::render(gaussians, camera, request, config)).collect(),
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.render_views(gaussians, views, config),
         }
     }
 

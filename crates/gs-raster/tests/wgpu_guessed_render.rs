@@ -3,7 +3,9 @@
 //! one submission and one readback (gs-raster `gpu/forward.rs`). The guess must change no
 //! value: these tests compare its renders and backwards bit for bit with those of a fresh
 //! rasterizer, whose first render of a size counts first, and check that a guess that falls
-//! short (too few intersections, too few windows) is caught and rendered again.
+//! short (too few intersections, too few windows) is caught and rendered again. Several views
+//! rendered together (`render_views`, a training step's source depths and its reference) cost
+//! one wait with the same bits.
 //!
 //! Without any wgpu adapter the tests print a skip message and return (a failure under
 //! `CI=true`).
@@ -107,4 +109,75 @@ fn a_tile_list_longer_than_the_guessed_windows_is_blended_whole() {
     let color = out.color.as_ref().unwrap();
     let at = |x: usize, y: usize| color.data()[(y * 48 + x) * 3];
     assert_ne!(at(28, 28), at(2, 2), "the back of the list colours its pixels");
+}
+
+/// A fresh rasterizer's render of `g` from `cam` (its first of that size: counted).
+fn fresh_render(g: &Gaussians, cam: &Camera, req: &RenderRequest) -> RenderOutput {
+    gpu(WgpuOptions::default()).expect("the adapter of the test").render(g, cam, req, &RasterConfig::default()).unwrap()
+}
+
+/// Renders `views` of `g` together: the waits, the outputs, and the gradients of a backward of
+/// the last output with the waits it cost.
+fn together(r: &mut WgpuRasterizer, g: &Gaussians, views: &[(&Camera, RenderRequest)]) -> (u64, Vec<RenderOutput>, (u64, gs_raster::GaussianGradients)) {
+    let cfg = RasterConfig::default();
+    let before = r.context().transfers();
+    let outs = r.render_views(g, views, &cfg).unwrap();
+    let syncs = (r.context().transfers() - before).syncs;
+    let cam = views.last().unwrap().0;
+    let grads = Grads::new(cam.width, cam.height, 3);
+    let og = OutputGradients { color: Some(&grads.color), alpha: Some(&grads.alpha), plane_depth: Some(&grads.plane_depth), ..OutputGradients::default() };
+    let before = r.context().transfers();
+    let back = r.backward(g, cam, &cfg, outs.last().unwrap(), &og).unwrap();
+    (syncs, outs, ((r.context().transfers() - before).syncs, back))
+}
+
+#[test]
+fn views_rendered_together_cost_one_wait_with_the_same_bits() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cams = cameras(96, 72);
+    let other_size = camera(80, 64, 70.0, DVec3::new(0.3, 0.2, -4.0));
+    let small = random_scene(300, 2, 21, 1.0, (-3.5, -2.0));
+    let large = random_scene(1500, 2, 22, 1.0, (-3.0, -1.5));
+    let depth = RenderRequest { color: false, alpha: false, plane_depth: true, radii: false, ..RenderRequest::default() };
+    let full = RenderRequest { traversal: true, plane_depth: true, ..RenderRequest::default() };
+    // A backward right after a render of its own: what a backward of the last view costs.
+    render_and_backward(&mut r, &small, &cams[0]);
+    let plain_back = {
+        let cfg = RasterConfig::default();
+        let out = r.render(&small, &cams[0], &full, &cfg).unwrap();
+        let grads = Grads::new(cams[0].width, cams[0].height, 3);
+        let og = OutputGradients { color: Some(&grads.color), alpha: Some(&grads.alpha), plane_depth: Some(&grads.plane_depth), ..OutputGradients::default() };
+        let before = r.context().transfers();
+        r.backward(&small, &cams[0], &cfg, &out, &og).unwrap();
+        (r.context().transfers() - before).syncs
+    };
+    let check = |label: &str, g: &Gaussians, views: &[(&Camera, RenderRequest)], outs: &[RenderOutput]| {
+        for (k, ((cam, req), out)) in views.iter().zip(outs).enumerate() {
+            let want = fresh_render(g, cam, req);
+            for (x, y) in [(&out.color, &want.color), (&out.alpha, &want.alpha), (&out.plane_depth, &want.plane_depth)] {
+                assert_eq!(x.as_ref().map(|i| i.data()), y.as_ref().map(|i| i.data()), "{label}, view {k}: images");
+            }
+            assert_eq!((&out.final_t, &out.last_contributor), (&want.final_t, &want.last_contributor), "{label}, view {k}");
+        }
+    };
+    // Two sources' depths and the reference: one wait, and the reference's state is kept.
+    let views = [(&cams[1], depth), (&cams[2], depth), (&cams[0], full)];
+    let (syncs, outs, (back_syncs, back)) = together(&mut r, &small, &views);
+    assert_eq!(syncs, 1, "three renders of a size rendered before: one wait");
+    check("together", &small, &views, &outs);
+    assert_eq!(back_syncs, plain_back, "the backward of the last view reuses its device state");
+    assert_eq!(back, reference(&small, &cams[0]).1, "the last view's backward");
+    // A size not rendered before counts first (two waits), the rest together (one).
+    let views = [(&other_size, depth), (&cams[1], depth), (&cams[0], full)];
+    let (syncs, outs, (back_syncs, back)) = together(&mut r, &small, &views);
+    assert_eq!(syncs, 3);
+    check("a new size among them", &small, &views, &outs);
+    assert_eq!((back_syncs, &back), (plain_back, &reference(&small, &cams[0]).1));
+    // Five times the Gaussians: both guesses fall short and both views render again, counted;
+    // the last view's state is its own again.
+    let views = [(&cams[1], depth), (&cams[0], full)];
+    let (syncs, outs, (back_syncs, back)) = together(&mut r, &large, &views);
+    assert_eq!(syncs, 1 + 2 * 2, "one wait for both guesses, then two counted renders");
+    check("guesses that fell short", &large, &views, &outs);
+    assert_eq!((back_syncs, &back), (plain_back, &reference(&large, &cams[0]).1));
 }

@@ -184,37 +184,61 @@ impl ReferenceExecutor {
         Ok(())
     }
 
-    /// Renders the plane depth of training slot `slot` without gradients (a source view), at
-    /// 1/`source_depth_downscale` of its size and upsampled back when that is above 1.
-    fn source_plane_depth(&mut self, run: &RunInputs<'_>, gaussians: &gs_core::Gaussians, slot: usize) -> Result<Image> {
-        let req = RenderRequest { color: false, alpha: false, plane_depth: true, radii: false, ..RenderRequest::default() };
-        let camera = &run.scene.views[run.train_views[slot]].camera;
-        let s = run.config.source_depth_downscale;
-        let rendered_at = downscaled_camera(camera, s)?;
-        let out = self.rasterizer.render(gaussians, &rendered_at, &req, run.raster)?;
-        let depth = out.plane_depth.expect("requested");
-        if s > 1 {
-            return crate::source_depths::upsample_depth(&depth, camera.width as usize, camera.height as usize);
-        }
-        Ok(depth)
-    }
-
-    /// Renders the plan's source depths that the memo cannot serve ([`crate::source_depths`]):
-    /// with reuse on they go into the memo, else they are returned in source order.
-    fn render_source_depths(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<Vec<Image>> {
+    /// The plan's source depths that the memo cannot serve ([`crate::source_depths`]), then
+    /// the reference view's render `request`. On a rasterizer that renders views together (a
+    /// device) they are one call and one wait, timed as the render; on the CPU the sources
+    /// first, timed apart. Renders are pure, so the grouping changes no value. With reuse on,
+    /// the source depths go into the memo, else they are returned in source order.
+    fn render_views_of_step(
+        &mut self,
+        run: &RunInputs<'_>,
+        state: &mut TrainState,
+        plan: &StepPlan,
+        (camera, request): (&gs_core::Camera, &RenderRequest),
+        (profile, phase, clock): (&mut StepProfile, usize, &mut Clock),
+    ) -> Result<(Vec<Image>, gs_raster::RenderOutput)> {
         let (it, max_age) = (plan.iteration, run.config.source_depth_max_age);
-        let mut rendered = Vec::new();
+        let mut missing: Vec<usize> = Vec::new();
         for &s in &plan.sources {
-            if state.source_depths.fresh(s, it, max_age).is_none() {
-                let d = self.source_plane_depth(run, &state.gaussians, s)?;
-                if max_age > 0 {
-                    state.source_depths.store(s, it, d);
-                } else {
-                    rendered.push(d);
-                }
+            // With the memo a source drawn twice is rendered once (the second is served).
+            if state.source_depths.fresh(s, it, max_age).is_none() && !(max_age > 0 && missing.contains(&s)) {
+                missing.push(s);
             }
         }
-        Ok(rendered)
+        let downscale = run.config.source_depth_downscale;
+        let cameras = missing
+            .iter()
+            .map(|&s| downscaled_camera(&run.scene.views[run.train_views[s]].camera, downscale))
+            .collect::<Result<Vec<_>>>()?;
+        let depth_only = RenderRequest { color: false, alpha: false, plane_depth: true, radii: false, ..RenderRequest::default() };
+        let mut views: Vec<(&gs_core::Camera, RenderRequest)> = cameras.iter().map(|c| (c, depth_only)).collect();
+        let g = &state.gaussians;
+        let mut outs = if self.rasterizer.renders_together() {
+            views.push((camera, *request));
+            self.rasterizer.render_views(g, &views, run.raster)?
+        } else {
+            let mut outs = self.rasterizer.render_views(g, &views, run.raster)?;
+            profile.add(phase, Part::SourceDepths, clock.lap());
+            outs.push(self.rasterizer.render(g, camera, request, run.raster)?);
+            outs
+        };
+        let out = outs.pop().expect("the reference view rendered last");
+        profile.add(phase, Part::Render, clock.lap());
+        let mut rendered = Vec::new();
+        for (&s, source) in missing.iter().zip(outs) {
+            let mut depth = source.plane_depth.expect("requested");
+            if downscale > 1 {
+                let full = &run.scene.views[run.train_views[s]].camera;
+                depth = crate::source_depths::upsample_depth(&depth, full.width as usize, full.height as usize)?;
+            }
+            if max_age > 0 {
+                state.source_depths.store(s, it, depth);
+            } else {
+                rendered.push(depth);
+            }
+        }
+        profile.add(phase, Part::SourceDepths, clock.lap());
+        Ok((rendered, out))
     }
 }
 
@@ -292,13 +316,13 @@ impl StepExecutor for ReferenceExecutor {
         // The sources' depths before the reference's render: a device rasterizer keeps only its
         // last render's state, which the backward below reuses (rendering them after it would
         // cost the backward one more render to rebuild that state). Renders are pure, so the
-        // order changes no value.
+        // order changes no value. A step on the device gathers its statistics from the radii
+        // there.
         let max_age = run.config.source_depth_max_age;
-        let rendered_depths = self.render_source_depths(run, state, plan).map_err(|e| self.instead_of(e))?;
-        profile.add(phase, Part::SourceDepths, clock.lap());
-        // A step on the device gathers its statistics from the radii there.
         let request = RenderRequest { radii: !self.adam_on_device, ..plan.render };
-        let out = self.rasterizer.render(&state.gaussians, camera, &request, run.raster).map_err(|e| self.instead_of(e.into()))?;
+        let (rendered_depths, out) = self
+            .render_views_of_step(run, state, plan, (camera, &request), (profile, phase, &mut clock))
+            .map_err(|e| self.instead_of(e))?;
         // The render's wait brought the last step's divergence flag.
         self.check_step()?;
         let rendered = out.color.as_ref().expect("the plan always renders colour");

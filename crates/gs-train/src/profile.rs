@@ -14,9 +14,11 @@ use std::time::Instant;
 pub enum Part {
     /// Per-view caches: edge guides, grey images, feature maps, downscaled photos.
     Caches,
-    /// The reference view's render.
+    /// The reference view's render (on a device, with the source views' renders submitted
+    /// beside it: one wait for all).
     Render,
-    /// The source views' plane depths (L_p / L_f), rendered where the memo cannot serve them.
+    /// The source views' plane depths (L_p / L_f) where the memo cannot serve them: on the
+    /// CPU their renders, on a device their upkeep alone (upsampling, the memo).
     SourceDepths,
     /// L_I: L1, D-SSIM and the edge term.
     ImageLoss,
@@ -28,7 +30,7 @@ pub enum Part {
     Features,
     /// The rasterizer's backward pass (and the exposure backward).
     Backward,
-    /// Adam, the parameter-space terms (L_o) and the densification statistics.
+    /// Adam, the parameter-space terms (L_o, L_s) and the densification statistics.
     Optimizer,
     /// Density control: densify, prune, trims, opacity reset, floater removal.
     Refine,

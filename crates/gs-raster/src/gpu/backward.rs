@@ -181,7 +181,7 @@ impl WgpuRasterizer {
         let npix = cam.width as u64 * cam.height as u64;
         self.pool.ensure(self.bufs.staging, 5 * npix * 4);
         let mut enc = self.disp.encoder();
-        self.copy_planes(&mut enc, &[3, 4, 5, 6, 7], bands, npix, 0);
+        self.copy_planes(&mut enc, &[3, 4, 5, 6, 7], bands, npix, (self.bufs.staging, 0));
         self.disp.submit(enc);
         let staging = self.pool.buffer(self.bufs.staging);
         let n = npix as usize;

@@ -6,7 +6,7 @@
 //! (`guess.rs`: one submission and readback, rendering again when the guess fell short).
 
 use super::kernels::{ParamRecord, ShCoeff, Splat, TileRect};
-use gs_gpu::bytes_of;
+use gs_gpu::{BufId, bytes_of};
 use super::kernels::{COUNTER_LONGEST_BLEND, COUNTER_LONGEST_TILE_LIST};
 use super::{CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
 use crate::cpu::project::CamParams;
@@ -20,8 +20,10 @@ use gs_gpu::{Encoder, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Where each forward output lies in the staging buffer (`None`: not read back).
+/// Where each forward output lies in its staging buffer (`None`: not read back).
 pub(super) struct Readback {
+    /// The staging buffer the outputs are copied to (the rasterizer's own, or one of a batch).
+    pub(super) staging: BufId,
     /// Accumulator planes read back (colour 0..3, Ñ and D 3..7, depth sum 7).
     planes: Vec<usize>,
     radii: Option<u64>,
@@ -43,7 +45,7 @@ fn device_plane_depth(request: &RenderRequest) -> bool {
 }
 
 impl Readback {
-    fn new(request: &RenderRequest, n: u64, npix: u64) -> Self {
+    pub(super) fn new(request: &RenderRequest, n: u64, npix: u64, staging: BufId) -> Self {
         let mut planes = Vec::new();
         if request.color {
             planes.extend(0..3);
@@ -75,7 +77,7 @@ impl Readback {
         let depth_at = planes_at + planes.len() as u64 * npix * 4;
         let plane_depth = depth_alone.then_some(depth_at);
         let bytes = depth_at + if depth_alone { npix * 4 } else { 0 };
-        Self { planes, radii, final_t, last, counters, observed, planes_at, plane_depth, bytes }
+        Self { staging, planes, radii, final_t, last, counters, observed, planes_at, plane_depth, bytes }
     }
 }
 
@@ -109,8 +111,28 @@ impl WgpuRasterizer {
     ) -> Result<RenderOutput> {
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
+        let bands = self.frame_bands(g, cam)?;
+        self.write_camera(g, cam, request, config);
+        // No buffer holds anything needed any more: the pool may shrink now (the model's own
+        // pool only when it is not resident).
+        self.pool.begin_frame();
+        let t0 = Instant::now();
+        self.model.prepare(&self.ctx, g)?;
+        let t1 = Instant::now();
+        let rb = Readback::new(request, nn, npix, self.bufs.staging);
+        let guess = self.guess_of(cam, config, nn);
+        if let Some((cap, windows)) = guess
+            && let Some((out, frame)) = self.render_guessed(g, cam, config, request, &bands, &rb, (cap, windows))?
+        {
+            return Ok(self.finish_render(out, frame, (t0, t1)));
+        }
+        self.render_counted(g, cam, request, config, &bands, &rb, (t0, t1))
+    }
+
+    /// The checks of a render's sizes against the device's limits; its bands of tile rows.
+    pub(super) fn frame_bands(&self, g: &Gaussians, cam: &CamParams) -> Result<Vec<(u32, u32, u64, u64)>> {
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
-        self.check_binding("the splat buffer", nn * bytes_of::<Splat>(1))?;
+        self.check_binding("the splat buffer", g.len() as u64 * bytes_of::<Splat>(1))?;
         let bands = self.bands(cam)?;
         self.check_binding("the tile ranges", n_tiles * 8)?;
         if cam.tiles_x > 65535 {
@@ -119,25 +141,34 @@ impl WgpuRasterizer {
                 cam.tiles_x
             )));
         }
+        Ok(bands)
+    }
+
+    /// The render's camera and switches, for the next submission's kernels.
+    pub(super) fn write_camera(&self, g: &Gaussians, cam: &CamParams, request: &RenderRequest, config: &RasterConfig) {
         let flags = request.color as u32
             | (request.geo() as u32) << 1
             | (request.expected_depth as u32) << 2
             | (request.observed as u32) << 3;
         self.disp
             .write_frame(&CamUniform::new(cam, config, g, flags, request.applied_cut()));
-        // No buffer holds anything needed any more: the pool may shrink now (the model's own
-        // pool only when it is not resident).
-        self.pool.begin_frame();
-        let t0 = Instant::now();
-        self.model.prepare(&self.ctx, g)?;
-        let t1 = Instant::now();
-        let rb = Readback::new(request, nn, npix);
-        let guess = self.guess_of(cam, config, nn);
-        if let Some((cap, windows)) = guess
-            && let Some((out, frame)) = self.render_guessed(g, cam, config, request, &bands, &rb, (cap, windows))?
-        {
-            return Ok(self.finish_render(out, frame, (t0, t1)));
-        }
+    }
+
+    /// The render counting its intersections first (two submissions and readbacks): a size
+    /// not rendered before, or one whose guess fell short. The camera is written.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn render_counted(
+        &mut self,
+        g: &Gaussians,
+        cam: &CamParams,
+        request: &RenderRequest,
+        config: &RasterConfig,
+        bands: &[(u32, u32, u64, u64)],
+        rb: &Readback,
+        (t0, t1): (Instant, Instant),
+    ) -> Result<RenderOutput> {
+        let npix = cam.width as u64 * cam.height as u64;
+        let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
         let (visible, total) = self.project_and_count(g, npix, n_tiles)?;
         if total > config.max_intersections as u64 || total > u32::MAX as u64 {
             return Err(RasterError::TooManyIntersections {
@@ -148,14 +179,14 @@ impl WgpuRasterizer {
         self.check_binding("the tile intersections", total * 4)?;
         // No tile list is longer than the visible Gaussians or the intersections.
         let windows = (total as u32).min(visible as u32).max(1).div_ceil(FWD_WINDOW);
-        self.reserve_blend(total, &rb);
+        self.reserve_blend(total, rb);
         let mut enc = self.disp.encoder();
-        self.blend(&mut enc, cam, request, &bands, g.len() as u32, (total as u32, windows), &rb)?;
+        self.blend(&mut enc, cam, request, bands, g.len() as u32, (total as u32, windows), rb)?;
         self.disp.submit(enc);
-        let out = self.ctx.read_mapped(self.pool.buffer(self.bufs.staging), rb.bytes, |bytes| {
+        let out = self.ctx.read_mapped(self.pool.buffer(rb.staging), rb.bytes, |bytes| {
             let t2 = Instant::now();
-            let out = self.forward_output(g, cam, config, request, &rb, bytes, visible, total as u32);
-            (out.map(|(out, max_last)| (out, max_last, longest_tile_list(bytes, &rb, total))), t2)
+            let out = self.forward_output(g, cam, config, request, rb, bytes, visible, total as u32);
+            (out.map(|(out, max_last)| (out, max_last, longest_tile_list(bytes, rb, total))), t2)
         })?;
         let (out, t2) = out;
         let (out, max_last, longest) = out?;
@@ -275,7 +306,7 @@ impl WgpuRasterizer {
             p.ensure(k, entries * 4 + 4);
         }
         self.sort.reserve(p, entries);
-        p.ensure(b.staging, rb.bytes);
+        p.ensure(rb.staging, rb.bytes);
     }
 
     /// Phase 2 encoded: emit the (tile, emission index) pairs into `entries` slots (padding
@@ -303,7 +334,7 @@ impl WgpuRasterizer {
         let (p, b) = (&self.pool, &self.bufs);
         let nn = n as u64;
         if let Some(at) = rb.radii.filter(|_| nn > 0) {
-            enc.encoder.copy_buffer_to_buffer(p.buffer(b.radii), 0, p.buffer(b.staging), at, nn * 4);
+            enc.encoder.copy_buffer_to_buffer(p.buffer(b.radii), 0, p.buffer(rb.staging), at, nn * 4);
         }
         Ok(())
     }
@@ -419,7 +450,7 @@ impl WgpuRasterizer {
         let (p, b) = (&self.pool, &self.bufs);
         let npix = cam.width as u64 * cam.height as u64;
         let nn = n as u64;
-        let staging = p.buffer(b.staging);
+        let staging = p.buffer(rb.staging);
         let e = &mut enc.encoder;
         if let Some(at) = rb.final_t {
             e.copy_buffer_to_buffer(p.buffer(b.final_t), 0, staging, at, npix * 4);
@@ -434,17 +465,17 @@ impl WgpuRasterizer {
         if request.observed && nn > 0 {
             e.copy_buffer_to_buffer(p.buffer(b.observed), 0, staging, rb.observed, nn * 4);
         }
-        self.copy_planes(enc, &rb.planes, bands, npix, rb.planes_at);
+        self.copy_planes(enc, &rb.planes, bands, npix, (rb.staging, rb.planes_at));
     }
 
     /// Copies the accumulator `planes` (band-planar on the device) whole and in order to the
-    /// staging buffer from byte `at`, each `npix` values.
-    pub(super) fn copy_planes(&self, enc: &mut Encoder, planes: &[usize], bands: &[(u32, u32, u64, u64)], npix: u64, at: u64) {
+    /// staging buffer `staging` from byte `at`, each `npix` values.
+    pub(super) fn copy_planes(&self, enc: &mut Encoder, planes: &[usize], bands: &[(u32, u32, u64, u64)], npix: u64, (staging, at): (BufId, u64)) {
         let (p, b) = (&self.pool, &self.bufs);
         let e = &mut enc.encoder;
         for (k, &plane) in planes.iter().enumerate() {
             for &(_, _, p0, bp) in bands {
-                e.copy_buffer_to_buffer(p.buffer(b.acc), p0 * 32 + plane as u64 * bp * 4, p.buffer(b.staging), at + (k as u64 * npix + p0) * 4, bp * 4);
+                e.copy_buffer_to_buffer(p.buffer(b.acc), p0 * 32 + plane as u64 * bp * 4, p.buffer(staging), at + (k as u64 * npix + p0) * 4, bp * 4);
             }
         }
     }

@@ -7,10 +7,11 @@
 
 use super::forward::{Readback, counters_of};
 use super::kernels::COUNTER_LONGEST_TILE_LIST;
-use super::{FWD_WINDOW, Frame, WgpuRasterizer};
+use super::{FWD_WINDOW, Frame, GpuTimings, WgpuRasterizer};
 use crate::cpu::project::CamParams;
 use crate::{RasterConfig, RenderOutput, RenderRequest, Result};
-use gs_core::Gaussians;
+use gs_core::{Camera, Gaussians};
+use gs_gpu::PendingRead;
 use std::time::Instant;
 
 /// How much a guess adds to the last render's intersections and longest list (a quarter).
@@ -71,7 +72,7 @@ impl WgpuRasterizer {
         let mut enc = self.encode_projection(g)?;
         self.blend(&mut enc, cam, request, bands, g.len() as u32, (cap, windows), rb)?;
         self.disp.submit(enc);
-        let (out, t2) = self.ctx.read_mapped(self.pool.buffer(self.bufs.staging), rb.bytes, |bytes| {
+        let (out, t2) = self.ctx.read_mapped(self.pool.buffer(rb.staging), rb.bytes, |bytes| {
             let t2 = Instant::now();
             let c = counters_of(bytes, rb);
             let total = c[2] as u64 | (c[3] as u64) << 32;
@@ -88,5 +89,125 @@ impl WgpuRasterizer {
         let (out, max_last, total, longest) = out?;
         self.remember(cam, total, longest);
         Ok(Some(((out, t2), Frame { generation: self.generation, total: total as u32, max_last })))
+    }
+}
+
+/// A render of `render_views` submitted with its readback requested and not waited for.
+struct InFlight {
+    index: usize,
+    cam: CamParams,
+    rb: Readback,
+    guess: (u32, u32),
+    generation: u64,
+    read: PendingRead,
+}
+
+impl WgpuRasterizer {
+    /// Renders `views` in order like [`render`](Self::render) each (the same outputs, bit for
+    /// bit), with one wait for all those of a size rendered before: each is submitted right
+    /// after the last, into its own staging buffer, and all are read back together. A size not
+    /// rendered before counts first and waits, as a render does; a guess that fell short is
+    /// rendered again afterwards. The last view's device state is the one kept for a backward
+    /// (when a guess of an earlier view fell short, the backward rebuilds it).
+    pub fn render_views(&mut self, g: &Gaussians, views: &[(&Camera, RenderRequest)], config: &RasterConfig) -> Result<Vec<RenderOutput>> {
+        let mut cams = Vec::with_capacity(views.len());
+        for (camera, request) in views {
+            request.validate()?;
+            cams.push(crate::validate::check_inputs(g, camera, config)?);
+        }
+        // The sizes not rendered before, except the last view's, render first; the rest
+        // are guessed (the last again at the end when it is a new size).
+        let last = views.len().saturating_sub(1);
+        let new_size = |r: &Self, i: usize| r.guess_of(&cams[i], config, g.len() as u64).is_none();
+        let mut outs: Vec<Option<RenderOutput>> = (0..views.len()).map(|_| None).collect();
+        for i in 0..last {
+            if new_size(self, i) {
+                outs[i] = Some(self.render(g, views[i].0, &views[i].1, config)?);
+            }
+        }
+        let guessed: Vec<usize> = (0..views.len()).filter(|&i| outs[i].is_none() && !new_size(self, i)).collect();
+        self.frame = None;
+        let res = self.scoped(|r| r.render_guessed_together(g, &cams, views, config, &guessed, &mut outs));
+        if res.is_err() {
+            self.frame = None;
+        }
+        res?;
+        for i in 0..views.len() {
+            if outs[i].is_none() {
+                outs[i] = Some(self.render(g, views[i].0, &views[i].1, config)?);
+            }
+        }
+        Ok(outs.into_iter().map(|o| o.expect("every view rendered")).collect())
+    }
+
+    /// The guessed renders of `views` at `indices`, submitted one after another and read with
+    /// one wait; fills `outs` where the guess held (the last one's frame kept when it is the
+    /// last submitted).
+    fn render_guessed_together(
+        &mut self,
+        g: &Gaussians,
+        cams: &[CamParams],
+        views: &[(&Camera, RenderRequest)],
+        config: &RasterConfig,
+        indices: &[usize],
+        outs: &mut [Option<RenderOutput>],
+    ) -> Result<()> {
+        if indices.is_empty() {
+            return Ok(());
+        }
+        let (nn, t0) = (g.len() as u64, Instant::now());
+        self.pool.begin_frame();
+        self.model.prepare(&self.ctx, g)?;
+        let t1 = Instant::now();
+        while self.batch_staging.len() < indices.len() {
+            let id = self.pool.add_staging("batch staging");
+            self.batch_staging.push(id);
+        }
+        let mut flying = Vec::with_capacity(indices.len());
+        for (k, &index) in indices.iter().enumerate() {
+            let (cam, request) = (cams[index], &views[index].1);
+            let bands = self.frame_bands(g, &cam)?;
+            let guess = self.guess_of(&cam, config, nn).expect("a size rendered before");
+            let npix = cam.width as u64 * cam.height as u64;
+            let rb = Readback::new(request, nn, npix, self.batch_staging[k]);
+            self.write_camera(g, &cam, request, config);
+            self.reserve_projection(g, npix, (cam.tiles_x * cam.tiles_y) as u64);
+            self.reserve_blend(guess.0 as u64, &rb);
+            let mut enc = self.encode_projection(g)?;
+            self.blend(&mut enc, &cam, request, &bands, nn as u32, guess, &rb)?;
+            self.disp.submit(enc);
+            self.generation += 1;
+            let read = self.ctx.request_read(self.pool.buffer(rb.staging), rb.bytes);
+            flying.push(InFlight { index, cam, rb, guess, generation: self.generation, read });
+        }
+        let newest = self.generation;
+        for f in flying {
+            let InFlight { index, cam, rb, guess: (cap, windows), generation, read } = f;
+            let request = &views[index].1;
+            // The output names the render it came from (a backward of an older one rebuilds it).
+            self.generation = generation;
+            let parsed = self.ctx.finish_read(read, |bytes| {
+                let c = counters_of(bytes, &rb);
+                let total = c[2] as u64 | (c[3] as u64) << 32;
+                let longest = c[COUNTER_LONGEST_TILE_LIST];
+                if total > cap as u64 || longest > windows.saturating_mul(FWD_WINDOW) {
+                    return None;
+                }
+                let out = self.forward_output(g, &cam, config, request, &rb, bytes, c[0] as usize, total as u32);
+                Some(out.map(|(out, max_last)| (out, max_last, total, longest)))
+            })?;
+            if let Some(parsed) = parsed {
+                let (out, max_last, total, longest) = parsed?;
+                self.remember(&cam, total, longest);
+                if generation == newest {
+                    self.frame = Some(Frame { generation, total: total as u32, max_last });
+                }
+                outs[index] = Some(out);
+            }
+        }
+        self.generation = newest;
+        let t2 = Instant::now();
+        self.timings.render = GpuTimings { upload: t1 - t0, device: t2 - t1, unpack: t2.elapsed() };
+        Ok(())
     }
 }

@@ -208,6 +208,9 @@ pub struct WgpuRasterizer {
     /// What the last renders of a few image sizes found: the next render of such a size
     /// guesses its buffers from it and runs in one submission (`forward.rs`).
     guesses: Vec<guess::SizeGuess>,
+    /// The staging buffers of renders read back together (`render_views`), one per render
+    /// in flight, made when first needed (in `pool`).
+    batch_staging: Vec<BufId>,
 }
 
 /// Host-measured wall time of the phases of one call (see [`WgpuRasterizer::timings`]).
@@ -290,6 +293,7 @@ impl WgpuRasterizer {
             generation: 0,
             frame: None,
             guesses: Vec::new(),
+            batch_staging: Vec::new(),
             timings: CallTimings::default(),
             model,
         })
