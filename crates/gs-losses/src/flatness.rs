@@ -3,9 +3,9 @@
 //!
 //! Why: a flat Gaussian has one well-defined normal and a plane depth that is not smeared along
 //! it, and, seen edge-on at a silhouette, it covers almost nothing beyond its own plane. Off by
-//! default: VA-GS keeps full 3D Gaussians, whose ablation finds flattening no better for meshes
-//! (the suite's numbers for it: docs/suite-full.md). A parameter-space term: it reads the
-//! log-scales, not a render.
+//! default: VA-GS keeps full 3D Gaussians, whose ablation finds flattening no better for meshes,
+//! and on our suite it moved the worst mesh further from its floor (docs/suite-quick.md, stop
+//! 60). A parameter-space term: it reads the log-scales, not a render.
 //!
 //! ∂/∂ℓᵢₖ = exp(ℓᵢₖ)/N on the smallest axis k of Gaussian i (the lowest index among equal
 //! scales, as [`gs_core::Gaussians::normal`] breaks ties), 0 on the others.
