@@ -73,22 +73,38 @@ impl WgpuRasterizer {
         self.blend(&mut enc, cam, request, bands, g.len() as u32, (cap, windows), rb)?;
         self.disp.submit(enc);
         let (out, t2) = self.ctx.read_mapped(self.pool.buffer(rb.staging), rb.bytes, |bytes| {
-            let t2 = Instant::now();
-            let c = counters_of(bytes, rb);
-            let total = c[2] as u64 | (c[3] as u64) << 32;
-            let longest = c[COUNTER_LONGEST_TILE_LIST];
-            if total > cap as u64 || longest > windows.saturating_mul(FWD_WINDOW) {
-                return (None, t2);
-            }
-            let out = self.forward_output(g, cam, config, request, rb, bytes, c[0] as usize, total as u32);
-            (Some(out.map(|(out, max_last)| (out, max_last, total, longest))), t2)
+            (self.guessed_output(g, cam, config, request, rb, bytes, (cap, windows)), Instant::now())
         })?;
         let Some(out) = out else {
             return Ok(None);
         };
-        let (out, max_last, total, longest) = out?;
-        self.remember(cam, total, longest);
-        Ok(Some(((out, t2), Frame { generation: self.generation, total: total as u32, max_last })))
+        let (out, frame, longest) = out?;
+        self.remember(cam, frame.total as u64, longest);
+        Ok(Some(((out, t2), frame)))
+    }
+
+    /// The output of a guessed render from its staging bytes, its frame (`self.generation`
+    /// names it) and its longest tile list; `None` when the counters exceed the guess
+    /// `(cap, windows)`.
+    #[allow(clippy::too_many_arguments)]
+    fn guessed_output(
+        &self,
+        g: &Gaussians,
+        cam: &CamParams,
+        config: &RasterConfig,
+        request: &RenderRequest,
+        rb: &Readback,
+        bytes: &[u8],
+        (cap, windows): (u32, u32),
+    ) -> Option<Result<(RenderOutput, Frame, u32)>> {
+        let c = counters_of(bytes, rb);
+        let total = c[2] as u64 | (c[3] as u64) << 32;
+        let longest = c[COUNTER_LONGEST_TILE_LIST];
+        if total > cap as u64 || longest > windows.saturating_mul(FWD_WINDOW) {
+            return None;
+        }
+        let out = self.forward_output(g, cam, config, request, rb, bytes, c[0] as usize, total as u32);
+        Some(out.map(|(out, max_last)| (out, Frame { generation: self.generation, total: total as u32, max_last }, longest)))
     }
 }
 
@@ -186,21 +202,12 @@ impl WgpuRasterizer {
             let request = &views[index].1;
             // The output names the render it came from (a backward of an older one rebuilds it).
             self.generation = generation;
-            let parsed = self.ctx.finish_read(read, |bytes| {
-                let c = counters_of(bytes, &rb);
-                let total = c[2] as u64 | (c[3] as u64) << 32;
-                let longest = c[COUNTER_LONGEST_TILE_LIST];
-                if total > cap as u64 || longest > windows.saturating_mul(FWD_WINDOW) {
-                    return None;
-                }
-                let out = self.forward_output(g, &cam, config, request, &rb, bytes, c[0] as usize, total as u32);
-                Some(out.map(|(out, max_last)| (out, max_last, total, longest)))
-            })?;
+            let parsed = self.ctx.finish_read(read, |bytes| self.guessed_output(g, &cam, config, request, &rb, bytes, (cap, windows)))?;
             if let Some(parsed) = parsed {
-                let (out, max_last, total, longest) = parsed?;
-                self.remember(&cam, total, longest);
+                let (out, frame, longest) = parsed?;
+                self.remember(&cam, frame.total as u64, longest);
                 if generation == newest {
-                    self.frame = Some(Frame { generation, total: total as u32, max_last });
+                    self.frame = Some(frame);
                 }
                 outs[index] = Some(out);
             }
