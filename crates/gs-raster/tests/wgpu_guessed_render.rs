@@ -173,11 +173,19 @@ fn views_rendered_together_cost_one_wait_with_the_same_bits() {
     assert_eq!(syncs, 3);
     check("a new size among them", &small, &views, &outs);
     assert_eq!((back_syncs, &back), (plain_back, &reference(&small, &cams[0]).1));
-    // Five times the Gaussians: both guesses fall short and both views render again, counted;
-    // the last view's state is its own again.
-    let views = [(&cams[1], depth), (&cams[0], full)];
+    // Five times the Gaussians: the guess falls short and the view renders again, counted
+    // at once (not guessed a second time).
+    let views = [(&cams[0], full)];
     let (syncs, outs, (back_syncs, back)) = together(&mut r, &large, &views);
-    assert_eq!(syncs, 1 + 2 * 2, "one wait for both guesses, then two counted renders");
-    check("guesses that fell short", &large, &views, &outs);
+    assert_eq!(syncs, 1 + 2, "one wait for the guess, then the counted render");
+    check("a guess that fell short", &large, &views, &outs);
     assert_eq!((back_syncs, &back), (plain_back, &reference(&large, &cams[0]).1));
+    // Three times as many again: both guesses fall short and both views render again; the
+    // last view's state is its own again.
+    let huge = random_scene(4500, 2, 23, 1.0, (-3.0, -1.5));
+    let views = [(&cams[1], depth), (&cams[0], full)];
+    let (syncs, outs, (back_syncs, back)) = together(&mut r, &huge, &views);
+    assert_eq!(syncs, 1 + 2 * 2, "one wait for both guesses, then two counted renders");
+    check("guesses that fell short", &huge, &views, &outs);
+    assert_eq!((back_syncs, &back), (plain_back, &reference(&huge, &cams[0]).1));
 }

@@ -91,11 +91,23 @@ impl WgpuRasterizer {
         request: &RenderRequest,
         config: &RasterConfig,
     ) -> Result<RenderOutput> {
+        self.render_alone(gaussians, camera, request, config, true)
+    }
+
+    /// A render with its own waits, guessed when `guess` and the size was rendered before.
+    pub(super) fn render_alone(
+        &mut self,
+        gaussians: &Gaussians,
+        camera: &Camera,
+        request: &RenderRequest,
+        config: &RasterConfig,
+        guess: bool,
+    ) -> Result<RenderOutput> {
         request.validate()?;
         let cam = crate::validate::check_inputs(gaussians, camera, config)?;
         self.frame = None;
         self.generation += 1;
-        let res = self.scoped(|r| r.render_inner(gaussians, &cam, request, config));
+        let res = self.scoped(|r| r.render_inner(gaussians, &cam, request, config, guess));
         if res.is_err() {
             self.frame = None;
         }
@@ -108,6 +120,7 @@ impl WgpuRasterizer {
         cam: &CamParams,
         request: &RenderRequest,
         config: &RasterConfig,
+        guess: bool,
     ) -> Result<RenderOutput> {
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
@@ -120,7 +133,7 @@ impl WgpuRasterizer {
         self.model.prepare(&self.ctx, g)?;
         let t1 = Instant::now();
         let rb = Readback::new(request, nn, npix, self.bufs.staging);
-        let guess = self.guess_of(cam, config, nn);
+        let guess = if guess { self.guess_of(cam, config, nn) } else { None };
         if let Some((cap, windows)) = guess
             && let Some((out, frame)) = self.render_guessed(g, cam, config, request, &bands, &rb, (cap, windows))?
         {

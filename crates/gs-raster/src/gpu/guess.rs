@@ -148,9 +148,12 @@ impl WgpuRasterizer {
             self.frame = None;
         }
         res?;
+        // Whatever is left: the last view of a new size (guessed if an earlier view of this
+        // call made its size known), and the guesses that fell short (counted at once).
         for i in 0..views.len() {
             if outs[i].is_none() {
-                outs[i] = Some(self.render(g, views[i].0, &views[i].1, config)?);
+                let guess = !guessed.contains(&i);
+                outs[i] = Some(self.render_alone(g, views[i].0, &views[i].1, config, guess)?);
             }
         }
         Ok(outs.into_iter().map(|o| o.expect("every view rendered")).collect())
