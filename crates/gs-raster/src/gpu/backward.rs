@@ -4,7 +4,7 @@
 //! bit), then `project_bwd` per chunk of Gaussians, and the readback of the parameter
 //! gradients.
 
-use super::kernels::{BlendState, ParamGrad, ParamRecord, PixelGrad, ScreenGrad, ShCoeff, TileRect};
+use super::kernels::{BlendState, ColourGrad, ParamGrad, ParamRecord, PixelGrad, ScreenGrad, ShCoeff, TileRect};
 use gs_gpu::bytes_of;
 use super::{BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks, pod_vec};
 use crate::cpu::project::CamParams;
@@ -163,13 +163,14 @@ impl WgpuRasterizer {
             true => self.read_geo(cam, &bands)?,
             false => Vec::new(),
         };
-        self.upload_pixel_grads(cam, config, st, if geo.is_empty() { &st.geo } else { &geo }, grads);
+        let colour_only = flags & !1 == 0;
+        self.upload_pixel_grads(cam, config, st, if geo.is_empty() { &st.geo } else { &geo }, grads, colour_only);
         let mut enc = self.disp.encoder();
         let (p, b) = (&self.pool, &self.bufs);
         // Intersections beyond their tile's last contributor get no partial: zeros.
         enc.encoder
             .clear_buffer(p.buffer(b.partials), 0, Some(partial_bytes));
-        self.blend_backward(&mut enc, cam, &bands, frame)?;
+        self.blend_backward(&mut enc, cam, &bands, frame, colour_only)?;
         self.reduce_partials(&mut enc, cam, g.len() as u32)?;
         self.project_backward(&mut enc, g)?;
         Ok(enc)
@@ -193,8 +194,10 @@ impl WgpuRasterizer {
     }
 
     /// Per-pixel channel gradients, folded on the host exactly as the CPU backend does (rows
-    /// in parallel), written to `pixgrad` (one `PixelGrad` a pixel); `geo` is the frame's Ñ,
-    /// D and Σ w t_z per pixel where plane or expected depth gradients need them.
+    /// in parallel), written to `pixgrad`: one `PixelGrad` a pixel, or, `colour_only` (no
+    /// gradient of the geometry channels, whose five values are then zeros), one `ColourGrad`.
+    /// `geo` is the frame's Ñ, D and Σ w t_z per pixel where plane or expected depth gradients
+    /// need them.
     fn upload_pixel_grads(
         &mut self,
         cam: &CamParams,
@@ -202,17 +205,30 @@ impl WgpuRasterizer {
         st: &GpuState,
         geo: &[[f32; 5]],
         grads: &OutputGradients,
+        colour_only: bool,
     ) {
         let (w, h) = (cam.width as usize, cam.height as usize);
-        super::upload_with(&self.ctx, &mut self.pool, self.bufs.pixgrad, w * h, |pg: &mut [PixelGrad]| {
-            pg.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-                for (x, px) in row.iter_mut().enumerate() {
-                    let (channels, final_t) =
-                        crate::pixel::pixel_grads(cam, config, grads, &st.final_t, geo, x, y);
-                    *px = PixelGrad { channels, final_t };
-                }
-            })
-        });
+        let fold = |x, y| crate::pixel::pixel_grads(cam, config, grads, &st.final_t, geo, x, y);
+        let (ctx, pool, id) = (&self.ctx, &mut self.pool, self.bufs.pixgrad);
+        if colour_only {
+            super::upload_with(ctx, pool, id, w * h, |pg: &mut [ColourGrad]| {
+                pg.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                    for (x, px) in row.iter_mut().enumerate() {
+                        let (c, final_t) = fold(x, y);
+                        *px = ColourGrad { rgb: [c[0], c[1], c[2]], final_t };
+                    }
+                })
+            });
+        } else {
+            super::upload_with(ctx, pool, id, w * h, |pg: &mut [PixelGrad]| {
+                pg.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                    for (x, px) in row.iter_mut().enumerate() {
+                        let (channels, final_t) = fold(x, y);
+                        *px = PixelGrad { channels, final_t };
+                    }
+                })
+            });
+        }
     }
 
     /// `raster_bwd` per band of tile rows and window of tile-list positions (last first).
@@ -222,9 +238,14 @@ impl WgpuRasterizer {
         cam: &CamParams,
         bands: &[(u32, u32, u64, u64)],
         frame: Frame,
+        colour_only: bool,
     ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         let windows = frame.max_last.div_ceil(BWD_WINDOW);
+        let (kernel, rec) = match colour_only {
+            true => (&k.raster_bwd_colour, bytes_of::<ColourGrad>(1)),
+            false => (&k.raster_bwd, bytes_of::<PixelGrad>(1)),
+        };
         for &(r0, rows, p0, bp) in bands {
             for wi in (0..windows).rev() {
                 d.make_room(enc, 1);
@@ -234,7 +255,7 @@ impl WgpuRasterizer {
                     p.whole(b.splat),
                     p.range(b.final_t, p0 * 4, bp * 4),
                     p.range(b.last, p0 * 4, bp * 4),
-                    p.range(b.pixgrad, p0 * bytes_of::<PixelGrad>(1), bp * bytes_of::<PixelGrad>(1)),
+                    p.range(b.pixgrad, p0 * rec, bp * rec),
                     p.whole(b.partials),
                     p.range(b.bstate, p0 * bytes_of::<BlendState>(1), bp * bytes_of::<BlendState>(1)),
                 ];
@@ -245,7 +266,7 @@ impl WgpuRasterizer {
                     base: r0,
                     ..Default::default()
                 };
-                d.dispatch(enc, &k.raster_bwd, &binds, pass, (cam.tiles_x, rows))?;
+                d.dispatch(enc, kernel, &binds, pass, (cam.tiles_x, rows))?;
             }
         }
         Ok(())

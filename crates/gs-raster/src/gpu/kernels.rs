@@ -205,6 +205,35 @@ gs_gpu::wgsl_struct! {
 }
 
 gs_gpu::wgsl_struct! {
+    /// One pixel's loss gradients when only the colour (and alpha) has any (WGSL `struct
+    /// ColourGrad`): a colour-only backward uploads these instead of [`PixelGrad`]s, whose
+    /// other five channels would be zeros. 16 bytes.
+    pub(crate) struct ColourGrad as "ColourGrad" {
+        rgb: [f32; 3],
+        final_t: f32,
+    }
+}
+
+/// `raster_bwd`'s read of a pixel's gradients from `PixelGrad` records.
+const PIXEL_GRAD_FULL: &str = "fn pixel_grad(p: u32) -> PixelGrad {\n    return pixgrad[p];\n}\n";
+
+/// `raster_bwd`'s read of a pixel's gradients from `ColourGrad` records: the other channels
+/// are zeros, as the host's fold makes them without geometry gradients.
+const PIXEL_GRAD_COLOUR: &str = "fn pixel_grad(p: u32) -> PixelGrad {
+    let c = pixgrad[p];
+    var g: PixelGrad;
+    for (var k = 0u; k < 8u; k++) {
+        g.channels[k] = 0.0;
+    }
+    for (var k = 0u; k < 3u; k++) {
+        g.channels[k] = c.rgb[k];
+    }
+    g.final_t = c.final_t;
+    return g;
+}
+";
+
+gs_gpu::wgsl_struct! {
     /// One pixel's reverse-blend state between windows of its tile list (WGSL
     /// `struct BlendState`): the transmittance and the eight "behind" sums. 36 bytes.
     pub(crate) struct BlendState as "BlendState" {
@@ -328,20 +357,8 @@ fn specs() -> Vec<Spec<'static>> {
             &[include_str!("plane_depth.wgsl")],
             &[B::read("acc", f), B::write("depth", f)],
         ),
-        spec(
-            "raster_bwd",
-            &[include_str!("raster_bwd.wgsl")],
-            &[
-                B::read("ranges", u),
-                B::read("gids", u),
-                B::read("splat", spl),
-                B::read("final_t", f),
-                B::read("last", u),
-                B::read("pixgrad", "array<PixelGrad>"),
-                B::write("partials", sg),
-                B::write("bstate", "array<BlendState>"),
-            ],
-        ),
+        raster_bwd_spec(PIXEL_GRAD_FULL, "array<PixelGrad>"),
+        raster_bwd_spec(PIXEL_GRAD_COLOUR, "array<ColourGrad>"),
         spec(
             "grad_reduce",
             &[include_str!("grad_reduce.wgsl")],
@@ -354,6 +371,27 @@ fn specs() -> Vec<Spec<'static>> {
             ],
         ),
     ]
+}
+
+/// `raster_bwd` reading its per-pixel gradients through `read` from `pixgrad` records of
+/// type `records` (two variants: every channel, or the colour alone).
+fn raster_bwd_spec(read: &'static str, records: &'static str) -> Spec<'static> {
+    use Binding as B;
+    let (u, f) = ("array<u32>", "array<f32>");
+    Spec {
+        entry: "raster_bwd",
+        sources: vec![include_str!("raster_bwd.wgsl"), read],
+        bindings: vec![
+            B::read("ranges", u),
+            B::read("gids", u),
+            B::read("splat", "array<Splat>"),
+            B::read("final_t", f),
+            B::read("last", u),
+            B::read("pixgrad", records),
+            B::write("partials", "array<ScreenGrad>"),
+            B::write("bstate", "array<BlendState>"),
+        ],
+    }
 }
 
 /// The full source list of a spec: the generated camera and gradient structs, common.wgsl,
@@ -383,12 +421,14 @@ pub(crate) struct Kernels {
     pub raster_fwd: Kernel,
     pub plane_depth: Kernel,
     pub raster_bwd: Kernel,
+    /// `raster_bwd` on [`ColourGrad`] records (a backward with colour gradients alone).
+    pub raster_bwd_colour: Kernel,
     pub grad_reduce: Kernel,
 }
 
 /// The camera uniform and every storage record: one list, so that every struct the kernels
 /// declare is also the one the layout test checks.
-fn generated_structs() -> [GeneratedStruct; 9] {
+fn generated_structs() -> [GeneratedStruct; 10] {
     [
         GeneratedStruct::of::<CamUniform>(),
         GeneratedStruct::of::<ScreenGrad>(),
@@ -398,6 +438,7 @@ fn generated_structs() -> [GeneratedStruct; 9] {
         GeneratedStruct::of::<TileRect>(),
         GeneratedStruct::of::<ParamGrad>(),
         GeneratedStruct::of::<PixelGrad>(),
+        GeneratedStruct::of::<ColourGrad>(),
         GeneratedStruct::of::<BlendState>(),
     ]
 }
@@ -430,6 +471,7 @@ impl Kernels {
             raster_fwd: next()?,
             plane_depth: next()?,
             raster_bwd: next()?,
+            raster_bwd_colour: next()?,
             grad_reduce: next()?,
         })
     }
@@ -458,7 +500,7 @@ mod tests {
         let sizes = [bytes_of::<ParamRecord>(1), bytes_of::<ShCoeff>(1), bytes_of::<Splat>(1)];
         assert_eq!(sizes, [44, 12, 68]);
         assert_eq!([bytes_of::<TileRect>(1), bytes_of::<ParamGrad>(1)], [20, 60]);
-        assert_eq!([bytes_of::<PixelGrad>(1), bytes_of::<BlendState>(1)], [36, 36]);
+        assert_eq!([bytes_of::<PixelGrad>(1), bytes_of::<BlendState>(1), bytes_of::<ColourGrad>(1)], [36, 36, 16]);
     }
 
     /// A field added to the WGSL side only (a hand-written `Cam`) is caught.

@@ -51,7 +51,7 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             tr[q] = final_t[p];
             tf[q] = final_t[p];
             lastq[q] = last[p];
-            let pg = pixgrad[p];
+            let pg = pixel_grad(p);
             for (var c = 0u; c < 8u; c++) {
                 gch[q * 8u + c] = pg.channels[c];
             }
