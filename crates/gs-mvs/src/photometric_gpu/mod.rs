@@ -87,7 +87,7 @@ gs_gpu::wgsl_struct! {
 /// The kernel's storage bindings, by name (slot order).
 const BINDINGS: [Binding<'static>; 7] = [
     Binding::read("pairs", "array<NccPair>"),
-    Binding::read("entries", "array<vec2<u32>>"),
+    Binding::read("entries", "array<u32>"),
     Binding::read("normal", "array<PixelNormal>"),
     Binding::read("distance", "array<f32>"),
     Binding::read("greys", "array<f32>"),
@@ -165,8 +165,9 @@ fn gpu_error(e: gs_gpu::GpuError) -> MvsError {
     MvsError::Device(e.to_string())
 }
 
-/// One selected patch: reference pixel and pair index.
-type Entry = [u32; 2];
+/// One selected patch: its reference pixel (the entries are grouped by source, and the patch
+/// kernel runs once per source's range, so the source is not stored).
+type Entry = u32;
 
 /// One source's host work before the kernel: υ/ω, the pair geometry and grey scale, the
 /// selection (0 not a candidate, 1 not sampled, 2 evaluated) and its evaluated entries.
@@ -271,7 +272,7 @@ impl PhotometricGpu {
                 let vis = visibility_unchecked(&PairGeometry::new(reference.camera, source.camera), &reference.plane_depth, &source.plane_depth);
                 let (g, scale) = patch_geometry(reference, source)?;
                 let selected = select_pixels(&vis, config, k, w, h);
-                let picked: Vec<Entry> = selected.iter().enumerate().filter(|(_, s)| **s == 2).map(|(p, _)| [p as u32, k as u32]).collect();
+                let picked: Vec<Entry> = selected.iter().enumerate().filter(|(_, s)| **s == 2).map(|(p, _)| p as Entry).collect();
                 Ok(Prepared { vis, g, scale, selected, picked })
             })
             .collect::<Result<Vec<Prepared>>>()?;
@@ -311,7 +312,7 @@ impl PhotometricGpu {
             pairs.push(pair_record(&p.g, offset, source));
             ranges.push(entries.len()..entries.len() + p.picked.len());
             entries.extend_from_slice(&p.picked);
-            weights.extend(p.picked.iter().map(|e| p.vis.weight(e[0] as usize)));
+            weights.extend(p.picked.iter().map(|&e| p.vis.weight(e as usize)));
         }
         if std::mem::size_of::<NccResult>() as u64 * entries.len() as u64 > self.ctx.max_storage_binding() {
             return host(photometric_loss(reference, sources, config)?);
@@ -331,7 +332,7 @@ impl PhotometricGpu {
             return host(done.output(&vec![reduce::NccRowSums::default(); sources.len() * h], &[]));
         }
         let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, rays: &rays };
-        let (read, row_bytes) = self.submit(&inputs, reference, &reduce::row_starts(&entries, &ranges, w, h))?;
+        let (read, row_bytes) = self.submit(&inputs, reference, &ranges, &reduce::row_starts(&entries, &ranges, w, h))?;
         Ok(PendingPhotometric(Pending::Device { read, row_bytes, done }))
     }
 
@@ -358,6 +359,7 @@ impl PhotometricGpu {
         &mut self,
         inputs: &Inputs<'_>,
         reference: &PhotometricReference<'_, f32>,
+        ranges: &[std::ops::Range<usize>],
         row_starts: &[u32],
     ) -> Result<(PendingRead, u64)> {
         let (b, frame) = (&self.bufs, inputs.frame);
@@ -397,7 +399,13 @@ impl PhotometricGpu {
         self.ctx.push_error_scopes();
         let threads = [frame.sources * frame.height, frame.sources, frame.pixels];
         let pass = |n: u32| PassUniform { n, ..Default::default() };
-        self.disp.dispatch_1d(&mut enc, &self.kernel, &patch_binds, pass(inputs.entries.len() as u32)).map_err(gpu_error)?;
+        // One dispatch per source over its entries: `base` its first entry, `p1` its pair.
+        for (k, range) in ranges.iter().enumerate() {
+            self.disp.make_room(&mut enc, 1);
+            let per_source = PassUniform { n: range.len() as u32, base: range.start as u32, p1: k as u32, ..Default::default() };
+            self.disp.dispatch_1d(&mut enc, &self.kernel, &patch_binds, per_source).map_err(gpu_error)?;
+        }
+        self.disp.make_room(&mut enc, self.sums.len());
         for (kernel, n) in self.sums.iter().zip(threads) {
             self.disp.dispatch_1d(&mut enc, kernel, &sum_binds, pass(n)).map_err(gpu_error)?;
         }

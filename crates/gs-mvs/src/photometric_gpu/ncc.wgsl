@@ -1,6 +1,6 @@
 // L_p on the device: the NCC cost of one reference pixel's patch against one source view and
 // its gradient with respect to the rendered plane (Ñ, D), the twin of `photometric::patch_cost`
-// (docs/method.md §L_p). One thread per (pixel, source) entry; the patch samples are computed
+// (docs/method.md §L_p). One thread per (pixel, source) entry, one dispatch per source; the patch samples are computed
 // three times (sums, centred moments, gradient) instead of being kept in per-thread arrays, with
 // the same arithmetic each time, so every pass sees the same values.
 //
@@ -91,14 +91,15 @@ fn ncc_patch(ids: Ids) {
     if (t >= pass_.n) {
         return;
     }
-    let e = entries[pass_.base + t];
-    let pr = pairs[e.y];
-    let p = e.x;
+    // One dispatch per source: `base` its first entry, `p1` its pair.
+    let e = pass_.base + t;
+    let pr = pairs[pass_.p1];
+    let p = entries[e];
     let np = normal[p].n;
     let n = vec3<f32>(np[0], np[1], np[2]);
     let inv_d = 1.0 / distance[p];
     if (!(finite(inv_d) && finite(n.x) && finite(n.y) && finite(n.z))) {
-        put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
+        put_result(e, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
         return;
     }
     let s = frame.grey_scale;
@@ -112,13 +113,13 @@ fn ncc_patch(ids: Ids) {
         let tp = patch_tap(k, ci, cj);
         let w = warp(pr, tp.q, n, inv_d);
         if (!(w.z > 0.0)) {
-            put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
+            put_result(e, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
             return;
         }
         let us = w.x / w.z;
         let vs = w.y / w.z;
         if (!(us > 0.0 && us < pr.src_w && vs > 0.0 && vs < pr.src_h)) {
-            put_result(t, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
+            put_result(e, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
             return;
         }
         sr += tp.grey;
@@ -150,7 +151,7 @@ fn ncc_patch(ids: Ids) {
         let raw = 1.0 - cc;
         cost = min(max(raw, 0.0), 2.0);
         if (!(cost < MASK_THRESHOLD) || !finite(cost)) {
-            put_result(t, MASKED, 0.0, vec3<f32>(0.0), 0.0);
+            put_result(e, MASKED, 0.0, vec3<f32>(0.0), 0.0);
             return;
         }
         if (raw >= 0.0 && raw <= 2.0) {
@@ -161,7 +162,7 @@ fn ncc_patch(ids: Ids) {
         let sq = sqrt(var_r * var_s + NCC_EPS);
         cost = 1.0 - cov / sq;
         if (!finite(cost)) {
-            put_result(t, MASKED, 0.0, vec3<f32>(0.0), 0.0);
+            put_result(e, MASKED, 0.0, vec3<f32>(0.0), 0.0);
             return;
         }
         ca = -(1.0 / sq);
@@ -187,5 +188,5 @@ fn ncc_patch(ids: Ids) {
         gn += f * q;
         gd -= f * w.w;
     }
-    put_result(t, VALID, cost, gn, gd);
+    put_result(e, VALID, cost, gn, gd);
 }

@@ -28,7 +28,7 @@ gs_gpu::wgsl_struct! {
 
 /// The reduction kernels' storage bindings, by name (slot order).
 pub(super) const BINDINGS: [Binding<'static>; 7] = [
-    Binding::read("entries", "array<vec2<u32>>"),
+    Binding::read("entries", "array<u32>"),
     Binding::read("results", "array<NccResult>"),
     Binding::read("weights", "array<f32>"),
     Binding::read("row_starts", "array<u32>"),
@@ -58,7 +58,7 @@ pub(super) fn row_starts(entries: &[Entry], ranges: &[std::ops::Range<usize>], w
     for range in ranges {
         let mut i = range.start;
         for y in 0..=h {
-            while i < range.end && (entries[i][0] as usize) < y * w {
+            while i < range.end && (entries[i] as usize) < y * w {
                 i += 1;
             }
             starts.push(i as u32);
@@ -105,7 +105,7 @@ mod tests {
     #[test]
     fn row_starts_bound_each_sources_rows() {
         // A 3×2 image: source 0 picks pixels 1, 3, 5; source 1 picks pixel 4.
-        let entries = [[1, 0], [3, 0], [5, 0], [4, 1]];
+        let entries = [1, 3, 5, 4];
         let starts = row_starts(&entries, &[0..3, 3..4], 3, 2);
         assert_eq!(starts, vec![0, 1, 3, 3, 3, 4]);
     }

@@ -8,7 +8,7 @@
 //   adds them.
 //
 // Generated before this file: `struct NccFrame` (binding 0), `struct NccResult`,
-// `struct NccRowSums`, `struct PlaneGrad`, and the storage bindings `entries` (pixel, source;
+// `struct NccRowSums`, `struct PlaneGrad`, and the storage bindings `entries` (the reference pixel;
 // row-major within each source, sources in order), `results` (one per entry), `weights` (υω of
 // each entry), `row_starts` (per source, the first entry of each of its rows and one past its
 // last: height + 1 values), `row_sums` (source-major), `scales` (one per source) and `grads`
@@ -76,13 +76,13 @@ fn ncc_gradient(ids: Ids) {
         var hi = end;
         while (lo < hi) {
             let mid = (lo + hi) / 2u;
-            if (entries[mid].x < p) {
+            if (entries[mid] < p) {
                 lo = mid + 1u;
             } else {
                 hi = mid;
             }
         }
-        if (lo < end && entries[lo].x == p) {
+        if (lo < end && entries[lo] == p) {
             let r = results[lo];
             if (r.status == VALID) {
                 let wt = weights[lo];
