@@ -253,8 +253,8 @@ impl ReferenceExecutor {
     }
 
     /// The backward and the Adam step on the device ([`Rasterizer::backward_and_step`]), with
-    /// the parameter-space terms' own gradients (L_o, L_s) from `parameter_grads`; the densification statistics
-    /// accumulate there too when the plan says so.
+    /// the parameter-space terms' own gradients (L_o, L_s) from `parameter_grads`; the
+    /// densification statistics accumulate there too when the plan says so.
     #[allow(clippy::too_many_arguments)]
     fn device_step(
         &mut self,

@@ -148,8 +148,8 @@ impl WgpuRasterizer {
             self.frame = None;
         }
         res?;
-        // Whatever is left: the last view of a new size (guessed if an earlier view of this
-        // call made its size known), and the guesses that fell short (counted at once).
+        // Whatever is left: the last view when its size is new (counted, as a render of a new
+        // size is), and the guesses that fell short (counted at once, not guessed again).
         for i in 0..views.len() {
             if outs[i].is_none() {
                 let guess = !guessed.contains(&i);
