@@ -32,3 +32,16 @@ pub enum LossError {
 
 /// Result alias of gs-losses.
 pub type Result<T> = std::result::Result<T, LossError>;
+
+/// The checks a parameter-space term (L_o, L_s) makes before it reads the model: a gradient
+/// buffer of the model's length `n` (`items` names what the model holds, e.g. "opacity
+/// logits") and a finite weight of the term `term`.
+pub(crate) fn check_parameter_term(term: &str, items: &str, n: usize, grad_len: usize, weight: f32) -> Result<()> {
+    if grad_len != n {
+        return Err(LossError::ShapeMismatch(format!("{n} {items} but a gradient buffer of {grad_len}")));
+    }
+    if !weight.is_finite() {
+        return Err(LossError::InvalidParameter(format!("the weight of {term} is {weight}")));
+    }
+    Ok(())
+}

@@ -10,7 +10,7 @@
 //! ∂/∂ℓᵢₖ = exp(ℓᵢₖ)/N on the smallest axis k of Gaussian i (the lowest index among equal
 //! scales, as [`gs_core::Gaussians::normal`] breaks ties), 0 on the others.
 
-use crate::error::{LossError, Result};
+use crate::error::{LossError, Result, check_parameter_term};
 use gs_core::gaussians::smallest_axis;
 
 /// The default weight λ_s of L_s: off (docs/method.md §L_s).
@@ -20,18 +20,10 @@ pub const LAMBDA_S: f32 = 0.0;
 /// any thread count), and `grad[i][k] += weight · ∂/∂ℓᵢₖ` of it. An empty model has L_s = 0.
 /// Refuses a non-finite log-scale or weight, or a gradient buffer of another length.
 pub fn smallest_scale_mean(log_scales: &[[f32; 3]], weight: f32, grad: &mut [[f32; 3]]) -> Result<f64> {
-    if grad.len() != log_scales.len() {
-        return Err(LossError::ShapeMismatch(format!(
-            "{} log-scale rows but a gradient buffer of {}",
-            log_scales.len(),
-            grad.len()
-        )));
-    }
-    if !weight.is_finite() {
-        return Err(LossError::InvalidParameter(format!("the weight of L_s is {weight}")));
-    }
+    check_parameter_term("L_s", "log-scale rows", log_scales.len(), grad.len(), weight)?;
     if let Some(i) = log_scales.iter().position(|l| l.iter().any(|x| !x.is_finite())) {
-        return Err(LossError::InvalidParameter(format!("log-scale row {i} is {:?}", log_scales[i])));
+        let [a, b, c] = log_scales[i];
+        return Err(LossError::InvalidParameter(format!("log-scale row {i} is ({a}, {b}, {c}): not finite")));
     }
     if log_scales.is_empty() {
         return Ok(0.0);

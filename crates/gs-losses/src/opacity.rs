@@ -10,7 +10,7 @@
 //! In terms of the logit, ln o = −softplus(−x) and ln(1 − o) = −softplus(x), so
 //! H = o·softplus(−x) + (1 − o)·softplus(x) and ∂H/∂x = −x·o·(1 − o): finite for every finite x.
 
-use crate::error::{LossError, Result};
+use crate::error::{LossError, Result, check_parameter_term};
 
 /// The default weight λ_o of L_o (docs/method.md §L_o): not a term of the paper.
 pub const LAMBDA_O: f32 = 0.0;
@@ -39,16 +39,7 @@ fn entropy_and_opacity(x: f64) -> (f64, f64) {
 /// any thread count), and `grad[i] += weight · ∂/∂xᵢ` of it. An empty model has L_o = 0.
 /// Refuses a non-finite logit or weight, or a gradient buffer of another length.
 pub fn opacity_entropy(logits: &[f32], weight: f32, grad: &mut [f32]) -> Result<f64> {
-    if grad.len() != logits.len() {
-        return Err(LossError::ShapeMismatch(format!(
-            "{} opacity logits but a gradient buffer of {}",
-            logits.len(),
-            grad.len()
-        )));
-    }
-    if !weight.is_finite() {
-        return Err(LossError::InvalidParameter(format!("the weight of L_o is {weight}")));
-    }
+    check_parameter_term("L_o", "opacity logits", logits.len(), grad.len(), weight)?;
     if let Some(i) = logits.iter().position(|x| !x.is_finite()) {
         return Err(LossError::InvalidParameter(format!("opacity logit {i} is {}", logits[i])));
     }

@@ -207,27 +207,28 @@ impl WgpuRasterizer {
         grads: &OutputGradients,
         colour_only: bool,
     ) {
-        let (w, h) = (cam.width as usize, cam.height as usize);
-        let fold = |x, y| crate::pixel::pixel_grads(cam, config, grads, &st.final_t, geo, x, y);
-        let (ctx, pool, id) = (&self.ctx, &mut self.pool, self.bufs.pixgrad);
-        if colour_only {
-            super::upload_with(ctx, pool, id, w * h, |pg: &mut [ColourGrad]| {
-                pg.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-                    for (x, px) in row.iter_mut().enumerate() {
-                        let (c, final_t) = fold(x, y);
-                        *px = ColourGrad { rgb: [c[0], c[1], c[2]], final_t };
-                    }
-                })
-            });
-        } else {
-            super::upload_with(ctx, pool, id, w * h, |pg: &mut [PixelGrad]| {
+        /// Uploads one record a pixel, made by `record` from the pixel's folded gradients (rows
+        /// in parallel).
+        fn upload<T: bytemuck::Pod + Send>(
+            r: &mut WgpuRasterizer,
+            (w, h): (usize, usize),
+            fold: &(impl Fn(usize, usize) -> ([f32; 8], f32) + Sync),
+            record: impl Fn([f32; 8], f32) -> T + Sync,
+        ) {
+            super::upload_with(&r.ctx, &mut r.pool, r.bufs.pixgrad, w * h, |pg: &mut [T]| {
                 pg.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
                     for (x, px) in row.iter_mut().enumerate() {
                         let (channels, final_t) = fold(x, y);
-                        *px = PixelGrad { channels, final_t };
+                        *px = record(channels, final_t);
                     }
                 })
             });
+        }
+        let size = (cam.width as usize, cam.height as usize);
+        let fold = |x, y| crate::pixel::pixel_grads(cam, config, grads, &st.final_t, geo, x, y);
+        match colour_only {
+            true => upload(self, size, &fold, |c, final_t| ColourGrad { rgb: [c[0], c[1], c[2]], final_t }),
+            false => upload(self, size, &fold, |channels, final_t| PixelGrad { channels, final_t }),
         }
     }
 

@@ -170,7 +170,7 @@ impl WgpuRasterizer {
     /// The render counting its intersections first (two submissions and readbacks): a size
     /// not rendered before, or one whose guess fell short. The camera is written.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn render_counted(
+    fn render_counted(
         &mut self,
         g: &Gaussians,
         cam: &CamParams,

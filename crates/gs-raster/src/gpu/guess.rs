@@ -65,13 +65,7 @@ impl WgpuRasterizer {
         rb: &Readback,
         (cap, windows): (u32, u32),
     ) -> Result<Option<((RenderOutput, Instant), Frame)>> {
-        let npix = cam.width as u64 * cam.height as u64;
-        let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
-        self.reserve_projection(g, npix, n_tiles);
-        self.reserve_blend(cap as u64, rb);
-        let mut enc = self.encode_projection(g)?;
-        self.blend(&mut enc, cam, request, bands, g.len() as u32, (cap, windows), rb)?;
-        self.disp.submit(enc);
+        self.submit_guessed(g, cam, request, bands, rb, (cap, windows))?;
         let (out, t2) = self.ctx.read_mapped(self.pool.buffer(rb.staging), rb.bytes, |bytes| {
             (self.guessed_output(g, cam, config, request, rb, bytes, (cap, windows)), Instant::now())
         })?;
@@ -81,6 +75,27 @@ impl WgpuRasterizer {
         let (out, frame, longest) = out?;
         self.remember(cam, frame.total as u64, longest);
         Ok(Some(((out, t2), frame)))
+    }
+
+    /// The guessed render's one submission: projection and blend with the intersections'
+    /// buffers and the blend's windows sized by `guess`, its outputs copied to `rb`'s staging
+    /// buffer (the camera written before).
+    fn submit_guessed(
+        &mut self,
+        g: &Gaussians,
+        cam: &CamParams,
+        request: &RenderRequest,
+        bands: &[(u32, u32, u64, u64)],
+        rb: &Readback,
+        guess: (u32, u32),
+    ) -> Result<()> {
+        let npix = cam.width as u64 * cam.height as u64;
+        self.reserve_projection(g, npix, (cam.tiles_x * cam.tiles_y) as u64);
+        self.reserve_blend(guess.0 as u64, rb);
+        let mut enc = self.encode_projection(g)?;
+        self.blend(&mut enc, cam, request, bands, g.len() as u32, guess, rb)?;
+        self.disp.submit(enc);
+        Ok(())
     }
 
     /// The output of a guessed render from its staging bytes, its frame (`self.generation`
@@ -190,11 +205,7 @@ impl WgpuRasterizer {
             let npix = cam.width as u64 * cam.height as u64;
             let rb = Readback::new(request, nn, npix, self.batch_staging[k]);
             self.write_camera(g, &cam, request, config);
-            self.reserve_projection(g, npix, (cam.tiles_x * cam.tiles_y) as u64);
-            self.reserve_blend(guess.0 as u64, &rb);
-            let mut enc = self.encode_projection(g)?;
-            self.blend(&mut enc, &cam, request, &bands, nn as u32, guess, &rb)?;
-            self.disp.submit(enc);
+            self.submit_guessed(g, &cam, request, &bands, &rb, guess)?;
             self.generation += 1;
             let read = self.ctx.request_read(self.pool.buffer(rb.staging), rb.bytes);
             flying.push(InFlight { index, cam, rb, guess, generation: self.generation, read });

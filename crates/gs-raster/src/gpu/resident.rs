@@ -423,15 +423,12 @@ impl WgpuRasterizer {
         if !self.model.holds(g) {
             return Err(RasterError::Gpu("a device step needs the model resident (make_resident) with these Gaussians".into()));
         }
-        if let Some(x) = extras.extra_opacity
-            && x.len() != g.len()
-        {
-            return Err(RasterError::InvalidGradients(format!("{} extra opacity gradients for {} Gaussians", x.len(), g.len())));
-        }
-        if let Some(x) = extras.extra_log_scales
-            && x.len() != g.len()
-        {
-            return Err(RasterError::InvalidGradients(format!("{} extra log-scale gradients for {} Gaussians", x.len(), g.len())));
+        for (what, len) in [("opacity", extras.extra_opacity.map(<[f32]>::len)), ("log-scale", extras.extra_log_scales.map(<[[f32; 3]]>::len))] {
+            if let Some(len) = len
+                && len != g.len()
+            {
+                return Err(RasterError::InvalidGradients(format!("{len} extra {what} gradients for {} Gaussians", g.len())));
+            }
         }
         let checked = self.checked_frame(g, camera, config, forward, grads)?;
         let t0 = Instant::now();
