@@ -55,6 +55,13 @@ impl Arena {
     /// those not held (`upload(i)` gives item i's values, asked only when it is uploaded);
     /// `None` when they cannot all be held at once within the budget and one binding.
     pub fn place<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], upload: impl Fn(usize) -> Cow<'d, [f32]>) -> Option<Vec<u32>> {
+        self.place_with(ctx, items, |i| Some(upload(i)))
+    }
+
+    /// [`Arena::place`] where `upload(i)` may be `None`: the caller fills item i's slot itself
+    /// on the device (a copy from a [`crate::DeviceImage`]) before its passes read it. Such an
+    /// item is never held under a key: it is placed like an item of one call.
+    pub fn place_with<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], upload: impl Fn(usize) -> Option<Cow<'d, [f32]>>) -> Option<Vec<u32>> {
         let largest = items.iter().map(|&(_, floats)| floats).max()?;
         let mut keyed: Vec<ArenaKey> = items.iter().filter_map(|&(k, _)| k).collect();
         keyed.sort_unstable();
@@ -126,7 +133,7 @@ impl Arena {
     /// The slot holding `key`, else the slot `values` is uploaded into: a free one, else one
     /// that this call has not used, an earlier call's unkeyed array first, then the least
     /// recently used.
-    fn slot_of<'d>(&mut self, ctx: &GpuContext, key: Option<ArenaKey>, floats: usize, values: impl FnOnce() -> Cow<'d, [f32]>) -> usize {
+    fn slot_of<'d>(&mut self, ctx: &GpuContext, key: Option<ArenaKey>, floats: usize, values: impl FnOnce() -> Option<Cow<'d, [f32]>>) -> usize {
         let clock = self.clock;
         if let Some(i) = self.holding(key, floats) {
             self.slots[i] = Some(Slot { key, floats, used: clock });
@@ -137,7 +144,14 @@ impl Arena {
             unused.min_by_key(|(_, s)| s.map(|s| (s.key.is_some(), s.used))).map_or(0, |(i, _)| i)
         });
         let offset = 4 * (i * self.slot_floats) as u64;
-        ctx.write_buffer(&self.data, offset, bytemuck::cast_slice(&values()));
+        let key = match values() {
+            Some(v) => {
+                ctx.write_buffer(&self.data, offset, bytemuck::cast_slice(&v));
+                key
+            }
+            // Filled by the caller: not held under the key, whose content it may not be.
+            None => None,
+        };
         self.slots[i] = Some(Slot { key, floats, used: clock });
         i
     }

@@ -122,6 +122,8 @@ pub(crate) fn assemble(
         stats: RenderStats::default(),
         final_t: Vec::new(),
         last_contributor: Vec::new(),
+        #[cfg(feature = "wgpu")]
+        device_color: None,
         state: ForwardState(StateInner::Cpu(CpuState {
             n_gaussians: 0,
             width: cam.width,

@@ -631,6 +631,7 @@ fn deterministic_across_runs_and_thread_counts() {
                 distance: Some(&w1),
                 plane_depth: Some(&w1),
                 expected_depth: Some(&w1),
+            ..OutputGradients::default()
             };
             let gr = backward(&g, &cam, &cfg, &out, &og).unwrap();
             (
@@ -949,6 +950,7 @@ fn render_and_backward_finite(g: &Gaussians, cam: &Camera, cfg: &RasterConfig) -
         distance: Some(&w1),
         plane_depth: Some(&w1),
         expected_depth: Some(&w1),
+        ..OutputGradients::default()
     };
     let gr = backward(g, cam, cfg, &out, &og).unwrap();
     assert_finite_grads(&gr);

@@ -130,6 +130,12 @@ pub struct RenderRequest {
     /// 0 blends every contribution (training); in [0, 1). Forward only: a backward with
     /// geometry gradients of a cut render is refused.
     pub geometry_cut: f32,
+    /// With `color`: the colour stays on the device. The wgpu backend writes it into a new
+    /// `DeviceImage` ([`RenderOutput::device_color`], built with the `wgpu` feature) and leaves
+    /// [`RenderOutput::color`] `None`, so that a loss kernel on the same device reads it
+    /// without a round trip through the host (docs/architecture.md §GPU). The CPU backend
+    /// renders the colour to the host as without it.
+    pub color_on_device: bool,
 }
 
 impl Default for RenderRequest {
@@ -146,6 +152,7 @@ impl Default for RenderRequest {
             radii: true,
             traversal: false,
             geometry_cut: 0.0,
+            color_on_device: false,
         }
     }
 }
@@ -164,6 +171,7 @@ impl RenderRequest {
             radii: true,
             traversal: true,
             geometry_cut: 0.0,
+            color_on_device: false,
         }
     }
     /// The transmittance cut the geometry accumulators apply ([`Self::geometry_cut`]; 0 when
@@ -241,6 +249,10 @@ pub struct RenderOutput {
     pub final_t: Vec<f32>,
     /// Per pixel: 1 + index (in its tile list) of the last contributing Gaussian, 0 if none.
     pub last_contributor: Vec<u32>,
+    /// The colour kept on the device ([`RenderRequest::color_on_device`], wgpu backend):
+    /// `[H][W][3]` like [`RenderOutput::color`], which is then `None`.
+    #[cfg(feature = "wgpu")]
+    pub device_color: Option<gs_gpu::DeviceImage>,
     pub(crate) state: ForwardState,
 }
 
@@ -260,6 +272,11 @@ pub struct OutputGradients<'a> {
     pub plane_depth: Option<&'a Image>,
     /// ∂L/∂expected depth.
     pub expected_depth: Option<&'a Image>,
+    /// ∂L/∂colour on the device (`[H][W][3]`), for a render whose colour stayed there
+    /// ([`RenderRequest::color_on_device`]): the wgpu backward reads it there; the CPU
+    /// backward refuses it. At most one of it and `color`.
+    #[cfg(feature = "wgpu")]
+    pub device_color: Option<&'a gs_gpu::DeviceImage>,
 }
 
 /// Gradients of the Gaussian parameters (same layout as [`Gaussians`](gs_core::Gaussians)) and the densification

@@ -160,6 +160,8 @@ pub(crate) fn check_all_grads(
         )));
     }
     check_grad(grads.color, req.color, "color", w, h, 3)?;
+    #[cfg(feature = "wgpu")]
+    check_device_color(grads, req, w, h)?;
     check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
     check_grad(grads.normal, req.normal, "normal", w, h, 3)?;
     check_grad(grads.distance, req.distance, "distance", w, h, 1)?;
@@ -172,6 +174,23 @@ pub(crate) fn check_all_grads(
         h,
         1,
     )
+}
+
+/// The device colour gradient, if any: of a render with colour, `w × h × 3`, and not beside
+/// a host colour gradient.
+#[cfg(feature = "wgpu")]
+fn check_device_color(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
+    let Some(g) = grads.device_color else { return Ok(()) };
+    let problem = if grads.color.is_some() {
+        "given both on the host and on the device".to_string()
+    } else if !req.color {
+        "given but the render has no colour".to_string()
+    } else if (g.width(), g.height(), g.channels()) != (w as usize, h as usize, 3) {
+        format!("is {}×{}×{}, needs {w}×{h}×3", g.width(), g.height(), g.channels())
+    } else {
+        return Ok(());
+    };
+    Err(RasterError::InvalidGradients(format!("the device colour gradient {problem}")))
 }
 
 /// Checks that a forward state of `(n, width, height)` belongs to these inputs (`usable` is

@@ -178,6 +178,7 @@ fn parity_for_channel_subsets_and_single_gradients() {
             distance: req.distance.then_some(&grads.distance),
             plane_depth: req.plane_depth.then_some(&grads.plane_depth),
             expected_depth: req.expected_depth.then_some(&grads.expected_depth),
+            ..OutputGradients::default()
         };
         let gc = gs_raster::backward(&g, cam, &cfg, &cpu, &og).unwrap();
         let gg = r.backward(&g, cam, &cfg, &gpu, &og).unwrap();

@@ -146,6 +146,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         radii: true,
         traversal: false,
         geometry_cut: 0.0,
+        color_on_device: false,
     };
     let w = &config.weights;
     let weights = LossWeights {

@@ -87,7 +87,7 @@ impl WgpuRasterizer {
                 }
             }
         };
-        let color = grads.color.is_some();
+        let color = grads.color.is_some() || grads.device_color.is_some();
         let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
         let depth = grads.expected_depth.is_some();
         if frame.total == 0 || !(color || geo || depth || grads.alpha.is_some()) {
@@ -138,7 +138,11 @@ impl WgpuRasterizer {
         let (cam, st, frame) = (&checked.cam, checked.st, checked.frame);
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
-        let flags = grads.color.is_some() as u32
+        let device_colour = grads.device_color;
+        if device_colour.is_some_and(|im| !im.is_on(&self.ctx)) {
+            return Err(RasterError::InvalidGradients("the device colour gradient lives on another device".into()));
+        }
+        let flags = (grads.color.is_some() || device_colour.is_some()) as u32
             | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some())
                 as u32)
                 << 1
@@ -164,9 +168,26 @@ impl WgpuRasterizer {
             false => Vec::new(),
         };
         let colour_only = flags & !1 == 0;
-        self.upload_pixel_grads(cam, config, st, if geo.is_empty() { &st.geo } else { &geo }, grads, colour_only);
+        let rec = match colour_only {
+            true => bytes_of::<ColourGrad>(1),
+            false => bytes_of::<PixelGrad>(1),
+        };
+        // A device colour gradient alone leaves nothing for the host to fold: the records
+        // start at zero on the device; otherwise the host folds the rest (its colour left out).
+        let nothing_on_host = device_colour.is_some() && colour_only && grads.alpha.is_none();
+        if nothing_on_host {
+            self.pool.ensure(self.bufs.pixgrad, npix * rec);
+        } else {
+            self.upload_pixel_grads(cam, config, st, if geo.is_empty() { &st.geo } else { &geo }, grads, colour_only);
+        }
         let mut enc = self.disp.encoder();
         let (p, b) = (&self.pool, &self.bufs);
+        if nothing_on_host {
+            enc.encoder.clear_buffer(p.buffer(b.pixgrad), 0, Some(npix * rec));
+        }
+        if let Some(image) = device_colour {
+            self.add_device_colour(&mut enc, &bands, image, colour_only)?;
+        }
         // Intersections beyond their tile's last contributor get no partial: zeros.
         enc.encoder
             .clear_buffer(p.buffer(b.partials), 0, Some(partial_bytes));
@@ -230,6 +251,23 @@ impl WgpuRasterizer {
             true => upload(self, size, &fold, |c, final_t| ColourGrad { rgb: [c[0], c[1], c[2]], final_t }),
             false => upload(self, size, &fold, |channels, final_t| PixelGrad { channels, final_t }),
         }
+    }
+
+    /// `colour_grad_add` per band of tile rows: the device colour gradient `image` added into
+    /// the pixels' records (`ColourGrad`s when `colour_only`, else `PixelGrad`s).
+    fn add_device_colour(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], image: &gs_gpu::DeviceImage, colour_only: bool) -> Result<()> {
+        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let (kernel, rec) = match colour_only {
+            true => (&k.colour_grad_add_colour, bytes_of::<ColourGrad>(1)),
+            false => (&k.colour_grad_add, bytes_of::<PixelGrad>(1)),
+        };
+        for &(_, _, p0, bp) in bands {
+            d.make_room(enc, 1);
+            let binds = [gs_gpu::Bind::range(image.buffer(), p0 * 12, bp * 12), p.range(b.pixgrad, p0 * rec, bp * rec)];
+            let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
+            d.dispatch_1d(enc, kernel, &binds, pass)?;
+        }
+        Ok(())
     }
 
     /// `raster_bwd` per band of tile rows and window of tile-list positions (last first).

@@ -16,7 +16,7 @@ use crate::{
 };
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Camera, Gaussians, Image};
-use gs_gpu::{Encoder, PassUniform};
+use gs_gpu::{Bind, DeviceImage, Encoder, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -34,6 +34,9 @@ pub(super) struct Readback {
     planes_at: u64,
     /// The plane depth made on the device ([`device_plane_depth`]).
     plane_depth: Option<u64>,
+    /// The colour kept on the device ([`RenderRequest::color_on_device`]): written there, not
+    /// read back.
+    colour: Option<DeviceImage>,
     pub(super) bytes: u64,
 }
 
@@ -45,9 +48,12 @@ fn device_plane_depth(request: &RenderRequest) -> bool {
 }
 
 impl Readback {
-    pub(super) fn new(request: &RenderRequest, n: u64, npix: u64, staging: BufId) -> Self {
+    /// Where the outputs of `request` go for `n` Gaussians and `npix` pixels, into `staging`
+    /// except the `colour` kept on the device (given when the request keeps it there).
+    pub(super) fn new(request: &RenderRequest, n: u64, npix: u64, staging: BufId, colour: Option<DeviceImage>) -> Self {
         let mut planes = Vec::new();
-        if request.color {
+        let host_colour = request.color && colour.is_none();
+        if host_colour {
             planes.extend(0..3);
         }
         // Plane depth alone comes back as one plane made on the device.
@@ -68,7 +74,7 @@ impl Readback {
         let radii = place(request.radii, (n * 4).next_multiple_of(8));
         // T_final makes the colour (background), the alpha and the expected depth; the
         // plane depth, normal and distance need neither it nor the last contributors.
-        let final_t = place(request.traversal || request.color || request.alpha || request.expected_depth, npix * 4);
+        let final_t = place(request.traversal || host_colour || request.alpha || request.expected_depth, npix * 4);
         let last = place(request.traversal, npix * 4);
         let counters = at;
         let observed = counters + 64;
@@ -77,7 +83,20 @@ impl Readback {
         let depth_at = planes_at + planes.len() as u64 * npix * 4;
         let plane_depth = depth_alone.then_some(depth_at);
         let bytes = depth_at + if depth_alone { npix * 4 } else { 0 };
-        Self { staging, planes, radii, final_t, last, counters, observed, planes_at, plane_depth, bytes }
+        Self { staging, planes, radii, final_t, last, counters, observed, planes_at, plane_depth, colour, bytes }
+    }
+}
+
+impl WgpuRasterizer {
+    /// The [`Readback`] of a render of `request` on `cam` into `staging`, with a new device
+    /// image for its colour when the request keeps the colour on the device.
+    pub(super) fn readback(&self, request: &RenderRequest, cam: &CamParams, n: u64, staging: BufId) -> Result<Readback> {
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let colour = match request.color && request.color_on_device {
+            true => Some(DeviceImage::new(&self.ctx, "rendered colour", w, h, 3).map_err(|e| RasterError::Gpu(e.to_string()))?),
+            false => None,
+        };
+        Ok(Readback::new(request, n, (w * h) as u64, staging, colour))
     }
 }
 
@@ -123,7 +142,6 @@ impl WgpuRasterizer {
         guess: bool,
     ) -> Result<RenderOutput> {
         let nn = g.len() as u64;
-        let npix = cam.width as u64 * cam.height as u64;
         let bands = self.frame_bands(g, cam)?;
         self.write_camera(g, cam, request, config);
         // No buffer holds anything needed any more: the pool may shrink now (the model's own
@@ -132,7 +150,7 @@ impl WgpuRasterizer {
         let t0 = Instant::now();
         self.model.prepare(&self.ctx, g)?;
         let t1 = Instant::now();
-        let rb = Readback::new(request, nn, npix, self.bufs.staging);
+        let rb = self.readback(request, cam, nn, self.bufs.staging)?;
         let guess = if guess { self.guess_of(cam, config, nn) } else { None };
         if let Some((cap, windows)) = guess
             && let Some((out, frame)) = self.render_guessed(g, cam, config, request, &bands, &rb, (cap, windows))?
@@ -344,6 +362,9 @@ impl WgpuRasterizer {
             }
             self.copy_outputs(enc, cam, request, bands, n, rb);
         }
+        if let Some(image) = &rb.colour {
+            self.colour_bands(enc, bands, image, entries == 0)?;
+        }
         let (p, b) = (&self.pool, &self.bufs);
         let nn = n as u64;
         if let Some(at) = rb.radii.filter(|_| nn > 0) {
@@ -449,6 +470,20 @@ impl WgpuRasterizer {
         Ok(())
     }
 
+    /// `colour_out` per band of tile rows: each pixel's colour (accumulated colour plus
+    /// T_final · background; the background alone when nothing was blended, `empty`) into
+    /// `image`.
+    fn colour_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], image: &DeviceImage, empty: bool) -> Result<()> {
+        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
+        for &(_, _, p0, bp) in bands {
+            d.make_room(enc, 1);
+            let binds = [p.range(b.acc, p0 * 32, bp * 32), p.range(b.final_t, p0 * 4, bp * 4), Bind::range(image.buffer(), p0 * 12, bp * 12)];
+            let pass = PassUniform { n: bp as u32, base: p0 as u32, mode: empty as u32, ..Default::default() };
+            d.dispatch_1d(enc, &self.kernels.colour_out, &binds, pass)?;
+        }
+        Ok(())
+    }
+
     /// Copies T_final, last contributors, counters, observed counts and the requested planes
     /// to the staging buffer.
     fn copy_outputs(
@@ -538,7 +573,10 @@ impl WgpuRasterizer {
                 request.observed.then(|| vec![0; n]),
             )
         };
-        let mut out = crate::pixel::assemble(cam, config, request, &acc, &final_t)?;
+        // A colour kept on the device is not assembled here.
+        let on_host = RenderRequest { color: request.color && rb.colour.is_none(), ..*request };
+        let mut out = crate::pixel::assemble(cam, config, &on_host, &acc, &final_t)?;
+        out.device_color = rb.colour.clone();
         // The device's plane depth replaces the one assembled from planes that did not come
         // back (without intersections both are 0).
         if let Some(at) = rb.plane_depth.filter(|_| total > 0) {

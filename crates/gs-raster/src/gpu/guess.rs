@@ -202,8 +202,7 @@ impl WgpuRasterizer {
             let (cam, request) = (cams[index], &views[index].1);
             let bands = self.frame_bands(g, &cam)?;
             let guess = self.guess_of(&cam, config, nn).expect("a size rendered before");
-            let npix = cam.width as u64 * cam.height as u64;
-            let rb = Readback::new(request, nn, npix, self.batch_staging[k]);
+            let rb = self.readback(request, &cam, nn, self.batch_staging[k])?;
             self.write_camera(g, &cam, request, config);
             self.submit_guessed(g, &cam, request, &bands, &rb, guess)?;
             self.generation += 1;

@@ -43,9 +43,10 @@ gs_gpu::wgsl_struct! {
         low_pass: f32,
         /// `RasterConfig::plane_depth_min_denominator`.
         min_den: f32,
-        pad0: u32,
-        pad1: u32,
-        pad2: u32,
+        /// `RasterConfig::background` (red, green, blue).
+        bg_r: f32,
+        bg_g: f32,
+        bg_b: f32,
     }
 }
 
@@ -80,9 +81,9 @@ impl CamUniform {
             geometry_cut,
             low_pass: cfg.low_pass,
             min_den: cfg.plane_depth_min_denominator,
-            pad0: 0,
-            pad1: 0,
-            pad2: 0,
+            bg_r: cfg.background[0],
+            bg_g: cfg.background[1],
+            bg_b: cfg.background[2],
         }
     }
 }
@@ -213,6 +214,30 @@ gs_gpu::wgsl_struct! {
         final_t: f32,
     }
 }
+
+/// `colour_grad_add`'s addition into a `PixelGrad` record: the colour channels take the
+/// gradient, the final transmittance's coefficient loses background · gradient (as the host's
+/// fold, `pixel::pixel_grads`, makes them).
+const ADD_COLOUR_FULL: &str = "fn add_colour(p: u32, g: vec3<f32>) {
+    var r = pixgrad[p];
+    for (var k = 0u; k < 3u; k++) {
+        r.channels[k] += g[k];
+    }
+    r.final_t -= cam.bg_r * g.x + cam.bg_g * g.y + cam.bg_b * g.z;
+    pixgrad[p] = r;
+}
+";
+
+/// `colour_grad_add`'s addition into a `ColourGrad` record (as [`ADD_COLOUR_FULL`]).
+const ADD_COLOUR_COLOUR: &str = "fn add_colour(p: u32, g: vec3<f32>) {
+    var r = pixgrad[p];
+    for (var k = 0u; k < 3u; k++) {
+        r.rgb[k] += g[k];
+    }
+    r.final_t -= cam.bg_r * g.x + cam.bg_g * g.y + cam.bg_b * g.z;
+    pixgrad[p] = r;
+}
+";
 
 /// `raster_bwd`'s read of a pixel's gradients from `PixelGrad` records.
 const PIXEL_GRAD_FULL: &str = "fn pixel_grad(p: u32) -> PixelGrad {\n    return pixgrad[p];\n}\n";
@@ -357,8 +382,15 @@ fn specs() -> Vec<Spec<'static>> {
             &[include_str!("plane_depth.wgsl")],
             &[B::read("acc", f), B::write("depth", f)],
         ),
+        spec(
+            "colour_out",
+            &[include_str!("colour_out.wgsl")],
+            &[B::read("acc", f), B::read("final_t", f), B::write("image", f)],
+        ),
         raster_bwd_spec(PIXEL_GRAD_FULL, "array<PixelGrad>"),
         raster_bwd_spec(PIXEL_GRAD_COLOUR, "array<ColourGrad>"),
+        colour_grad_spec(ADD_COLOUR_FULL, "array<PixelGrad>"),
+        colour_grad_spec(ADD_COLOUR_COLOUR, "array<ColourGrad>"),
         spec(
             "grad_reduce",
             &[include_str!("grad_reduce.wgsl")],
@@ -394,6 +426,17 @@ fn raster_bwd_spec(read: &'static str, records: &'static str) -> Spec<'static> {
     }
 }
 
+/// `colour_grad_add` adding a device colour gradient into `pixgrad` records of type
+/// `records` through `add` (the same two variants as `raster_bwd`).
+fn colour_grad_spec(add: &'static str, records: &'static str) -> Spec<'static> {
+    use Binding as B;
+    Spec {
+        entry: "colour_grad_add",
+        sources: vec![include_str!("colour_grad.wgsl"), add],
+        bindings: vec![B::read("colour_grad", "array<f32>"), B::write("pixgrad", records)],
+    }
+}
+
 /// The full source list of a spec: the generated camera and gradient structs, common.wgsl,
 /// its own.
 fn sources<'a>(decls: &'a str, spec: &Spec<'a>) -> Vec<&'a str> {
@@ -420,9 +463,15 @@ pub(crate) struct Kernels {
     pub isect_link: Kernel,
     pub raster_fwd: Kernel,
     pub plane_depth: Kernel,
+    /// The rendered colour into a device image (`RenderRequest::color_on_device`).
+    pub colour_out: Kernel,
     pub raster_bwd: Kernel,
     /// `raster_bwd` on [`ColourGrad`] records (a backward with colour gradients alone).
     pub raster_bwd_colour: Kernel,
+    /// A device colour gradient added into [`PixelGrad`] records.
+    pub colour_grad_add: Kernel,
+    /// A device colour gradient added into [`ColourGrad`] records.
+    pub colour_grad_add_colour: Kernel,
     pub grad_reduce: Kernel,
 }
 
@@ -470,8 +519,11 @@ impl Kernels {
             isect_link: next()?,
             raster_fwd: next()?,
             plane_depth: next()?,
+            colour_out: next()?,
             raster_bwd: next()?,
             raster_bwd_colour: next()?,
+            colour_grad_add: next()?,
+            colour_grad_add_colour: next()?,
             grad_reduce: next()?,
         })
     }

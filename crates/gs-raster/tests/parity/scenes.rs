@@ -110,6 +110,7 @@ impl Grads {
             distance: Some(&self.distance),
             plane_depth: Some(&self.plane_depth),
             expected_depth: Some(&self.expected_depth),
+            ..OutputGradients::default()
         }
     }
 }
