@@ -57,9 +57,11 @@ impl Default for ImageLossConfig {
     }
 }
 
-/// Values of L_I and its gradient with respect to the rendered image.
+/// Values of L_I and its gradient with respect to the rendered image: a host [`Image`], or
+/// (`ImageLossOutput<gs_gpu::DeviceImage>`, the device twin's `finish_on_device`) an image
+/// kept on the device.
 #[derive(Debug, Clone)]
-pub struct ImageLossOutput {
+pub struct ImageLossOutput<G = Image> {
     /// L1(Ĩ, I).
     pub l1: f64,
     /// SSIM(Ĩ, I) (so D-SSIM = 1 − ssim).
@@ -69,7 +71,7 @@ pub struct ImageLossOutput {
     /// L_I.
     pub total: f64,
     /// ∂L_I/∂Ĩ, same size as the rendered image.
-    pub grad_rendered: Image,
+    pub grad_rendered: G,
 }
 
 /// L_I of a rendered image Ĩ against the ground truth I. `guide` must be
@@ -80,7 +82,7 @@ pub fn image_loss(
     guide: Option<&EdgeGuide>,
     cfg: &ImageLossConfig,
 ) -> Result<ImageLossOutput> {
-    let guide = check_inputs(rendered, gt, guide, cfg)?;
+    let guide = check_inputs(Dims::of(rendered), gt, guide, cfg)?;
     let dims = Dims::of(rendered);
     let (a, b) = (rendered.data(), gt.data());
     let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
@@ -98,24 +100,29 @@ pub fn image_loss(
     ImageLossOutput::assemble(cfg, l1v, s, edge, Image::from_vec(dims.width, dims.height, dims.channels, grad)?)
 }
 
-impl ImageLossOutput {
+impl<G> ImageLossOutput<G> {
     /// The output of the three terms' values and the summed gradient, with L_I's total.
-    pub(crate) fn assemble(cfg: &ImageLossConfig, l1: f64, ssim: f64, edge: Option<f64>, grad_rendered: Image) -> Result<Self> {
+    pub(crate) fn assemble(cfg: &ImageLossConfig, l1: f64, ssim: f64, edge: Option<f64>, grad_rendered: G) -> Result<Self> {
         let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
         let total = (1.0 - b1) * l1 + b1 * (1.0 - ssim) + edge.map_or(0.0, |e| b2 * e);
         Ok(Self { l1, ssim, edge, total, grad_rendered })
+    }
+
+    /// The same values with the gradient made into another form (e.g. moved to a device).
+    pub fn map_grad<H, E>(self, f: impl FnOnce(G) -> std::result::Result<H, E>) -> std::result::Result<ImageLossOutput<H>, E> {
+        let Self { l1, ssim, edge, total, grad_rendered } = self;
+        Ok(ImageLossOutput { l1, ssim, edge, total, grad_rendered: f(grad_rendered)? })
     }
 }
 
 /// The checks of [`image_loss`]' inputs (shared with the device twin): one size, weights in
 /// range, and an edge guide of the image's size when the edge term is on, which is returned.
 pub(crate) fn check_inputs<'g>(
-    rendered: &Image,
+    dims: Dims,
     gt: &Image,
     guide: Option<&'g EdgeGuide>,
     cfg: &ImageLossConfig,
 ) -> Result<Option<&'g EdgeGuide>> {
-    let dims = Dims::of(rendered);
     if Dims::of(gt) != dims {
         return Err(LossError::ShapeMismatch(format!(
             "rendered image is {}×{}×{}, ground truth {}×{}×{}",

@@ -74,7 +74,7 @@ pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, norma
 pub use opacity::opacity_entropy;
 pub use ssim::SsimRegion;
 #[cfg(feature = "wgpu")]
-pub use image_gpu::{ImageLossGpu, PendingImageLoss};
+pub use image_gpu::{ImageLossGpu, PendingDeviceImageLoss, PendingImageLoss};
 #[cfg(feature = "wgpu")]
 pub use normal_gpu::{NormalGpu, PendingNormalLosses};
 

@@ -163,3 +163,33 @@ fn a_views_photo_and_guide_are_uploaded_once() {
         }
     }
 }
+
+/// A rendered image kept on the device (a render's colour that never came to the host): the
+/// same values and gradient bits as the evaluation of its host copy, and only the row sums come
+/// back; nothing per value goes up after the view's photo and guide are held.
+#[test]
+fn a_rendered_image_on_the_device_gives_the_same_result_and_its_gradient_stays_there() {
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let cfg = ImageLossConfig::default();
+    for (w, h, c) in [(200, 150, 3), (37, 23, 3), (1, 1, 3)] {
+        let (a, b) = pair(w, h, c, (3 * w + h) as u64);
+        let (rendered, gt) = (Image::from_vec(w, h, c, a).unwrap(), Image::from_vec(w, h, c, b).unwrap());
+        let guide = EdgeGuide::from_gt(&gt).unwrap();
+        let on_device = gs_gpu::DeviceImage::upload(&ctx, "rendered", (w, h, c), rendered.data()).unwrap();
+        let host = g.image_loss_of_view(&rendered, &gt, Some(&guide), 7, &cfg).unwrap();
+        let before = ctx.transfers();
+        let started = g.start_on_device(&on_device, &gt, Some(&guide), Some(7), &cfg).unwrap();
+        let dev = g.finish_on_device(started).unwrap();
+        let t = ctx.transfers() - before;
+        let what = format!("{w}x{h}x{c}");
+        assert_eq!((t.syncs, t.bytes_down), (1, 4 * 3 * h as u64), "{what}: the row sums alone come back");
+        assert!(t.bytes_up < 4096, "{what}: {} bytes written (uniforms alone)", t.bytes_up);
+        assert_eq!((dev.l1, dev.ssim, dev.edge, dev.total), (host.l1, host.ssim, host.edge, host.total), "{what}: values");
+        assert_eq!(dev.grad_rendered.read(&ctx).unwrap(), host.grad_rendered.data(), "{what}: gradient bits");
+    }
+    // A size mismatch is refused as on the host.
+    let small = gs_gpu::DeviceImage::new(&ctx, "small", 4, 4, 3).unwrap();
+    let gt = Image::from_vec(8, 4, 3, vec![0.5; 96]).unwrap();
+    let err = g.start_on_device(&small, &gt, None, None, &ImageLossConfig { edge: false, ..cfg }).err().expect("refused");
+    assert!(err.to_string().contains("4×4×3"), "{err}");
+}

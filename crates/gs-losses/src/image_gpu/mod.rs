@@ -14,7 +14,7 @@ use crate::gradient::GRAD_NORM_EPS;
 use crate::image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, check_inputs};
 use crate::ssim::{SSIM_C1, SSIM_C2, gaussian_window_1d};
 use gs_core::Image;
-use gs_gpu::{Arena, ArenaKey, Binding, GpuContext, PassUniform, PendingRead};
+use gs_gpu::{Arena, ArenaKey, Binding, DeviceImage, GpuContext, PassUniform, PendingRead};
 use std::borrow::Cow;
 
 gs_gpu::wgsl_struct! {
@@ -144,6 +144,14 @@ pub fn image_kernel_source() -> String {
 /// storage binding.
 const ARENA_BYTES: u64 = 512 << 20;
 
+/// The rendered image Ĩ of an evaluation: on the host, or kept on the device (copied into
+/// the arena there, its gradient kept there too).
+#[derive(Clone, Copy)]
+enum Rendered<'a> {
+    Host(&'a [f32]),
+    Device(&'a DeviceImage),
+}
+
 /// What [`ImageLossGpu::submit`] compares the rendered image with: b, the guide's ∇I, and the key
 /// under which both stay on the device between calls (none: uploaded every call).
 struct Targets<'a> {
@@ -171,18 +179,25 @@ struct Submitted {
     dims: Dims,
     /// Whether the edge term's values were written.
     edge: bool,
+    /// The gradient kept on the device (a rendered image given there), else read back.
+    grad: Option<DeviceImage>,
 }
 
 /// An L_I evaluation started by [`ImageLossGpu::start`]: on the device, or already made on the
 /// host (images too large for the device's bindings).
-pub struct PendingImageLoss(Pending);
+pub struct PendingImageLoss(Pending<Image>);
 
-enum Pending {
+/// An L_I evaluation of a rendered image kept on the device, started by
+/// [`ImageLossGpu::start_on_device`]; its gradient stays there.
+pub struct PendingDeviceImageLoss(Pending<DeviceImage>);
+
+enum Pending<G> {
     Device(Submitted, ImageLossConfig),
-    Host(ImageLossOutput),
+    Host(ImageLossOutput<G>),
 }
 
-/// What one evaluation read back: the three terms' means and ∂/∂a.
+/// What one evaluation read back: the three terms' means and ∂/∂a (empty when it stayed on
+/// the device).
 struct Terms {
     ssim: f64,
     l1: f64,
@@ -227,7 +242,7 @@ impl ImageLossGpu {
         if !self.fits(dims) {
             return crate::ssim::ssim_backward(a, b, dims, crate::SsimRegion::Full, weight, grad_a);
         }
-        let Some(submitted) = self.submit(a, Targets { b, guide: None, key: None }, dims, weight, 0.0, 0.0)? else {
+        let Some(submitted) = self.submit(Rendered::Host(a), Targets { b, guide: None, key: None }, dims, weight, 0.0, 0.0)? else {
             return crate::ssim::ssim_backward(a, b, dims, crate::SsimRegion::Full, weight, grad_a);
         };
         let t = self.collect(submitted)?;
@@ -256,18 +271,44 @@ impl ImageLossGpu {
     /// one device started before the first finish cost the host one wait. Finish an
     /// evaluation before starting the next on this executor.
     pub fn start(&mut self, rendered: &Image, gt: &Image, guide: Option<&EdgeGuide>, view: Option<u64>, cfg: &ImageLossConfig) -> Result<PendingImageLoss> {
-        let guide = check_inputs(rendered, gt, guide, cfg)?;
-        let dims = Dims::of(rendered);
-        let b1 = cfg.beta1 as f64;
-        let targets = Targets { b: gt.data(), guide: guide.map(|g| g.gradient.data()), key: view };
-        let submitted = match self.fits(dims) {
-            true => self.submit(rendered.data(), targets, dims, -b1, 1.0 - b1, cfg.beta2 as f64)?,
-            false => None,
-        };
-        Ok(PendingImageLoss(match submitted {
+        let guide = check_inputs(Dims::of(rendered), gt, guide, cfg)?;
+        Ok(PendingImageLoss(match self.submit_checked(Rendered::Host(rendered.data()), gt, guide, view, cfg)? {
             Some(s) => Pending::Device(s, *cfg),
             None => Pending::Host(crate::image_loss(rendered, gt, guide, cfg)?),
         }))
+    }
+
+    /// [`ImageLossGpu::start`] of a rendered image kept on this device (a render's colour that
+    /// never came to the host): it is copied into the arena there, and the gradient stays there
+    /// ([`ImageLossGpu::finish_on_device`]); only the row sums come back. Images too large for
+    /// the device's bindings are read back and evaluated on the host, their gradient uploaded.
+    pub fn start_on_device(&mut self, rendered: &DeviceImage, gt: &Image, guide: Option<&EdgeGuide>, view: Option<u64>, cfg: &ImageLossConfig) -> Result<PendingDeviceImageLoss> {
+        if !rendered.is_on(&self.k.ctx) {
+            return Err(LossError::Device("the rendered image lives on another device".into()));
+        }
+        let dims = Dims::new(rendered.width(), rendered.height(), rendered.channels());
+        let guide = check_inputs(dims, gt, guide, cfg)?;
+        Ok(PendingDeviceImageLoss(match self.submit_checked(Rendered::Device(rendered), gt, guide, view, cfg)? {
+            Some(s) => Pending::Device(s, *cfg),
+            None => {
+                let host = Image::from_vec(dims.width, dims.height, dims.channels, rendered.read(&self.k.ctx).map_err(gpu_error)?)?;
+                let out = crate::image_loss(&host, gt, guide, cfg)?;
+                let ctx = &self.k.ctx;
+                Pending::Host(out.map_grad(|g| DeviceImage::upload(ctx, "image loss gradient", (dims.width, dims.height, dims.channels), g.data()).map_err(gpu_error))?)
+            }
+        }))
+    }
+
+    /// An evaluation of checked inputs submitted to the device; `None` when the images do not
+    /// fit it (the caller evaluates on the host).
+    fn submit_checked(&mut self, rendered: Rendered<'_>, gt: &Image, guide: Option<&EdgeGuide>, view: Option<u64>, cfg: &ImageLossConfig) -> Result<Option<Submitted>> {
+        let dims = Dims::of(gt);
+        if !self.fits(dims) {
+            return Ok(None);
+        }
+        let b1 = cfg.beta1 as f64;
+        let targets = Targets { b: gt.data(), guide: guide.map(|g| g.gradient.data()), key: view };
+        self.submit(rendered, targets, dims, -b1, 1.0 - b1, cfg.beta2 as f64)
     }
 
     /// The result of a started evaluation (waiting for the device if it has not answered).
@@ -282,22 +323,44 @@ impl ImageLossGpu {
         }
     }
 
+    /// The result of an evaluation started on the device: the values (one wait, unless an
+    /// earlier wait brought them) and the gradient, which stays on the device.
+    pub fn finish_on_device(&mut self, pending: PendingDeviceImageLoss) -> Result<ImageLossOutput<DeviceImage>> {
+        match pending.0 {
+            Pending::Host(out) => Ok(out),
+            Pending::Device(mut s, cfg) => {
+                let grad = s.grad.take().ok_or_else(|| LossError::Device("an evaluation on the device without its gradient image".into()))?;
+                let t = self.collect(s)?;
+                ImageLossOutput::assemble(&cfg, t.l1, t.ssim, t.edge, grad)
+            }
+        }
+    }
+
     /// One evaluation of `a` against `targets` submitted: SSIM at `w_ssim`, L1 at `w_l1` and,
     /// when the guide's ∇I is given, the edge term at `w_edge`; [`ImageLossGpu::collect`]
     /// reads their means and the summed gradient. `None` when the arena cannot hold the three
     /// images at once.
-    fn submit(&mut self, a: &[f32], targets: Targets<'_>, dims: Dims, w_ssim: f64, w_l1: f64, w_edge: f64) -> Result<Option<Submitted>> {
+    fn submit(&mut self, a: Rendered<'_>, targets: Targets<'_>, dims: Dims, w_ssim: f64, w_l1: f64, w_edge: f64) -> Result<Option<Submitted>> {
         let (n, pixels) = (dims.len(), dims.pixels());
         let gt_gradient = targets.guide;
         let part = |p: u32| targets.key.map(|k| -> ArenaKey { (k, p) });
         let mut items = vec![(None, n), (part(0), n)];
-        let mut arrays = vec![a, targets.b];
+        // Item 0, the rendered image: a device image is copied into its slot below.
+        let mut arrays = vec![match a {
+            Rendered::Host(values) => Some(values),
+            Rendered::Device(_) => None,
+        }];
+        arrays.push(Some(targets.b));
         if let Some(gg) = gt_gradient {
             items.push((part(1), pixels));
-            arrays.push(gg);
+            arrays.push(Some(gg));
         }
-        let Some(at) = self.arena.place(&self.k.ctx, &items, |i| Cow::Borrowed(arrays[i])) else {
+        let Some(at) = self.arena.place_with(&self.k.ctx, &items, |i| arrays[i].map(Cow::Borrowed)) else {
             return Ok(None);
+        };
+        let grad_image = match a {
+            Rendered::Device(_) => Some(DeviceImage::new(&self.k.ctx, "image loss gradient", dims.width, dims.height, dims.channels).map_err(gpu_error)?),
+            Rendered::Host(_) => None,
         };
         let interior = dims.width >= 3 && dims.height >= 3;
         let groups = pixels.div_ceil(256).clamp(1, RANGE_GROUPS);
@@ -333,9 +396,11 @@ impl ImageLossGpu {
         // alone come back with the gradient.
         let sums_at = 2 * bytes + pixel_bytes;
         let read = bytes_of::<f32>(ROW_SUMS * dims.height);
+        // The gradient comes back after the sums unless it stays on the device.
+        let grad_back = if grad_image.is_some() { 0 } else { bytes };
         let k = &mut self.k;
         let edge = [bytes_of::<EdgeTexel>(pixels), bytes_of::<EdgeRange>(1 + groups)];
-        k.begin([4, 5 * bytes, 3 * bytes, 3 * bytes, sums_at + read, bytes, edge[0], edge[1]], read + bytes);
+        k.begin([4, 5 * bytes, 3 * bytes, 3 * bytes, sums_at + read, bytes, edge[0], edge[1]], read + grad_back);
         let [_, _, _, _, values, grad, _, _] = k.bufs;
         k.disp.write_frame(&frame);
         let p = &k.pool;
@@ -343,6 +408,9 @@ impl ImageLossGpu {
         binds[0] = self.arena.bind();
         let mut enc = k.disp.encoder();
         k.ctx.push_error_scopes();
+        if let Rendered::Device(image) = a {
+            enc.encoder.copy_buffer_to_buffer(image.buffer(), 0, self.arena.buffer(), 4 * at[0] as u64, bytes);
+        }
         let per_value = PassUniform { n: n as u32, ..Default::default() };
         let per_pixel = PassUniform { n: pixels as u32, ..Default::default() };
         let per_row = PassUniform { n: dims.height as u32, ..Default::default() };
@@ -359,11 +427,14 @@ impl ImageLossGpu {
         }
         let staging = p.buffer(k.staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(values), sums_at, staging, 0, read);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, staging, read, bytes);
+        match &grad_image {
+            Some(image) => enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, image.buffer(), 0, bytes),
+            None => enc.encoder.copy_buffer_to_buffer(p.buffer(grad), 0, staging, read, bytes),
+        }
         k.disp.submit(enc);
         k.ctx.pop_error_scopes().map_err(gpu_error)?;
-        let read = k.ctx.request_read(staging, read + bytes);
-        Ok(Some(Submitted { read, dims, edge: gt_gradient.is_some() }))
+        let read = k.ctx.request_read(staging, read + grad_back);
+        Ok(Some(Submitted { read, dims, edge: gt_gradient.is_some(), grad: grad_image }))
     }
 
     /// The means and gradient of a submitted evaluation.
@@ -373,6 +444,7 @@ impl ImageLossGpu {
             .ctx
             .finish_read(s.read, |m| {
                 let all = bytemuck::cast_slice::<u8, f32>(m);
+                // The gradient follows the sums when it came back (else `grad` is empty).
                 let (sums, grad) = all.split_at(ROW_SUMS * height);
                 let rows = |k: usize| sums.chunks_exact(ROW_SUMS).map(|r| r[k] as f64).sum::<f64>();
                 Terms {
