@@ -85,6 +85,33 @@ impl LossDevices {
         Ok(Deferred::ready(gs_losses::image_loss(rendered, gt, guide, cfg)?))
     }
 
+    /// [`LossDevices::start_image_loss`] of a rendered colour kept on the device (the wgpu
+    /// rasterizer's, which must be this executor's device): its gradient stays there.
+    #[cfg(feature = "wgpu")]
+    pub fn start_image_loss_on_device<'d>(
+        &'d self,
+        rendered: &gs_gpu::DeviceImage,
+        gt: &gs_core::Image,
+        guide: Option<&gs_losses::EdgeGuide>,
+        slot: usize,
+        cfg: &gs_losses::ImageLossConfig,
+    ) -> gs_losses::Result<Deferred<'d, gs_losses::ImageLossOutput<gs_gpu::DeviceImage>, gs_losses::LossError>> {
+        let Some(d) = &self.image else {
+            return Err(gs_losses::LossError::Device("a rendered colour on the device but no L_I kernels there".into()));
+        };
+        let pending = d.borrow_mut().start_on_device(rendered, gt, guide, Some(view_key(slot, gt.width(), gt.height())), cfg)?;
+        Ok(Deferred::later(move || d.borrow_mut().finish_on_device(pending)))
+    }
+
+    /// Whether L_I runs on the device, so that a render's colour may stay there
+    /// ([`gs_raster::RenderRequest::color_on_device`]).
+    pub fn image_on_device(&self) -> bool {
+        #[cfg(feature = "wgpu")]
+        return self.image.is_some();
+        #[cfg(not(feature = "wgpu"))]
+        false
+    }
+
     /// L_nc and L_ns of a rendered view: started on the device when there is an executor for
     /// them, else [`gs_losses::normal_losses`] (the reference), made at once.
     pub fn start_normal_losses<'d>(

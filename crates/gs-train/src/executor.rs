@@ -20,7 +20,7 @@ use crate::params::{Param, adam_step, set_lr};
 use crate::plan::StepPlan;
 use crate::profile::{Clock, Part, StepProfile};
 use crate::refine::RefineReport;
-use crate::terms::{GradientBuffers, LossValues, SourceInputs, TermInputs};
+use crate::terms::{Colour, GradientBuffers, LossValues, SourceInputs, TermInputs};
 use crate::trainer::TrainState;
 use gs_core::{Image, Scene};
 use gs_raster::{RasterConfig, Rasterizer, RenderRequest};
@@ -319,17 +319,26 @@ impl StepExecutor for ReferenceExecutor {
         // order changes no value. A step on the device gathers its statistics from the radii
         // there.
         let max_age = run.config.source_depth_max_age;
-        let request = RenderRequest { radii: !self.adam_on_device, ..plan.render };
+        // The colour stays on the device when L_I runs there and no exposure correction (on
+        // the host) reads it: only L_I's row sums come back (docs/architecture.md §GPU).
+        let color_on_device = self.devices.image_on_device() && state.exposure.is_none();
+        let request = RenderRequest { radii: !self.adam_on_device, color_on_device, ..plan.render };
         let (rendered_depths, out) = self
             .render_views_of_step(run, state, plan, (camera, &request), (profile, phase, &mut clock))
             .map_err(|e| self.instead_of(e))?;
         // The render's wait brought the last step's divergence flag.
         self.check_step()?;
-        let rendered = out.color.as_ref().expect("the plan always renders colour");
+        let rendered = out.color.as_ref();
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
-        let corrected = match &state.exposure {
-            Some(e) => Some(crate::exposure::apply(rendered, &e.params[plan.slot])?),
-            None => None,
+        let corrected = match (&state.exposure, rendered) {
+            (Some(e), Some(c)) => Some(crate::exposure::apply(c, &e.params[plan.slot])?),
+            _ => None,
+        };
+        let color = match (&corrected, rendered) {
+            (Some(c), _) | (None, Some(c)) => Colour::Host(c),
+            #[cfg(feature = "wgpu")]
+            (None, None) if out.device_color.is_some() => Colour::Device(out.device_color.as_ref().expect("checked")),
+            _ => return Err(TrainError::InvalidConfig("the render has no colour for L_I".into())),
         };
         profile.add(phase, Part::Render, clock.lap());
         if (plan.weights.lambda_o > 0.0 || plan.weights.lambda_s > 0.0) && self.behind.parameters {
@@ -360,7 +369,7 @@ impl StepExecutor for ReferenceExecutor {
             camera,
             photo: self.caches.scaled(plan.slot, plan.scale).unwrap_or(&run.scene.views[plan.view].image),
             render: &out,
-            color: corrected.as_ref().unwrap_or(rendered),
+            color,
             guide: self.caches.guide_of(plan.slot),
             grey: self.caches.grey(plan.slot),
             features: self.caches.features(plan.slot),
@@ -387,16 +396,17 @@ impl StepExecutor for ReferenceExecutor {
             return Err(TrainError::Diverged { iteration: it, problem: format!("the loss is not finite ({})", describe(&values)) });
         }
         drop(sources);
-        let grad_color = grads.color.take().expect("L_I always runs");
-        let grad_color = match &mut state.exposure {
-            Some(e) => {
-                let (gc, ge) = crate::exposure::backward(rendered, &e.params[plan.slot], &grad_color)?;
+        // L_I's colour gradient: on the host (through the exposure backward when that is on),
+        // or on the device beside the rendered colour.
+        let grad_color = match (grads.color.take(), &mut state.exposure, rendered) {
+            (Some(gc), Some(e), Some(c)) => {
+                let (gc, ge) = crate::exposure::backward(c, &e.params[plan.slot], &gc)?;
                 e.step(plan.slot, &ge, it, run.config.iterations)?;
-                gc
+                Some(gc)
             }
-            None => grad_color,
+            (gc, ..) => gc,
         };
-        let output_grads = grads.as_output(Some(&grad_color));
+        let output_grads = grads.as_output(grad_color.as_ref());
         if self.adam_on_device {
             // Backward and Adam in one device submission: their time is the backward's.
             self.device_step(run, state, plan, camera, &out, &output_grads, &grads)?;

@@ -118,6 +118,10 @@ pub struct GradientBuffers {
     pub opacity_logits: Option<Vec<f32>>,
     /// ∂L/∂log-scale of the parameter-space terms (L_s), added to the rasterizer's.
     pub log_scales: Option<Vec<[f32; 3]>>,
+    /// ∂L/∂colour kept on the device, when the rendered colour stayed there (L_I alone
+    /// writes it; `color` is then `None`).
+    #[cfg(feature = "wgpu")]
+    pub device_color: Option<gs_gpu::DeviceImage>,
 }
 
 impl GradientBuffers {
@@ -147,6 +151,8 @@ impl GradientBuffers {
             normal: self.normal.as_ref(),
             distance: self.distance.as_ref(),
             plane_depth: self.plane_depth.as_ref(),
+            #[cfg(feature = "wgpu")]
+            device_color: self.device_color.as_ref(),
             ..Default::default()
         }
     }
@@ -166,6 +172,17 @@ pub struct SourceInputs<'a> {
     pub features: Option<&'a FeatureMap>,
 }
 
+/// The colour L_I compares with the photo: on the host (the render's, exposure-corrected when
+/// that is on), or kept on the rasterizer's device.
+#[derive(Clone, Copy)]
+pub enum Colour<'a> {
+    /// On the host.
+    Host(&'a Image),
+    /// On the device (`RenderRequest::color_on_device`).
+    #[cfg(feature = "wgpu")]
+    Device(&'a gs_gpu::DeviceImage),
+}
+
 /// What the terms read: the model, the reference view as rendered, its photo data and the sources.
 pub struct TermInputs<'a> {
     /// The model the view was rendered from.
@@ -179,7 +196,7 @@ pub struct TermInputs<'a> {
     /// The rendered channels.
     pub render: &'a RenderOutput,
     /// The colour the loss compares (the render, exposure-corrected when that is on).
-    pub color: &'a Image,
+    pub color: Colour<'a>,
     /// ∇I and δ of the photograph (needed by the edge term, L_nc and L_ns).
     pub guide: Option<&'a EdgeGuide>,
     /// The reference grey image (L_p).
@@ -249,13 +266,29 @@ impl LossTerm for ImageTerm {
 
     fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
         let cfg = ImageLossConfig { beta1: w.beta1, beta2: w.beta2, edge: self.edge };
-        let started = x.devices.start_image_loss(x.color, x.photo, x.guide, x.slot, &cfg)?;
-        Ok(Fold::new(move |grads, values| {
-            let li = started.wait()?;
-            (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
-            GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
-            Ok(())
-        }))
+        match x.color {
+            Colour::Host(color) => {
+                let started = x.devices.start_image_loss(color, x.photo, x.guide, x.slot, &cfg)?;
+                Ok(Fold::new(move |grads, values| {
+                    let li = started.wait()?;
+                    (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
+                    GradientBuffers::add(&mut grads.color, li.grad_rendered, 1.0);
+                    Ok(())
+                }))
+            }
+            #[cfg(feature = "wgpu")]
+            Colour::Device(color) => {
+                let started = x.devices.start_image_loss_on_device(color, x.photo, x.guide, x.slot, &cfg)?;
+                Ok(Fold::new(move |grads, values| {
+                    let li = started.wait()?;
+                    (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
+                    if grads.device_color.replace(li.grad_rendered).is_some() {
+                        return Err(crate::TrainError::InvalidConfig("two colour gradients on the device in one step".into()));
+                    }
+                    Ok(())
+                }))
+            }
+        }
     }
 }
 
