@@ -9,6 +9,23 @@
 
 use crate::{GpuContext, GpuError, Result};
 
+crate::wgsl_struct! {
+    /// One pixel of a rendered surface as a per-pixel loss reads it (WGSL `struct
+    /// SurfaceTexel`): the rasterizer writes a [`DeviceImage`] of these (5 channels, in this
+    /// order) and gs-losses' normal terms bind it as `array<SurfaceTexel>`. 20 bytes.
+    pub struct SurfaceTexel as "SurfaceTexel" {
+        /// The plane depth z.
+        z: f32,
+        /// The rendered normal Ñ.
+        normal: [f32; 3],
+        /// The accumulated alpha A = 1 − T_final.
+        alpha: f32,
+    }
+}
+
+/// Values of one [`SurfaceTexel`]: the channel count of a surface [`DeviceImage`].
+pub const SURFACE_CHANNELS: usize = std::mem::size_of::<SurfaceTexel>() / 4;
+
 /// `width · height · channels` f32 values on one device, row-major `[H][W][C]`.
 #[derive(Clone)]
 pub struct DeviceImage {

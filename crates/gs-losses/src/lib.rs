@@ -76,5 +76,5 @@ pub use ssim::SsimRegion;
 #[cfg(feature = "wgpu")]
 pub use image_gpu::{ImageLossGpu, PendingDeviceImageLoss, PendingImageLoss};
 #[cfg(feature = "wgpu")]
-pub use normal_gpu::{NormalGpu, PendingNormalLosses};
+pub use normal_gpu::{NormalGpu, PendingDeviceNormalLosses, PendingNormalLosses};
 

@@ -236,9 +236,10 @@ impl Default for NormalLossConfig {
     }
 }
 
-/// Values and gradients of the normal terms.
+/// Values and gradients of the normal terms: host images, or (`NormalLossOutput<
+/// gs_gpu::DeviceImage>`, the device twin's `finish_on_device`) images kept on the device.
 #[derive(Debug, Clone)]
-pub struct NormalLossOutput {
+pub struct NormalLossOutput<G = Image> {
     /// L_nc (unweighted).
     pub l_nc: f64,
     /// L_ns (unweighted).
@@ -248,11 +249,11 @@ pub struct NormalLossOutput {
     /// λ1·L_nc + λ2·L_ns.
     pub total: f64,
     /// The depth normal N̂ (`[H][W][3]`).
-    pub depth_normal: Image,
+    pub depth_normal: G,
     /// ∂total/∂z, plane depth (`[H][W]`, 1 channel).
-    pub grad_plane_depth: Image,
+    pub grad_plane_depth: G,
     /// ∂total/∂Ñ, rendered normal (`[H][W][3]`).
-    pub grad_normal: Image,
+    pub grad_normal: G,
 }
 
 /// L_nc and L_ns of a rendered view: `plane_depth` z (1 channel), `rendered_normal` Ñ (3
@@ -354,13 +355,6 @@ pub(crate) fn check_inputs(
             rendered_normal.height()
         )));
     }
-    if guide.delta.width() != w || guide.delta.height() != h {
-        return Err(LossError::ShapeMismatch(format!(
-            "edge guide is {}×{}, plane depth {w}×{h}",
-            guide.delta.width(),
-            guide.delta.height()
-        )));
-    }
     if let Some(a) = alpha
         && (a.width() != w || a.height() != h || a.channels() != 1)
     {
@@ -369,6 +363,20 @@ pub(crate) fn check_inputs(
             a.width(),
             a.height(),
             a.channels()
+        )));
+    }
+    check_view((w, h), guide, intrinsics, cfg)
+}
+
+/// The checks of a view of `w` × `h` rendered pixels that do not look at the rendered images:
+/// the guide's size, finite non-negative weights and τ, finite intrinsics with positive focal
+/// lengths (shared with the device twin's surface on the device).
+pub(crate) fn check_view((w, h): (usize, usize), guide: &EdgeGuide, intrinsics: &Intrinsics, cfg: &NormalLossConfig) -> Result<()> {
+    if guide.delta.width() != w || guide.delta.height() != h {
+        return Err(LossError::ShapeMismatch(format!(
+            "edge guide is {}×{}, plane depth {w}×{h}",
+            guide.delta.width(),
+            guide.delta.height()
         )));
     }
     for (name, v) in [("λ1", cfg.lambda_nc), ("λ2", cfg.lambda_ns), ("τ", cfg.tau)] {

@@ -184,7 +184,7 @@ fn evaluations_started_together_cost_one_wait() {
     for round in 0..2 {
         let before = ctx.transfers();
         let started_i = image.start(&rendered, &photo, Some(&v.guide), Some(1), &icfg).unwrap();
-        let started_n = normal.start(&v.z, &v.normal, Some(&v.alpha), &v.guide, &v.k, &ncfg).unwrap();
+        let started_n = normal.start(&v.z, &v.normal, Some(&v.alpha), &v.guide, &v.k, Some(1), &ncfg).unwrap();
         let li = image.finish(started_i).unwrap();
         let nl = normal.finish(started_n).unwrap();
         assert_eq!((ctx.transfers() - before).syncs, 1, "round {round}: one wait for both");
@@ -198,4 +198,50 @@ fn evaluations_started_together_cost_one_wait() {
     // A started evaluation dropped unread leaves its executor ready for the next.
     drop(image.start(&rendered, &photo, Some(&v.guide), None, &icfg).unwrap());
     assert!(image.image_loss(&rendered, &photo, Some(&v.guide), &icfg).is_ok());
+}
+
+/// A rendered surface kept on the device (the rasterizer's `SurfaceTexel`s: z, Ñ, A): the
+/// values and the bits of N̂ and the gradients of the host images' evaluation, and only the
+/// rows' sums come back; the view's δ, kept under its key, is not uploaded again.
+#[test]
+fn a_surface_on_the_device_gives_the_same_result_and_its_gradients_stay_there() {
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let (w, h) = (96, 72);
+    let v = view(w, h, 11);
+    let cfg = NormalLossConfig::default();
+    let texels: Vec<f32> = (0..w * h)
+        .flat_map(|p| {
+            let n = &v.normal.data()[3 * p..3 * p + 3];
+            [v.z.data()[p], n[0], n[1], n[2], v.alpha.data()[p]]
+        })
+        .collect();
+    let surface = gs_gpu::DeviceImage::upload(&ctx, "surface", (w, h, gs_gpu::SURFACE_CHANNELS), &texels).unwrap();
+    for with_alpha in [true, false] {
+        let alpha = with_alpha.then_some(&v.alpha);
+        let host = g.normal_losses(&v.z, &v.normal, alpha, &v.guide, &v.k, &cfg).unwrap();
+        // The view's δ goes up once under its key; later calls write the rays and uniforms alone.
+        for round in 0..2 {
+            let before = ctx.transfers();
+            let started = g.start_on_device(&surface, with_alpha, &v.guide, &v.k, Some(9), &cfg).unwrap();
+            let dev = g.finish_on_device(started).unwrap();
+            let t = ctx.transfers() - before;
+            let what = format!("alpha {with_alpha}, round {round}");
+            assert_eq!((t.syncs, t.bytes_down), (1, 16 * h as u64), "{what}: the rows' sums alone come back");
+            let delta = 4 * (w * h) as u64;
+            match with_alpha && round == 0 {
+                true => assert!(t.bytes_up >= delta, "{what}: {} bytes written, δ first", t.bytes_up),
+                false => assert!(t.bytes_up < delta, "{what}: {} bytes written, δ held", t.bytes_up),
+            }
+            assert_eq!((dev.l_nc, dev.l_ns, dev.ns_active_pairs, dev.total), (host.l_nc, host.l_ns, host.ns_active_pairs, host.total), "{what}");
+            for (name, d, h) in [("N̂", &dev.depth_normal, &host.depth_normal), ("∂/∂Ñ", &dev.grad_normal, &host.grad_normal), ("∂/∂z", &dev.grad_plane_depth, &host.grad_plane_depth)] {
+                assert_eq!(d.read(&ctx).unwrap(), h.data(), "{what}: {name}");
+            }
+        }
+    }
+    // A surface of the wrong channel count or size is refused.
+    let wrong = gs_gpu::DeviceImage::new(&ctx, "wrong", w, h, 4).unwrap();
+    assert!(g.start_on_device(&wrong, true, &v.guide, &v.k, None, &cfg).is_err());
+    let small = gs_gpu::DeviceImage::new(&ctx, "small", w / 2, h, gs_gpu::SURFACE_CHANNELS).unwrap();
+    let err = g.start_on_device(&small, true, &v.guide, &v.k, None, &cfg).err().expect("refused").to_string();
+    assert!(err.contains("edge guide"), "{err}");
 }

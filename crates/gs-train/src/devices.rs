@@ -112,8 +112,10 @@ impl LossDevices {
         false
     }
 
-    /// L_nc and L_ns of a rendered view: started on the device when there is an executor for
-    /// them, else [`gs_losses::normal_losses`] (the reference), made at once.
+    /// L_nc and L_ns of a rendered view of training slot `slot`: started on the device when
+    /// there is an executor for them (which keeps each slot's δ there, by `view_key`), else
+    /// [`gs_losses::normal_losses`] (the reference), made at once.
+    #[allow(clippy::too_many_arguments)]
     pub fn start_normal_losses<'d>(
         &'d self,
         plane_depth: &gs_core::Image,
@@ -121,14 +123,47 @@ impl LossDevices {
         alpha: Option<&gs_core::Image>,
         guide: &gs_losses::EdgeGuide,
         intrinsics: &gs_core::Intrinsics,
+        slot: usize,
         cfg: &gs_losses::NormalLossConfig,
     ) -> gs_losses::Result<Deferred<'d, gs_losses::NormalLossOutput, gs_losses::LossError>> {
         #[cfg(feature = "wgpu")]
         if let Some(d) = &self.normal {
-            let pending = d.borrow_mut().start(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?;
+            let key = view_key(slot, plane_depth.width(), plane_depth.height());
+            let pending = d.borrow_mut().start(plane_depth, rendered_normal, alpha, guide, intrinsics, Some(key), cfg)?;
             return Ok(Deferred::later(move || d.borrow_mut().finish(pending)));
         }
+        #[cfg(not(feature = "wgpu"))]
+        let _ = slot;
         Ok(Deferred::ready(gs_losses::normal_losses(plane_depth, rendered_normal, alpha, guide, intrinsics, cfg)?))
+    }
+
+    /// [`LossDevices::start_normal_losses`] of a rendered surface kept on the device (the wgpu
+    /// rasterizer's `SurfaceTexel`s; A counts when `with_alpha`): N̂ and the gradients stay there.
+    #[cfg(feature = "wgpu")]
+    pub fn start_normal_losses_on_device<'d>(
+        &'d self,
+        surface: &gs_gpu::DeviceImage,
+        with_alpha: bool,
+        guide: &gs_losses::EdgeGuide,
+        intrinsics: &gs_core::Intrinsics,
+        slot: usize,
+        cfg: &gs_losses::NormalLossConfig,
+    ) -> gs_losses::Result<Deferred<'d, gs_losses::NormalLossOutput<gs_gpu::DeviceImage>, gs_losses::LossError>> {
+        let Some(d) = &self.normal else {
+            return Err(gs_losses::LossError::Device("a rendered surface on the device but no L_nc/L_ns kernels there".into()));
+        };
+        let key = view_key(slot, surface.width(), surface.height());
+        let pending = d.borrow_mut().start_on_device(surface, with_alpha, guide, intrinsics, Some(key), cfg)?;
+        Ok(Deferred::later(move || d.borrow_mut().finish_on_device(pending)))
+    }
+
+    /// Whether L_nc and L_ns run on the device, so that a render's surface may stay there
+    /// ([`gs_raster::RenderRequest::surface_on_device`]).
+    pub fn normal_on_device(&self) -> bool {
+        #[cfg(feature = "wgpu")]
+        return self.normal.is_some();
+        #[cfg(not(feature = "wgpu"))]
+        false
     }
 
     /// L_p of `reference` over `sources` (`slots`: the reference's training slot, then each

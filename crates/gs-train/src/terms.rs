@@ -321,6 +321,7 @@ impl LossTerm for NormalTerms {
             r.alpha.as_ref(),
             needed(x.guide, "the edge guide")?,
             &x.camera.intrinsics,
+            x.slot,
             &cfg,
         )?;
         Ok(Fold::new(move |grads, values| {

@@ -2,12 +2,13 @@
 // §L_ns): four passes of one thread per pixel. Each pass does the reference's arithmetic in
 // the reference's order, so that the host can sum the per-pixel values as the reference does.
 //
-// Generated before this file: `struct NormalFrame` (binding 0), the records `PixelInput`,
+// Generated before this file: `struct NormalFrame` (binding 0), the records `SurfaceTexel`,
 // `PixelVec3`, `PixelTerms` and `DiffGrad`, and the storage bindings, one record per pixel:
-// `inputs` (z, Ñ, δ, A), `nhat` (N̂), `values` (δ·‖N̂ − Ñ‖₁, the right and the down pair's
+// `surface` (z, Ñ, A), `nhat` (N̂), `values` (δ·‖N̂ − Ñ‖₁, the right and the down pair's
 // δ_k·ReLU(‖N̂_k − N̂_p‖₁ − τ²) where the pair is active, the number of active pairs; after the
 // n pixels' records one record a row with the row's sums, `row_sums`), `gnhat`
-// (∂/∂N̂), `gnt` (∂/∂Ñ), `gab` (∂/∂dx and ∂/∂dy), `gz` (∂/∂z); and `rays`, x of each column's
+// (∂/∂N̂), `gnt` (∂/∂Ñ), `gab` (∂/∂dx and ∂/∂dy), `gz` (∂/∂z); and `consts`, an arena holding
+// the view's δ plane from `frame.delta_at` and the rays from `frame.rays_at`: x of each column's
 // ray, then y of each row's (`ray_x`, `ray_y`).
 
 @group(0) @binding(0) var<uniform> frame: NormalFrame;
@@ -40,20 +41,20 @@ fn to_array(v: vec3<f32>) -> array<f32, 3> {
 }
 
 fn ray_x(i: u32) -> f32 {
-    return rays[i];
+    return consts[frame.rays_at + i];
 }
 
 fn ray_y(j: u32) -> f32 {
-    return rays[frame.width + j];
+    return consts[frame.rays_at + frame.width + j];
 }
 
 fn point(i: u32, j: u32) -> vec3<f32> {
-    let d = inputs[j * frame.width + i].z;
+    let d = surface[j * frame.width + i].z;
     return vec3<f32>(ray_x(i) * d, ray_y(j) * d, d);
 }
 
 fn ntilde(p: u32) -> vec3<f32> {
-    return to_vec(inputs[p].normal);
+    return to_vec(surface[p].normal);
 }
 
 fn nh(p: u32) -> vec3<f32> {
@@ -61,12 +62,12 @@ fn nh(p: u32) -> vec3<f32> {
 }
 
 fn delta(p: u32) -> f32 {
-    return inputs[p].delta;
+    return consts[frame.delta_at + p];
 }
 
 fn alpha(p: u32) -> f32 {
     if (frame.has_alpha != 0u) {
-        return inputs[p].alpha;
+        return surface[p].alpha;
     }
     return 1.0;
 }
