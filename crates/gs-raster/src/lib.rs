@@ -92,6 +92,8 @@ pub use types::{
     Result, StepExtras, T_STOP, TILE_SIZE, adam_step,
 };
 pub(crate) use types::StateInner;
+#[cfg(feature = "wgpu")]
+pub use types::DeviceGeometryGrads;
 
 #[cfg(test)]
 mod tests;

@@ -124,6 +124,8 @@ pub(crate) fn assemble(
         last_contributor: Vec::new(),
         #[cfg(feature = "wgpu")]
         device_color: None,
+        #[cfg(feature = "wgpu")]
+        device_surface: None,
         state: ForwardState(StateInner::Cpu(CpuState {
             n_gaussians: 0,
             width: cam.width,

@@ -136,6 +136,11 @@ pub struct RenderRequest {
     /// without a round trip through the host (docs/architecture.md §GPU). The CPU backend
     /// renders the colour to the host as without it.
     pub color_on_device: bool,
+    /// With `plane_depth`, `normal` and `alpha`: the wgpu backend also writes the rendered
+    /// surface (plane depth, Ñ, A per pixel: gs-gpu's `SurfaceTexel`) into a new `DeviceImage`
+    /// ([`RenderOutput::device_surface`]), for the normal terms on the same device; the host
+    /// images come back as asked. The CPU backend ignores it.
+    pub surface_on_device: bool,
 }
 
 impl Default for RenderRequest {
@@ -153,6 +158,7 @@ impl Default for RenderRequest {
             traversal: false,
             geometry_cut: 0.0,
             color_on_device: false,
+            surface_on_device: false,
         }
     }
 }
@@ -172,6 +178,7 @@ impl RenderRequest {
             traversal: true,
             geometry_cut: 0.0,
             color_on_device: false,
+            surface_on_device: false,
         }
     }
     /// The transmittance cut the geometry accumulators apply ([`Self::geometry_cut`]; 0 when
@@ -253,6 +260,10 @@ pub struct RenderOutput {
     /// `[H][W][3]` like [`RenderOutput::color`], which is then `None`.
     #[cfg(feature = "wgpu")]
     pub device_color: Option<gs_gpu::DeviceImage>,
+    /// The rendered surface kept on the device ([`RenderRequest::surface_on_device`], wgpu
+    /// backend): `[H][W]` gs-gpu `SurfaceTexel`s (5 channels).
+    #[cfg(feature = "wgpu")]
+    pub device_surface: Option<gs_gpu::DeviceImage>,
     pub(crate) state: ForwardState,
 }
 
@@ -277,6 +288,22 @@ pub struct OutputGradients<'a> {
     /// backward refuses it. At most one of it and `color`.
     #[cfg(feature = "wgpu")]
     pub device_color: Option<&'a gs_gpu::DeviceImage>,
+    /// ∂L/∂Ñ and ∂L/∂(plane depth) on the device, for a render with normal and plane depth
+    /// (the normal terms' gradients of its surface): the wgpu backward adds them into each
+    /// pixel's gradients there, beside `normal` and `plane_depth` from the host; the CPU
+    /// backward refuses them.
+    #[cfg(feature = "wgpu")]
+    pub device_geometry: Option<DeviceGeometryGrads<'a>>,
+}
+
+/// Gradients of the geometry channels kept on the device ([`OutputGradients::device_geometry`]).
+#[cfg(feature = "wgpu")]
+#[derive(Debug, Clone, Copy)]
+pub struct DeviceGeometryGrads<'a> {
+    /// ∂L/∂Ñ, `[H][W][3]`.
+    pub normal: &'a gs_gpu::DeviceImage,
+    /// ∂L/∂(plane depth), `[H][W][1]`.
+    pub plane_depth: &'a gs_gpu::DeviceImage,
 }
 
 /// Gradients of the Gaussian parameters (same layout as [`Gaussians`](gs_core::Gaussians)) and the densification

@@ -162,6 +162,8 @@ pub(crate) fn check_all_grads(
     check_grad(grads.color, req.color, "color", w, h, 3)?;
     #[cfg(feature = "wgpu")]
     check_device_color(grads, req, w, h)?;
+    #[cfg(feature = "wgpu")]
+    check_device_geometry(grads, req, w, h)?;
     check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
     check_grad(grads.normal, req.normal, "normal", w, h, 3)?;
     check_grad(grads.distance, req.distance, "distance", w, h, 1)?;
@@ -191,6 +193,26 @@ fn check_device_color(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u
         return Ok(());
     };
     Err(RasterError::InvalidGradients(format!("the device colour gradient {problem}")))
+}
+
+/// The device geometry gradients, if any: of a render with normal and plane depth, without a
+/// geometry cut, `w × h × 3` and `w × h × 1`.
+#[cfg(feature = "wgpu")]
+fn check_device_geometry(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
+    let Some(g) = grads.device_geometry else { return Ok(()) };
+    let problem = if !(req.normal && req.plane_depth) {
+        "given but the render has no normal or plane depth".to_string()
+    } else if req.applied_cut() > 0.0 {
+        format!("given for a render with geometry_cut = {} (the cut is forward only)", req.geometry_cut)
+    } else {
+        let size = |im: &gs_gpu::DeviceImage| (im.width(), im.height(), im.channels());
+        let (wu, hu) = (w as usize, h as usize);
+        match (size(g.normal), size(g.plane_depth)) {
+            (n, z) if n == (wu, hu, 3) && z == (wu, hu, 1) => return Ok(()),
+            ((a, b, c), (d, e, f)) => format!("are {a}×{b}×{c} and {d}×{e}×{f}, need {w}×{h}×3 and {w}×{h}×1"),
+        }
+    };
+    Err(RasterError::InvalidGradients(format!("the device geometry gradients {problem}")))
 }
 
 /// Checks that a forward state of `(n, width, height)` belongs to these inputs (`usable` is

@@ -147,6 +147,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         traversal: false,
         geometry_cut: 0.0,
         color_on_device: false,
+        surface_on_device: false,
     };
     let w = &config.weights;
     let weights = LossWeights {

@@ -122,6 +122,11 @@ pub struct GradientBuffers {
     /// writes it; `color` is then `None`).
     #[cfg(feature = "wgpu")]
     pub device_color: Option<gs_gpu::DeviceImage>,
+    /// ∂L/∂Ñ and ∂L/∂(plane depth) kept on the device, when the rendered surface stayed there
+    /// (L_nc/L_ns alone write them, already weighted; `normal` and `plane_depth` hold the
+    /// other terms').
+    #[cfg(feature = "wgpu")]
+    pub device_geometry: Option<(gs_gpu::DeviceImage, gs_gpu::DeviceImage)>,
 }
 
 impl GradientBuffers {
@@ -153,6 +158,8 @@ impl GradientBuffers {
             plane_depth: self.plane_depth.as_ref(),
             #[cfg(feature = "wgpu")]
             device_color: self.device_color.as_ref(),
+            #[cfg(feature = "wgpu")]
+            device_geometry: self.device_geometry.as_ref().map(|(normal, plane_depth)| gs_raster::DeviceGeometryGrads { normal, plane_depth }),
             ..Default::default()
         }
     }
@@ -315,11 +322,25 @@ impl LossTerm for NormalTerms {
             ..self.config
         };
         let r = x.render;
+        let guide = needed(x.guide, "the edge guide")?;
+        #[cfg(feature = "wgpu")]
+        if let Some(surface) = &r.device_surface {
+            let started = x.devices.start_normal_losses_on_device(surface, r.alpha.is_some(), guide, &x.camera.intrinsics, x.slot, &cfg)?;
+            return Ok(Fold::new(move |grads, values| {
+                let nl = started.wait()?;
+                values.normal_consistency = self.consistency.then_some(nl.l_nc);
+                values.normal_smoothing = self.smoothing.then_some(nl.l_ns);
+                if grads.device_geometry.replace((nl.grad_normal, nl.grad_plane_depth)).is_some() {
+                    return Err(crate::TrainError::InvalidConfig("two geometry gradients on the device in one step".into()));
+                }
+                Ok(())
+            }));
+        }
         let started = x.devices.start_normal_losses(
             channel(&r.plane_depth, "plane depth")?,
             channel(&r.normal, "normal")?,
             r.alpha.as_ref(),
-            needed(x.guide, "the edge guide")?,
+            guide,
             &x.camera.intrinsics,
             x.slot,
             &cfg,

@@ -36,8 +36,8 @@ pub fn backward(
     let (w, h) = (cam.width, cam.height);
     check_all_grads(grads, &st.request, w, h)?;
     #[cfg(feature = "wgpu")]
-    if grads.device_color.is_some() {
-        return Err(RasterError::InvalidGradients("a colour gradient on a device given to the CPU backward".into()));
+    if grads.device_color.is_some() || grads.device_geometry.is_some() {
+        return Err(RasterError::InvalidGradients("gradients on a device given to the CPU backward".into()));
     }
     let color = grads.color.is_some();
     let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();

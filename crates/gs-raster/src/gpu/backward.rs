@@ -88,7 +88,7 @@ impl WgpuRasterizer {
             }
         };
         let color = grads.color.is_some() || grads.device_color.is_some();
-        let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
+        let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some() || grads.device_geometry.is_some();
         let depth = grads.expected_depth.is_some();
         if frame.total == 0 || !(color || geo || depth || grads.alpha.is_some()) {
             return Ok(None);
@@ -138,12 +138,13 @@ impl WgpuRasterizer {
         let (cam, st, frame) = (&checked.cam, checked.st, checked.frame);
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
-        let device_colour = grads.device_color;
-        if device_colour.is_some_and(|im| !im.is_on(&self.ctx)) {
-            return Err(RasterError::InvalidGradients("the device colour gradient lives on another device".into()));
+        let (device_colour, device_geometry) = (grads.device_color, grads.device_geometry);
+        let elsewhere = |im: &gs_gpu::DeviceImage| !im.is_on(&self.ctx);
+        if device_colour.is_some_and(elsewhere) || device_geometry.is_some_and(|g| elsewhere(g.normal) || elsewhere(g.plane_depth)) {
+            return Err(RasterError::InvalidGradients("a device gradient lives on another device".into()));
         }
         let flags = (grads.color.is_some() || device_colour.is_some()) as u32
-            | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some())
+            | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some() || device_geometry.is_some())
                 as u32)
                 << 1
             | (grads.expected_depth.is_some() as u32) << 2;
@@ -187,6 +188,9 @@ impl WgpuRasterizer {
         }
         if let Some(image) = device_colour {
             self.add_device_colour(&mut enc, &bands, image, colour_only)?;
+        }
+        if let Some(geometry) = device_geometry {
+            self.add_device_geometry(&mut enc, &bands, geometry)?;
         }
         // Intersections beyond their tile's last contributor get no partial: zeros.
         enc.encoder
@@ -266,6 +270,26 @@ impl WgpuRasterizer {
             let binds = [gs_gpu::Bind::range(image.buffer(), p0 * 12, bp * 12), p.range(b.pixgrad, p0 * rec, bp * rec)];
             let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
             d.dispatch_1d(enc, kernel, &binds, pass)?;
+        }
+        Ok(())
+    }
+
+    /// `geometry_grad_add` per band of tile rows: the device gradients of Ñ and of the plane
+    /// depth (folded into Ñ and D with the band's accumulators) added into the pixels'
+    /// `PixelGrad`s.
+    fn add_device_geometry(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], g: crate::DeviceGeometryGrads<'_>) -> Result<()> {
+        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
+        let rec = bytes_of::<PixelGrad>(1);
+        for &(_, _, p0, bp) in bands {
+            d.make_room(enc, 1);
+            let binds = [
+                p.range(b.acc, p0 * 32, bp * 32),
+                gs_gpu::Bind::range(g.normal.buffer(), p0 * 12, bp * 12),
+                gs_gpu::Bind::range(g.plane_depth.buffer(), p0 * 4, bp * 4),
+                p.range(b.pixgrad, p0 * rec, bp * rec),
+            ];
+            let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
+            d.dispatch_1d(enc, &self.kernels.geometry_grad_add, &binds, pass)?;
         }
         Ok(())
     }

@@ -16,7 +16,7 @@ use crate::{
 };
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Camera, Gaussians, Image};
-use gs_gpu::{Bind, DeviceImage, Encoder, PassUniform};
+use gs_gpu::{Bind, DeviceImage, Encoder, Kernel, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -37,6 +37,8 @@ pub(super) struct Readback {
     /// The colour kept on the device ([`RenderRequest::color_on_device`]): written there, not
     /// read back.
     colour: Option<DeviceImage>,
+    /// The surface (z, Ñ, A) kept on the device as well ([`RenderRequest::surface_on_device`]).
+    surface: Option<DeviceImage>,
     pub(super) bytes: u64,
 }
 
@@ -49,8 +51,9 @@ fn device_plane_depth(request: &RenderRequest) -> bool {
 
 impl Readback {
     /// Where the outputs of `request` go for `n` Gaussians and `npix` pixels, into `staging`
-    /// except the `colour` kept on the device (given when the request keeps it there).
-    pub(super) fn new(request: &RenderRequest, n: u64, npix: u64, staging: BufId, colour: Option<DeviceImage>) -> Self {
+    /// except the `colour` kept on the device (given when the request keeps it there); the
+    /// `surface` goes to the device as well.
+    pub(super) fn new(request: &RenderRequest, n: u64, npix: u64, staging: BufId, (colour, surface): (Option<DeviceImage>, Option<DeviceImage>)) -> Self {
         let mut planes = Vec::new();
         let host_colour = request.color && colour.is_none();
         if host_colour {
@@ -83,20 +86,23 @@ impl Readback {
         let depth_at = planes_at + planes.len() as u64 * npix * 4;
         let plane_depth = depth_alone.then_some(depth_at);
         let bytes = depth_at + if depth_alone { npix * 4 } else { 0 };
-        Self { staging, planes, radii, final_t, last, counters, observed, planes_at, plane_depth, colour, bytes }
+        Self { staging, planes, radii, final_t, last, counters, observed, planes_at, plane_depth, colour, surface, bytes }
     }
 }
 
 impl WgpuRasterizer {
-    /// The [`Readback`] of a render of `request` on `cam` into `staging`, with a new device
-    /// image for its colour when the request keeps the colour on the device.
+    /// The [`Readback`] of a render of `request` on `cam` into `staging`, with new device
+    /// images for its colour and its surface where the request keeps them on the device.
     pub(super) fn readback(&self, request: &RenderRequest, cam: &CamParams, n: u64, staging: BufId) -> Result<Readback> {
         let (w, h) = (cam.width as usize, cam.height as usize);
-        let colour = match request.color && request.color_on_device {
-            true => Some(DeviceImage::new(&self.ctx, "rendered colour", w, h, 3).map_err(|e| RasterError::Gpu(e.to_string()))?),
-            false => None,
+        let image = |wanted: bool, label, channels| match wanted {
+            true => DeviceImage::new(&self.ctx, label, w, h, channels).map(Some).map_err(|e| RasterError::Gpu(e.to_string())),
+            false => Ok(None),
         };
-        Ok(Readback::new(request, n, (w * h) as u64, staging, colour))
+        let colour = image(request.color && request.color_on_device, "rendered colour", 3)?;
+        let surface_wanted = request.surface_on_device && request.plane_depth && request.normal && request.alpha;
+        let surface = image(surface_wanted, "rendered surface", gs_gpu::SURFACE_CHANNELS)?;
+        Ok(Readback::new(request, n, (w * h) as u64, staging, (colour, surface)))
     }
 }
 
@@ -362,8 +368,10 @@ impl WgpuRasterizer {
             }
             self.copy_outputs(enc, cam, request, bands, n, rb);
         }
-        if let Some(image) = &rb.colour {
-            self.colour_bands(enc, bands, image, entries == 0)?;
+        for (image, kernel, bytes) in [(&rb.colour, &self.kernels.colour_out, 12), (&rb.surface, &self.kernels.surface_out, bytes_of::<gs_gpu::SurfaceTexel>(1))] {
+            if let Some(image) = image {
+                self.device_image_bands(enc, bands, (kernel, image, bytes), entries == 0)?;
+            }
         }
         let (p, b) = (&self.pool, &self.bufs);
         let nn = n as u64;
@@ -470,16 +478,16 @@ impl WgpuRasterizer {
         Ok(())
     }
 
-    /// `colour_out` per band of tile rows: each pixel's colour (accumulated colour plus
-    /// T_final · background; the background alone when nothing was blended, `empty`) into
-    /// `image`.
-    fn colour_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], image: &DeviceImage, empty: bool) -> Result<()> {
+    /// `colour_out` or `surface_out` (`kernel`) per band of tile rows: each pixel's colour
+    /// (accumulated colour plus T_final · background) or surface (z, Ñ, A) into `image`, of
+    /// `bytes` a pixel; when nothing was blended (`empty`) the background, or zeros.
+    fn device_image_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], (kernel, image, bytes): (&Kernel, &DeviceImage, u64), empty: bool) -> Result<()> {
         let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
         for &(_, _, p0, bp) in bands {
             d.make_room(enc, 1);
-            let binds = [p.range(b.acc, p0 * 32, bp * 32), p.range(b.final_t, p0 * 4, bp * 4), Bind::range(image.buffer(), p0 * 12, bp * 12)];
+            let binds = [p.range(b.acc, p0 * 32, bp * 32), p.range(b.final_t, p0 * 4, bp * 4), Bind::range(image.buffer(), p0 * bytes, bp * bytes)];
             let pass = PassUniform { n: bp as u32, base: p0 as u32, mode: empty as u32, ..Default::default() };
-            d.dispatch_1d(enc, &self.kernels.colour_out, &binds, pass)?;
+            d.dispatch_1d(enc, kernel, &binds, pass)?;
         }
         Ok(())
     }
@@ -577,6 +585,7 @@ impl WgpuRasterizer {
         let on_host = RenderRequest { color: request.color && rb.colour.is_none(), ..*request };
         let mut out = crate::pixel::assemble(cam, config, &on_host, &acc, &final_t)?;
         out.device_color = rb.colour.clone();
+        out.device_surface = rb.surface.clone();
         // The device's plane depth replaces the one assembled from planes that did not come
         // back (without intersections both are 0).
         if let Some(at) = rb.plane_depth.filter(|_| total > 0) {

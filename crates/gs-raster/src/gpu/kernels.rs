@@ -379,13 +379,23 @@ fn specs() -> Vec<Spec<'static>> {
         ),
         spec(
             "plane_depth_plane",
-            &[include_str!("plane_depth.wgsl")],
+            &[include_str!("plane_depth.wgsl"), include_str!("plane_depth_plane.wgsl")],
             &[B::read("acc", f), B::write("depth", f)],
         ),
         spec(
             "colour_out",
             &[include_str!("colour_out.wgsl")],
             &[B::read("acc", f), B::read("final_t", f), B::write("image", f)],
+        ),
+        spec(
+            "surface_out",
+            &[include_str!("plane_depth.wgsl"), include_str!("surface_out.wgsl")],
+            &[B::read("acc", f), B::read("final_t", f), B::write("surface", "array<SurfaceTexel>")],
+        ),
+        spec(
+            "geometry_grad_add",
+            &[include_str!("plane_depth.wgsl"), include_str!("geometry_grad.wgsl")],
+            &[B::read("acc", f), B::read("normal_grad", f), B::read("depth_grad", f), B::write("pixgrad", "array<PixelGrad>")],
         ),
         raster_bwd_spec(PIXEL_GRAD_FULL, "array<PixelGrad>"),
         raster_bwd_spec(PIXEL_GRAD_COLOUR, "array<ColourGrad>"),
@@ -465,6 +475,10 @@ pub(crate) struct Kernels {
     pub plane_depth: Kernel,
     /// The rendered colour into a device image (`RenderRequest::color_on_device`).
     pub colour_out: Kernel,
+    /// The rendered surface (z, Ñ, A) into a device image (`RenderRequest::surface_on_device`).
+    pub surface_out: Kernel,
+    /// The normal terms' device gradients added into [`PixelGrad`] records.
+    pub geometry_grad_add: Kernel,
     pub raster_bwd: Kernel,
     /// `raster_bwd` on [`ColourGrad`] records (a backward with colour gradients alone).
     pub raster_bwd_colour: Kernel,
@@ -477,7 +491,7 @@ pub(crate) struct Kernels {
 
 /// The camera uniform and every storage record: one list, so that every struct the kernels
 /// declare is also the one the layout test checks.
-fn generated_structs() -> [GeneratedStruct; 10] {
+fn generated_structs() -> [GeneratedStruct; 11] {
     [
         GeneratedStruct::of::<CamUniform>(),
         GeneratedStruct::of::<ScreenGrad>(),
@@ -489,6 +503,7 @@ fn generated_structs() -> [GeneratedStruct; 10] {
         GeneratedStruct::of::<PixelGrad>(),
         GeneratedStruct::of::<ColourGrad>(),
         GeneratedStruct::of::<BlendState>(),
+        GeneratedStruct::of::<gs_gpu::SurfaceTexel>(),
     ]
 }
 
@@ -520,6 +535,8 @@ impl Kernels {
             raster_fwd: next()?,
             plane_depth: next()?,
             colour_out: next()?,
+            surface_out: next()?,
+            geometry_grad_add: next()?,
             raster_bwd: next()?,
             raster_bwd_colour: next()?,
             colour_grad_add: next()?,

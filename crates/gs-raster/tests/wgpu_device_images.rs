@@ -1,9 +1,12 @@
 #![cfg(feature = "wgpu")]
-//! A render whose colour stays on the device (`RenderRequest::color_on_device`) and a backward
-//! whose colour gradient comes from there (`OutputGradients::device_color`): the image round
-//! trip of a training step's colour, removed (docs/architecture.md §GPU). The device's colour
-//! and the backward's gradients are compared bit for bit with the host path's on the same
-//! rasterizer, and the ledger shows what no longer crosses.
+//! What a training step keeps on the device instead of sending through the host
+//! (docs/architecture.md §GPU): the rendered colour (`RenderRequest::color_on_device`) and
+//! surface (`RenderRequest::surface_on_device`: plane depth, Ñ, A), and the loss gradients the
+//! backward adds there (`OutputGradients::device_color`, `device_geometry`). Compared with the
+//! host path on the same rasterizer: the colour, Ñ, A and a colour gradient's backward bit for
+//! bit; the plane depth and the geometry gradients' backward within 1e-6 and 1e-5 of the
+//! largest value (the device divides within a few ulps of the host; lavapipe: 1.1e-7 and
+//! 8.5e-7). The ledger shows what no longer crosses.
 //!
 //! Without any wgpu adapter the tests print a skip message and return (a failure under
 //! `CI=true`).
@@ -146,4 +149,87 @@ fn a_device_colour_gradient_is_checked() {
     assert!(cpu.color.is_some() && cpu.device_color.is_none());
     let err = gs_raster::backward(&g, cam, &config(), &cpu, &OutputGradients { device_color: Some(&right), ..OutputGradients::default() }).unwrap_err();
     assert!(err.to_string().contains("CPU backward"), "{err}");
+}
+
+/// The largest |a − b| over the largest |b| (0 for equal slices).
+fn max_relative(a: &[f32], b: &[f32]) -> f64 {
+    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64)).max(1e-30);
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs() as f64)) / scale
+}
+
+#[test]
+fn a_surface_kept_on_the_device_holds_the_host_images() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cam = &cameras(80, 56)[1];
+    let g = random_scene(400, 2, 33, 1.0, (-3.5, -2.0));
+    let request = RenderRequest { normal: true, distance: true, plane_depth: true, surface_on_device: true, ..RenderRequest::default() };
+    let out = r.render(&g, cam, &request, &config()).unwrap();
+    let surface = out.device_surface.as_ref().expect("kept on the device");
+    assert_eq!((surface.width(), surface.height(), surface.channels()), (80, 56, gs_gpu::SURFACE_CHANNELS));
+    let texels = surface.read(r.context()).unwrap();
+    let channel = |k: usize, c: usize| -> Vec<f32> { texels.chunks_exact(5).map(|t| t[k..k + c].to_vec()).flatten().collect() };
+    let host = |im: &Option<Image>| im.as_ref().unwrap().data().to_vec();
+    // Ñ and A are the accumulators' own values; the plane depth is the device's division.
+    assert_eq!(channel(1, 3), host(&out.normal), "Ñ");
+    assert_eq!(channel(4, 1), host(&out.alpha), "A");
+    let (z, want) = (channel(0, 1), host(&out.plane_depth));
+    let e = max_relative(&z, &want);
+    let differ = z.iter().zip(&want).filter(|(a, b)| a != b).count();
+    eprintln!("plane depth: {differ} of {} pixels differ from the host's, by at most {e:e} of the largest", z.len());
+    assert!(e < 1e-6, "plane depth: largest difference {e:e} of the largest depth");
+    assert!(want.iter().filter(|v| **v != 0.0).count() > 100, "a surface in view");
+    // Without normal, plane depth or alpha there is no surface to keep.
+    let colour_only = r.render(&g, cam, &RenderRequest { surface_on_device: true, ..RenderRequest::default() }, &config()).unwrap();
+    assert!(colour_only.device_surface.is_none());
+    // Nothing blended: zeros, as the host assembles them.
+    let mut away = g.clone();
+    away.means.iter_mut().for_each(|m| m[2] = -40.0);
+    let empty = r.render(&away, cam, &request, &config()).unwrap();
+    assert!(empty.device_surface.unwrap().read(r.context()).unwrap().iter().all(|v| *v == 0.0));
+}
+
+#[test]
+fn geometry_gradients_on_the_device_back_propagate_as_on_the_host() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cam = &cameras(72, 48)[2];
+    let g = random_scene(350, 3, 45, 1.0, (-3.5, -2.0));
+    let gr = Grads::new(72, 48, 13);
+    let request = RenderRequest { normal: true, distance: true, plane_depth: true, surface_on_device: true, color_on_device: true, ..RenderRequest::default() };
+    let out = r.render(&g, cam, &request, &config()).unwrap();
+    let ctx = r.context().clone();
+    let upload = |im: &Image| DeviceImage::upload(&ctx, "gradient", (im.width(), im.height(), im.channels()), im.data()).unwrap();
+    let (colour, normal, depth) = (upload(&gr.color), upload(&gr.normal), upload(&gr.plane_depth));
+    let geometry = gs_raster::DeviceGeometryGrads { normal: &normal, plane_depth: &depth };
+    // The host path: every gradient folded on the host. The device path: the colour and the
+    // normal terms' gradients on the device, the distance's (L_p's) on the host.
+    let host = OutputGradients { color: Some(&gr.color), normal: Some(&gr.normal), distance: Some(&gr.distance), plane_depth: Some(&gr.plane_depth), ..OutputGradients::default() };
+    let device = OutputGradients { device_color: Some(&colour), device_geometry: Some(geometry), distance: Some(&gr.distance), ..OutputGradients::default() };
+    let want = r.backward(&g, cam, &config(), &out, &host).unwrap();
+    let got = r.backward(&g, cam, &config(), &out, &device).unwrap();
+    // The plane depth's fold divides on the device (within a few ulps of the host's division).
+    for (name, a, b) in [
+        ("means", parity::compare::flat(&got.means), parity::compare::flat(&want.means)),
+        ("log-scales", parity::compare::flat(&got.log_scales), parity::compare::flat(&want.log_scales)),
+        ("rotations", parity::compare::flat(&got.rotations), parity::compare::flat(&want.rotations)),
+        ("opacity logits", got.opacity_logits.clone(), want.opacity_logits.clone()),
+    ] {
+        let e = max_relative(&a, &b);
+        eprintln!("{name}: largest difference {e:e} of the largest gradient");
+        assert!(e < 1e-5, "{name}: largest difference {e:e} of the largest gradient");
+    }
+    // Beside a host gradient of the normal and of the plane depth, the device's add to them.
+    let both = OutputGradients { normal: Some(&gr.normal), plane_depth: Some(&gr.plane_depth), ..device };
+    let doubled = r.backward(&g, cam, &config(), &out, &both).unwrap();
+    let twice = OutputGradients { device_geometry: None, ..both };
+    let host_part = r.backward(&g, cam, &config(), &out, &twice).unwrap();
+    let e = max_relative(&parity::compare::flat(&doubled.means), &parity::compare::flat(&host_part.means));
+    assert!(e > 1e-3, "the device's geometry gradients count beside the host's");
+    // Checked: sizes, and a render without the geometry.
+    let small = DeviceImage::new(&ctx, "small", 36, 48, 1).unwrap();
+    let bad = OutputGradients { device_geometry: Some(gs_raster::DeviceGeometryGrads { normal: &normal, plane_depth: &small }), ..OutputGradients::default() };
+    let err = r.backward(&g, cam, &config(), &out, &bad).unwrap_err().to_string();
+    assert!(err.contains("need 72×48×3 and 72×48×1"), "{err}");
+    let flat = r.render(&g, cam, &RenderRequest::default(), &config()).unwrap();
+    let err = r.backward(&g, cam, &config(), &flat, &OutputGradients { device_geometry: Some(geometry), ..OutputGradients::default() }).unwrap_err().to_string();
+    assert!(err.contains("no normal or plane depth"), "{err}");
 }
