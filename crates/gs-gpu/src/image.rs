@@ -23,6 +23,21 @@ crate::wgsl_struct! {
     }
 }
 
+crate::wgsl_struct! {
+    /// One pixel's gradient of a loss with respect to the rendered plane (WGSL `struct
+    /// PlaneGrad`): ∂/∂Ñ and ∂/∂D. gs-mvs' L_p writes a [`DeviceImage`] of these (4 channels,
+    /// in this order) and the rasterizer's backward reads it. 16 bytes.
+    pub struct PlaneGrad as "PlaneGrad" {
+        /// ∂/∂Ñ.
+        n: [f32; 3],
+        /// ∂/∂D.
+        d: f32,
+    }
+}
+
+/// Values of one [`PlaneGrad`]: the channel count of a plane-gradient [`DeviceImage`].
+pub const PLANE_GRAD_CHANNELS: usize = std::mem::size_of::<PlaneGrad>() / 4;
+
 /// Values of one [`SurfaceTexel`]: the channel count of a surface [`DeviceImage`].
 pub const SURFACE_CHANNELS: usize = std::mem::size_of::<SurfaceTexel>() / 4;
 

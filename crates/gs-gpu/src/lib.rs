@@ -63,7 +63,7 @@ mod sort;
 pub use arena::{Arena, ArenaKey};
 pub use context::{GpuContext, GpuOptions, PendingRead, hardware_adapter_available, probe_adapter};
 pub use dispatch::{Dispatcher, Encoder, MAX_SLOTS, SLOT, grid};
-pub use image::{DeviceImage, SURFACE_CHANNELS, SurfaceTexel};
+pub use image::{DeviceImage, PLANE_GRAD_CHANNELS, PlaneGrad, SURFACE_CHANNELS, SurfaceTexel};
 pub use kernel::{Binding, Kernel, PassUniform, kernel_source};
 pub use ledger::Transfers;
 pub use layout::{GeneratedStruct, WgslField, WgslStruct, WgslType, bytes_of, check_layout, check_layouts, declarations, validate_kernel};

@@ -174,3 +174,36 @@ fn keyed_grey_images_are_uploaded_once() {
     assert_eq!(up_whole - up_kept, 3 * grey_bytes / 4, "no grey image went up again");
     assert!(g.loss_of_views(&swapped, &others, &[2, 0], &config).is_err(), "a key for each view");
 }
+
+/// The gradient image kept on the device (`start_on_device`): the values and the gradient's
+/// bits of an evaluation that reads it back, and only each (source, row)'s sums come back. An
+/// evaluation without a patch is made on the host and says so; the two ways of finishing
+/// refuse each other's evaluations.
+#[test]
+fn a_gradient_kept_on_the_device_is_the_one_read_back() {
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let v = views(64, 48, 3, 1);
+    let (reference, sources) = inputs(&v);
+    let config = PhotometricConfig::default();
+    let host = g.loss(&reference, &sources, &config).unwrap();
+    let before = ctx.transfers();
+    let started = g.start_on_device(&reference, &sources, None, &config).unwrap();
+    let kept = g.finish_on_device(started).unwrap();
+    let t = ctx.transfers() - before;
+    assert_eq!((t.syncs, t.bytes_down), (1, 16 * sources.len() as u64 * 48), "the sums alone come back");
+    let gs_mvs::PhotometricOnDevice::Device { loss, per_source, gradient } = kept else { panic!("evaluated on the device") };
+    assert_eq!((loss, &per_source), (host.loss, &host.per_source));
+    assert_eq!((gradient.width(), gradient.height(), gradient.channels()), (64, 48, gs_gpu::PLANE_GRAD_CHANNELS));
+    let values = gradient.read(&ctx).unwrap();
+    let normal: Vec<f32> = values.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+    let distance: Vec<f32> = values.chunks_exact(4).map(|p| p[3]).collect();
+    assert_eq!((normal, distance), (host.grad_normal.clone(), host.grad_distance.clone()));
+    assert!(host.grad_distance.iter().any(|&x| x != 0.0), "a gradient to compare");
+    // No source: made on the host, with zero gradients.
+    let none = g.start_on_device(&reference, &[], None, &config).unwrap();
+    assert!(matches!(g.finish_on_device(none).unwrap(), gs_mvs::PhotometricOnDevice::Host(out) if out.loss == 0.0));
+    let on_device = g.start_on_device(&reference, &sources, None, &config).unwrap();
+    assert!(g.finish(on_device).is_err());
+    let for_host = g.start(&reference, &sources, None, &config).unwrap();
+    assert!(g.finish_on_device(for_host).is_err());
+}

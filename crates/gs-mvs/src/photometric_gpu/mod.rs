@@ -22,7 +22,7 @@ use crate::photometric::{
 use crate::visibility::{Visibility, visibility_unchecked};
 use crate::geometry::PairGeometry;
 use rayon::prelude::*;
-use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, PendingRead, ShrinkPolicy};
+use gs_gpu::{Arena, Binding, BufId, BufferPool, DeviceImage, Dispatcher, GpuContext, Kernel, PassUniform, PendingRead, ShrinkPolicy};
 use std::borrow::Cow;
 
 gs_gpu::wgsl_struct! {
@@ -253,6 +253,31 @@ impl PhotometricGpu {
         keys: Option<&[u64]>,
         config: &PhotometricConfig,
     ) -> Result<PendingPhotometric> {
+        self.start_keeping(reference, sources, keys, config, false)
+    }
+
+    /// [`PhotometricGpu::start`] whose gradient image stays on the device (a `DeviceImage` of
+    /// gs-gpu `PlaneGrad`s, for the rasterizer's backward there); only each (source, row)'s
+    /// sums come back. [`PhotometricGpu::finish_on_device`] reads it.
+    pub fn start_on_device(
+        &mut self,
+        reference: &PhotometricReference<'_, f32>,
+        sources: &[PhotometricSource<'_, f32>],
+        keys: Option<&[u64]>,
+        config: &PhotometricConfig,
+    ) -> Result<PendingPhotometric> {
+        self.start_keeping(reference, sources, keys, config, true)
+    }
+
+    /// [`PhotometricGpu::start`], the gradient image kept on the device when `keep`.
+    fn start_keeping(
+        &mut self,
+        reference: &PhotometricReference<'_, f32>,
+        sources: &[PhotometricSource<'_, f32>],
+        keys: Option<&[u64]>,
+        config: &PhotometricConfig,
+        keep: bool,
+    ) -> Result<PendingPhotometric> {
         if keys.is_some_and(|k| k.len() != sources.len() + 1) {
             return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.map_or(0, <[u64]>::len), sources.len())));
         }
@@ -332,15 +357,20 @@ impl PhotometricGpu {
             return host(done.output(&vec![reduce::NccRowSums::default(); sources.len() * h], &[]));
         }
         let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, rays: &rays };
-        let (read, row_bytes) = self.submit(&inputs, reference, &ranges, &reduce::row_starts(&entries, &ranges, w, h))?;
-        Ok(PendingPhotometric(Pending::Device { read, row_bytes, done }))
+        let kept = match keep {
+            true => Some(DeviceImage::new(&self.ctx, "L_p gradient", w, h, gs_gpu::PLANE_GRAD_CHANNELS).map_err(gpu_error)?),
+            false => None,
+        };
+        let (read, row_bytes) = self.submit(&inputs, reference, &ranges, &reduce::row_starts(&entries, &ranges, w, h), kept.as_ref())?;
+        Ok(PendingPhotometric(Pending::Device { read, row_bytes, done, kept }))
     }
 
     /// The result of a started evaluation (waiting for the device if it has not answered).
     pub fn finish(&mut self, pending: PendingPhotometric) -> Result<PhotometricOutput<f32>> {
         let (read, row_bytes, done) = match pending.0 {
             Pending::Ready(out) => return Ok(out),
-            Pending::Device { read, row_bytes, done } => (read, row_bytes, done),
+            Pending::Device { kept: Some(_), .. } => return Err(MvsError::InvalidInput("an evaluation whose gradient stays on the device, finished for the host".into())),
+            Pending::Device { read, row_bytes, done, kept: None } => (read, row_bytes, done),
         };
         let (rows, grads): (Vec<reduce::NccRowSums>, Vec<reduce::PlaneGrad>) = self
             .ctx
@@ -352,20 +382,38 @@ impl PhotometricGpu {
         Ok(done.output(&rows, &grads))
     }
 
+    /// The result of an evaluation started by [`PhotometricGpu::start_on_device`]: the values
+    /// (one wait, unless an earlier wait brought them) with the gradient image on the device,
+    /// or the whole output on the host where the evaluation was made there (grey images too
+    /// large for the device, or no patch to evaluate).
+    pub fn finish_on_device(&mut self, pending: PendingPhotometric) -> Result<PhotometricOnDevice> {
+        let (read, done, gradient) = match pending.0 {
+            Pending::Ready(out) => return Ok(PhotometricOnDevice::Host(out)),
+            Pending::Device { kept: None, .. } => return Err(MvsError::InvalidInput("an evaluation for the host, finished on the device".into())),
+            Pending::Device { read, done, kept: Some(gradient), .. } => (read, done, gradient),
+        };
+        let rows: Vec<reduce::NccRowSums> = self.ctx.finish_read(read, bytemuck::pod_collect_to_vec).map_err(gpu_error)?;
+        let (loss, per_source) = done.stats(&rows);
+        Ok(PhotometricOnDevice::Device { loss, per_source, gradient })
+    }
+
     /// Uploads the inputs, runs the patch kernel over every entry and the reduction, and
     /// requests the readback of each (source, row)'s sums and the gradient image (one round
-    /// trip); returns it with the bytes of the sums.
+    /// trip; the gradient copied into `kept` instead when given); returns it with the bytes of
+    /// the sums.
     fn submit(
         &mut self,
         inputs: &Inputs<'_>,
         reference: &PhotometricReference<'_, f32>,
         ranges: &[std::ops::Range<usize>],
         row_starts: &[u32],
+        kept: Option<&DeviceImage>,
     ) -> Result<(PendingRead, u64)> {
         let (b, frame) = (&self.bufs, inputs.frame);
         let result_bytes = std::mem::size_of::<NccResult>() as u64;
         let row_bytes = gs_gpu::bytes_of::<reduce::NccRowSums>((frame.sources * frame.height) as usize);
         let grad_bytes = gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize);
+        let grad_back = if kept.is_some() { 0 } else { grad_bytes };
         self.pool.begin_frame();
         let uploads: [(BufId, &[u8]); 7] = [
             (b.pairs, bytemuck::cast_slice(inputs.pairs)),
@@ -385,7 +433,7 @@ impl PhotometricGpu {
             (b.row_sums, row_bytes),
             (b.scales, gs_gpu::bytes_of::<f32>(frame.sources as usize)),
             (b.grads, grad_bytes),
-            (b.staging, row_bytes + grad_bytes),
+            (b.staging, row_bytes + grad_back),
         ];
         for (id, bytes) in outputs {
             self.pool.ensure(id, bytes);
@@ -411,10 +459,13 @@ impl PhotometricGpu {
         }
         let staging = p.buffer(b.staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, row_bytes);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes);
+        match kept {
+            Some(image) => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, image.buffer(), 0, grad_bytes),
+            None => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes),
+        }
         self.disp.submit(enc);
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
-        Ok((self.ctx.request_read(staging, row_bytes + grad_bytes), row_bytes))
+        Ok((self.ctx.request_read(staging, row_bytes + grad_back), row_bytes))
     }
 }
 
@@ -422,8 +473,25 @@ impl PhotometricGpu {
 /// without a patch to evaluate).
 pub struct PendingPhotometric(Pending);
 
+/// What [`PhotometricGpu::finish_on_device`] gives: L_p made on the host (its gradient there),
+/// or its values with the gradient image on the device.
+pub enum PhotometricOnDevice {
+    /// Made on the host (grey images too large for the device, or no patch to evaluate).
+    Host(PhotometricOutput<f32>),
+    /// Made on the device.
+    Device {
+        /// L_p, summed over sources.
+        loss: f64,
+        /// Each source's statistics.
+        per_source: Vec<SourceStats>,
+        /// ∂L_p/∂(Ñ, D) of each reference pixel: `[H][W]` gs-gpu `PlaneGrad`s (4 channels).
+        gradient: DeviceImage,
+    },
+}
+
 enum Pending {
-    Device { read: PendingRead, row_bytes: u64, done: Done },
+    /// `kept`: the gradient image, when it stays on the device.
+    Device { read: PendingRead, row_bytes: u64, done: Done, kept: Option<DeviceImage> },
     Ready(PhotometricOutput<f32>),
 }
 
@@ -438,21 +506,16 @@ impl Done {
     /// The output from each (source, row)'s sums and the gradient image.
     fn output(self, rows: &[reduce::NccRowSums], grads: &[reduce::PlaneGrad]) -> PhotometricOutput<f32> {
         let (w, h) = (self.width, self.height);
-        let mut out = PhotometricOutput {
-            loss: 0.0,
-            per_source: Vec::with_capacity(self.counted.len()),
-            grad_normal: vec![0.0; w * h * 3],
-            grad_distance: vec![0.0; w * h],
-            width: w,
-            height: h,
-        };
+        let (loss, per_source) = self.stats(rows);
+        let mut out = PhotometricOutput { loss, per_source, grad_normal: vec![0.0; w * h * 3], grad_distance: vec![0.0; w * h], width: w, height: h };
         reduce::unpack_gradient(&mut out, grads);
-        for (counted, rows) in self.counted.into_iter().zip(rows.chunks_exact(h.max(1))) {
-            let stats = reduce::source_stats(counted, rows);
-            out.loss += stats.loss;
-            out.per_source.push(stats);
-        }
         out
+    }
+
+    /// L_p and each source's statistics from each (source, row)'s sums.
+    fn stats(self, rows: &[reduce::NccRowSums]) -> (f64, Vec<SourceStats>) {
+        let per_source: Vec<SourceStats> = self.counted.into_iter().zip(rows.chunks_exact(self.height.max(1))).map(|(counted, rows)| reduce::source_stats(counted, rows)).collect();
+        (per_source.iter().fold(0.0, |sum, s| sum + s.loss), per_source)
     }
 }
 

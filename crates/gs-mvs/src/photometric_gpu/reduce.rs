@@ -18,13 +18,9 @@ gs_gpu::wgsl_struct! {
     }
 }
 
-gs_gpu::wgsl_struct! {
-    /// One reference pixel's ∂L_p/∂Ñ and ∂L_p/∂D (WGSL `struct PlaneGrad`). 16 bytes.
-    pub(crate) struct PlaneGrad as "PlaneGrad" {
-        n: [f32; 3],
-        d: f32,
-    }
-}
+/// One reference pixel's ∂L_p/∂Ñ and ∂L_p/∂D: gs-gpu's record, which the rasterizer's
+/// backward reads when the gradient image stays on the device.
+pub(crate) use gs_gpu::PlaneGrad;
 
 /// The reduction kernels' storage bindings, by name (slot order).
 pub(super) const BINDINGS: [Binding<'static>; 7] = [
