@@ -93,7 +93,7 @@ pub use types::{
 };
 pub(crate) use types::StateInner;
 #[cfg(feature = "wgpu")]
-pub use types::DeviceGeometryGrads;
+pub use types::{DeviceGeometryGrads, DevicePlaneGrads};
 
 #[cfg(test)]
 mod tests;

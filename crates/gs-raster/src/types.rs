@@ -294,6 +294,21 @@ pub struct OutputGradients<'a> {
     /// backward refuses them.
     #[cfg(feature = "wgpu")]
     pub device_geometry: Option<DeviceGeometryGrads<'a>>,
+    /// A loss's gradient of Ñ and D on the device (L_p's), for a render with normal and
+    /// distance: the wgpu backward adds it, times its weight, into each pixel's gradients there;
+    /// the CPU backward refuses it.
+    #[cfg(feature = "wgpu")]
+    pub device_plane: Option<DevicePlaneGrads<'a>>,
+}
+
+/// A gradient of the rendered plane kept on the device ([`OutputGradients::device_plane`]).
+#[cfg(feature = "wgpu")]
+#[derive(Debug, Clone, Copy)]
+pub struct DevicePlaneGrads<'a> {
+    /// ∂/∂Ñ and ∂/∂D per pixel: `[H][W]` gs-gpu `PlaneGrad`s (4 channels).
+    pub gradient: &'a gs_gpu::DeviceImage,
+    /// The weight it counts with in L (L_p's λ3).
+    pub weight: f32,
 }
 
 /// Gradients of the geometry channels kept on the device ([`OutputGradients::device_geometry`]).

@@ -164,6 +164,8 @@ pub(crate) fn check_all_grads(
     check_device_color(grads, req, w, h)?;
     #[cfg(feature = "wgpu")]
     check_device_geometry(grads, req, w, h)?;
+    #[cfg(feature = "wgpu")]
+    check_device_plane(grads, req, w, h)?;
     check_grad(grads.alpha, req.alpha, "alpha", w, h, 1)?;
     check_grad(grads.normal, req.normal, "normal", w, h, 3)?;
     check_grad(grads.distance, req.distance, "distance", w, h, 1)?;
@@ -213,6 +215,26 @@ fn check_device_geometry(grads: &OutputGradients, req: &RenderRequest, w: u32, h
         }
     };
     Err(RasterError::InvalidGradients(format!("the device geometry gradients {problem}")))
+}
+
+/// The device plane gradient, if any: of a render with normal and distance, without a
+/// geometry cut, `w × h × 4` with a finite weight.
+#[cfg(feature = "wgpu")]
+fn check_device_plane(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
+    let Some(g) = grads.device_plane else { return Ok(()) };
+    let size = (g.gradient.width(), g.gradient.height(), g.gradient.channels());
+    let problem = if !(req.normal && req.distance) {
+        "given but the render has no normal or distance".to_string()
+    } else if req.applied_cut() > 0.0 {
+        format!("given for a render with geometry_cut = {} (the cut is forward only)", req.geometry_cut)
+    } else if !g.weight.is_finite() {
+        format!("has the weight {}", g.weight)
+    } else if size != (w as usize, h as usize, gs_gpu::PLANE_GRAD_CHANNELS) {
+        format!("is {}×{}×{}, needs {w}×{h}×{}", size.0, size.1, size.2, gs_gpu::PLANE_GRAD_CHANNELS)
+    } else {
+        return Ok(());
+    };
+    Err(RasterError::InvalidGradients(format!("the device plane gradient {problem}")))
 }
 
 /// Checks that a forward state of `(n, width, height)` belongs to these inputs (`usable` is

@@ -2,9 +2,9 @@
 //! What a training step keeps on the device instead of sending through the host
 //! (docs/architecture.md §GPU): the rendered colour (`RenderRequest::color_on_device`) and
 //! surface (`RenderRequest::surface_on_device`: plane depth, Ñ, A), and the loss gradients the
-//! backward adds there (`OutputGradients::device_color`, `device_geometry`). Compared with the
-//! host path on the same rasterizer: the colour, Ñ, A and a colour gradient's backward bit for
-//! bit; the plane depth and the geometry gradients' backward within 1e-6 and 1e-5 of the
+//! backward adds there (`OutputGradients::device_color`, `device_geometry`, `device_plane`).
+//! Compared with the host path on the same rasterizer: the colour, Ñ, A and the backward of
+//! colour and plane gradients bit for bit; the plane depth and the geometry gradients' backward within 1e-6 and 1e-5 of the
 //! largest value (the device divides within a few ulps of the host; lavapipe: 1.1e-7 and
 //! 8.5e-7). The ledger shows what no longer crosses.
 //!
@@ -232,4 +232,40 @@ fn geometry_gradients_on_the_device_back_propagate_as_on_the_host() {
     let flat = r.render(&g, cam, &RenderRequest::default(), &config()).unwrap();
     let err = r.backward(&g, cam, &config(), &flat, &OutputGradients { device_geometry: Some(geometry), ..OutputGradients::default() }).unwrap_err().to_string();
     assert!(err.contains("no normal or plane depth"), "{err}");
+}
+
+#[test]
+fn a_plane_gradient_on_the_device_back_propagates_as_on_the_host() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cam = &cameras(64, 40)[0];
+    let g = random_scene(300, 2, 47, 1.0, (-3.5, -2.0));
+    let gr = Grads::new(64, 40, 17);
+    let request = RenderRequest { normal: true, distance: true, plane_depth: true, color_on_device: true, ..RenderRequest::default() };
+    let out = r.render(&g, cam, &request, &config()).unwrap();
+    let ctx = r.context().clone();
+    let weight = 0.3f32;
+    // The weighted images the host would fold, and the same gradient as PlaneGrad records.
+    let scaled = |im: &Image| Image::from_vec(im.width(), im.height(), im.channels(), im.data().iter().map(|v| weight * v).collect()).unwrap();
+    let (normal, distance) = (scaled(&gr.normal), scaled(&gr.distance));
+    let records: Vec<f32> = (0..64 * 40).flat_map(|p| {
+        let n = &gr.normal.data()[3 * p..3 * p + 3];
+        [n[0], n[1], n[2], gr.distance.data()[p]]
+    }).collect();
+    let plane = DeviceImage::upload(&ctx, "plane gradient", (64, 40, gs_gpu::PLANE_GRAD_CHANNELS), &records).unwrap();
+    let colour = DeviceImage::upload(&ctx, "colour gradient", (64, 40, 3), gr.color.data()).unwrap();
+    let device_plane = gs_raster::DevicePlaneGrads { gradient: &plane, weight };
+    let host = OutputGradients { color: Some(&gr.color), normal: Some(&normal), distance: Some(&distance), ..OutputGradients::default() };
+    let device = OutputGradients { device_color: Some(&colour), device_plane: Some(device_plane), ..OutputGradients::default() };
+    let want = r.backward(&g, cam, &config(), &out, &host).unwrap();
+    // Every gradient on the device: nothing per pixel goes up, and the bits are the host's.
+    let before = ctx.transfers();
+    let got = r.backward(&g, cam, &config(), &out, &device).unwrap();
+    let written = (ctx.transfers() - before).bytes_up;
+    assert_eq!(got, want, "the same gradients");
+    assert!(written < 64 * 40 * 4, "{written} bytes written: the pixel records are made on the device");
+    let bad = gs_raster::DevicePlaneGrads { gradient: &colour, weight };
+    let err = r.backward(&g, cam, &config(), &out, &OutputGradients { device_plane: Some(bad), ..OutputGradients::default() }).unwrap_err().to_string();
+    assert!(err.contains("64×40×3, needs 64×40×4"), "{err}");
+    let nan = gs_raster::DevicePlaneGrads { gradient: &plane, weight: f32::NAN };
+    assert!(r.backward(&g, cam, &config(), &out, &OutputGradients { device_plane: Some(nan), ..OutputGradients::default() }).is_err());
 }

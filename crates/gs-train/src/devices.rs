@@ -189,6 +189,33 @@ impl LossDevices {
         Ok(Deferred::ready(gs_mvs::photometric_loss(reference, sources, config)?))
     }
 
+    /// [`LossDevices::start_photometric_loss`] with the gradient image kept on the device,
+    /// where the patches run there (else made on the host, its gradient there).
+    #[cfg(feature = "wgpu")]
+    pub fn start_photometric_loss_on_device<'d>(
+        &'d self,
+        reference: &gs_mvs::PhotometricReference<'_, f32>,
+        sources: &[gs_mvs::PhotometricSource<'_, f32>],
+        slots: &[usize],
+        config: &gs_mvs::PhotometricConfig,
+    ) -> gs_mvs::Result<Deferred<'d, gs_mvs::PhotometricOnDevice, gs_mvs::MvsError>> {
+        let Some(d) = &self.photometric else {
+            return Ok(Deferred::ready(gs_mvs::PhotometricOnDevice::Host(gs_mvs::photometric_loss(reference, sources, config)?)));
+        };
+        let greys = std::iter::once(&reference.grey).chain(sources.iter().map(|s| &s.grey));
+        let keys: Vec<u64> = slots.iter().zip(greys).map(|(&slot, g)| view_key(slot, g.width, g.height)).collect();
+        let pending = d.borrow_mut().start_on_device(reference, sources, Some(&keys), config)?;
+        Ok(Deferred::later(move || d.borrow_mut().finish_on_device(pending)))
+    }
+
+    /// Whether L_p's patches run on the device, so that its gradient image may stay there.
+    pub fn photometric_on_device(&self) -> bool {
+        #[cfg(feature = "wgpu")]
+        return self.photometric.is_some();
+        #[cfg(not(feature = "wgpu"))]
+        false
+    }
+
     /// L_f of `reference` against `sources` (each view's key its training slot): the feature
     /// alignment on the device when there is an executor for it, else
     /// [`gs_mvs::feature_alignment::feature_loss`] (the reference).

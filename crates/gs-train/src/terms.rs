@@ -127,6 +127,9 @@ pub struct GradientBuffers {
     /// other terms').
     #[cfg(feature = "wgpu")]
     pub device_geometry: Option<(gs_gpu::DeviceImage, gs_gpu::DeviceImage)>,
+    /// L_p's gradient of Ñ and D kept on the device (gs-gpu `PlaneGrad`s) with its weight λ3.
+    #[cfg(feature = "wgpu")]
+    pub device_plane: Option<(gs_gpu::DeviceImage, f32)>,
 }
 
 impl GradientBuffers {
@@ -160,6 +163,8 @@ impl GradientBuffers {
             device_color: self.device_color.as_ref(),
             #[cfg(feature = "wgpu")]
             device_geometry: self.device_geometry.as_ref().map(|(normal, plane_depth)| gs_raster::DeviceGeometryGrads { normal, plane_depth }),
+            #[cfg(feature = "wgpu")]
+            device_plane: self.device_plane.as_ref().map(|(gradient, weight)| gs_raster::DevicePlaneGrads { gradient, weight: *weight }),
             ..Default::default()
         }
     }
@@ -385,6 +390,28 @@ impl LossTerm for PhotometricTerm {
             })
             .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
         let slots: Vec<usize> = std::iter::once(x.slot).chain(x.sources.iter().map(|s| s.slot)).collect();
+        #[cfg(feature = "wgpu")]
+        if x.devices.photometric_on_device() {
+            // The gradient image stays on the device for the backward there.
+            let started = x.devices.start_photometric_loss_on_device(&reference, &sources, &slots, &self.config)?;
+            return Ok(Fold::new(move |grads, values| {
+                match started.wait()? {
+                    gs_mvs::PhotometricOnDevice::Device { loss, gradient, .. } => {
+                        values.photometric = Some(loss);
+                        if grads.device_plane.replace((gradient, w.lambda_p)).is_some() {
+                            return Err(crate::TrainError::InvalidConfig("two plane gradients on the device in one step".into()));
+                        }
+                    }
+                    gs_mvs::PhotometricOnDevice::Host(lp) => {
+                        values.photometric = Some(lp.loss);
+                        let (gn, gd) = lp.grad_images();
+                        GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);
+                        GradientBuffers::add(&mut grads.distance, gd, w.lambda_p);
+                    }
+                }
+                Ok(())
+            }));
+        }
         let started = x.devices.start_photometric_loss(&reference, &sources, &slots, &self.config)?;
         Ok(Fold::new(move |grads, values| {
             let lp = started.wait()?;

@@ -36,7 +36,7 @@ pub fn backward(
     let (w, h) = (cam.width, cam.height);
     check_all_grads(grads, &st.request, w, h)?;
     #[cfg(feature = "wgpu")]
-    if grads.device_color.is_some() || grads.device_geometry.is_some() {
+    if grads.device_color.is_some() || grads.device_geometry.is_some() || grads.device_plane.is_some() {
         return Err(RasterError::InvalidGradients("gradients on a device given to the CPU backward".into()));
     }
     let color = grads.color.is_some();

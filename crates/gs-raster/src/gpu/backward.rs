@@ -88,7 +88,7 @@ impl WgpuRasterizer {
             }
         };
         let color = grads.color.is_some() || grads.device_color.is_some();
-        let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some() || grads.device_geometry.is_some();
+        let geo = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some() || grads.device_geometry.is_some() || grads.device_plane.is_some();
         let depth = grads.expected_depth.is_some();
         if frame.total == 0 || !(color || geo || depth || grads.alpha.is_some()) {
             return Ok(None);
@@ -138,13 +138,16 @@ impl WgpuRasterizer {
         let (cam, st, frame) = (&checked.cam, checked.st, checked.frame);
         let nn = g.len() as u64;
         let npix = cam.width as u64 * cam.height as u64;
-        let (device_colour, device_geometry) = (grads.device_color, grads.device_geometry);
+        let (device_colour, device_geometry, device_plane) = (grads.device_color, grads.device_geometry, grads.device_plane);
         let elsewhere = |im: &gs_gpu::DeviceImage| !im.is_on(&self.ctx);
-        if device_colour.is_some_and(elsewhere) || device_geometry.is_some_and(|g| elsewhere(g.normal) || elsewhere(g.plane_depth)) {
+        if device_colour.is_some_and(elsewhere)
+            || device_geometry.is_some_and(|g| elsewhere(g.normal) || elsewhere(g.plane_depth))
+            || device_plane.is_some_and(|g| elsewhere(g.gradient))
+        {
             return Err(RasterError::InvalidGradients("a device gradient lives on another device".into()));
         }
         let flags = (grads.color.is_some() || device_colour.is_some()) as u32
-            | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some() || device_geometry.is_some())
+            | ((grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some() || device_geometry.is_some() || device_plane.is_some())
                 as u32)
                 << 1
             | (grads.expected_depth.is_some() as u32) << 2;
@@ -173,9 +176,10 @@ impl WgpuRasterizer {
             true => bytes_of::<ColourGrad>(1),
             false => bytes_of::<PixelGrad>(1),
         };
-        // A device colour gradient alone leaves nothing for the host to fold: the records
-        // start at zero on the device; otherwise the host folds the rest (its colour left out).
-        let nothing_on_host = device_colour.is_some() && colour_only && grads.alpha.is_none();
+        // Where every gradient is on the device the host has nothing to fold: the records
+        // start at zero there; otherwise the host folds its own (the device's left out).
+        let on_host = [grads.color, grads.alpha, grads.normal, grads.distance, grads.plane_depth, grads.expected_depth];
+        let nothing_on_host = on_host.iter().all(Option::is_none);
         if nothing_on_host {
             self.pool.ensure(self.bufs.pixgrad, npix * rec);
         } else {
@@ -188,6 +192,11 @@ impl WgpuRasterizer {
         }
         if let Some(image) = device_colour {
             self.add_device_colour(&mut enc, &bands, image, colour_only)?;
+        }
+        // L_p's before L_nc's: the host added them in that order into one buffer (the plane
+        // depth's fold last), so a run with both on the device keeps its bits.
+        if let Some(plane) = device_plane {
+            self.add_device_plane(&mut enc, &bands, plane)?;
         }
         if let Some(geometry) = device_geometry {
             self.add_device_geometry(&mut enc, &bands, geometry)?;
@@ -290,6 +299,20 @@ impl WgpuRasterizer {
             ];
             let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
             d.dispatch_1d(enc, &self.kernels.geometry_grad_add, &binds, pass)?;
+        }
+        Ok(())
+    }
+
+    /// `plane_grad_add` per band of tile rows: a loss's device gradient of Ñ and D, times its
+    /// weight, added into the pixels' `PixelGrad`s.
+    fn add_device_plane(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], g: crate::DevicePlaneGrads<'_>) -> Result<()> {
+        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
+        let (rec, texel) = (bytes_of::<PixelGrad>(1), bytes_of::<gs_gpu::PlaneGrad>(1));
+        for &(_, _, p0, bp) in bands {
+            d.make_room(enc, 1);
+            let binds = [gs_gpu::Bind::range(g.gradient.buffer(), p0 * texel, bp * texel), p.range(b.pixgrad, p0 * rec, bp * rec)];
+            let pass = PassUniform { n: bp as u32, base: p0 as u32, p1: g.weight.to_bits(), ..Default::default() };
+            d.dispatch_1d(enc, &self.kernels.plane_grad_add, &binds, pass)?;
         }
         Ok(())
     }

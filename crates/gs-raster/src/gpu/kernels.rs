@@ -397,6 +397,11 @@ fn specs() -> Vec<Spec<'static>> {
             &[include_str!("plane_depth.wgsl"), include_str!("geometry_grad.wgsl")],
             &[B::read("acc", f), B::read("normal_grad", f), B::read("depth_grad", f), B::write("pixgrad", "array<PixelGrad>")],
         ),
+        spec(
+            "plane_grad_add",
+            &[include_str!("plane_grad.wgsl")],
+            &[B::read("plane_grad", "array<PlaneGrad>"), B::write("pixgrad", "array<PixelGrad>")],
+        ),
         raster_bwd_spec(PIXEL_GRAD_FULL, "array<PixelGrad>"),
         raster_bwd_spec(PIXEL_GRAD_COLOUR, "array<ColourGrad>"),
         colour_grad_spec(ADD_COLOUR_FULL, "array<PixelGrad>"),
@@ -479,6 +484,8 @@ pub(crate) struct Kernels {
     pub surface_out: Kernel,
     /// The normal terms' device gradients added into [`PixelGrad`] records.
     pub geometry_grad_add: Kernel,
+    /// A loss's device gradient of Ñ and D (L_p's `PlaneGrad`s) added into [`PixelGrad`] records.
+    pub plane_grad_add: Kernel,
     pub raster_bwd: Kernel,
     /// `raster_bwd` on [`ColourGrad`] records (a backward with colour gradients alone).
     pub raster_bwd_colour: Kernel,
@@ -491,7 +498,7 @@ pub(crate) struct Kernels {
 
 /// The camera uniform and every storage record: one list, so that every struct the kernels
 /// declare is also the one the layout test checks.
-fn generated_structs() -> [GeneratedStruct; 11] {
+fn generated_structs() -> [GeneratedStruct; 12] {
     [
         GeneratedStruct::of::<CamUniform>(),
         GeneratedStruct::of::<ScreenGrad>(),
@@ -504,6 +511,7 @@ fn generated_structs() -> [GeneratedStruct; 11] {
         GeneratedStruct::of::<ColourGrad>(),
         GeneratedStruct::of::<BlendState>(),
         GeneratedStruct::of::<gs_gpu::SurfaceTexel>(),
+        GeneratedStruct::of::<gs_gpu::PlaneGrad>(),
     ]
 }
 
@@ -537,6 +545,7 @@ impl Kernels {
             colour_out: next()?,
             surface_out: next()?,
             geometry_grad_add: next()?,
+            plane_grad_add: next()?,
             raster_bwd: next()?,
             raster_bwd_colour: next()?,
             colour_grad_add: next()?,
