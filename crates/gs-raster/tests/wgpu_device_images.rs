@@ -167,7 +167,7 @@ fn a_surface_kept_on_the_device_holds_the_host_images() {
     let surface = out.device_surface.as_ref().expect("kept on the device");
     assert_eq!((surface.width(), surface.height(), surface.channels()), (80, 56, gs_gpu::SURFACE_CHANNELS));
     let texels = surface.read(r.context()).unwrap();
-    let channel = |k: usize, c: usize| -> Vec<f32> { texels.chunks_exact(5).map(|t| t[k..k + c].to_vec()).flatten().collect() };
+    let channel = |k: usize, c: usize| -> Vec<f32> { texels.chunks_exact(gs_gpu::SURFACE_CHANNELS).flat_map(|t| t[k..k + c].to_vec()).collect() };
     let host = |im: &Option<Image>| im.as_ref().unwrap().data().to_vec();
     // Ñ and A are the accumulators' own values; the plane depth is the device's division.
     assert_eq!(channel(1, 3), host(&out.normal), "Ñ");
