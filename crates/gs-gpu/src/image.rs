@@ -10,14 +10,17 @@
 use crate::{GpuContext, GpuError, Result};
 
 crate::wgsl_struct! {
-    /// One pixel of a rendered surface as a per-pixel loss reads it (WGSL `struct
-    /// SurfaceTexel`): the rasterizer writes a [`DeviceImage`] of these (5 channels, in this
-    /// order) and gs-losses' normal terms bind it as `array<SurfaceTexel>`. 20 bytes.
+    /// One pixel of a rendered surface as the per-pixel losses read it (WGSL `struct
+    /// SurfaceTexel`): the rasterizer writes a [`DeviceImage`] of these (6 channels, in this
+    /// order), gs-losses' normal terms (z, Ñ, A) and gs-mvs' L_p (Ñ, D) bind it as
+    /// `array<SurfaceTexel>`. 24 bytes.
     pub struct SurfaceTexel as "SurfaceTexel" {
         /// The plane depth z.
         z: f32,
         /// The rendered normal Ñ.
         normal: [f32; 3],
+        /// The rendered distance D.
+        distance: f32,
         /// The accumulated alpha A = 1 − T_final.
         alpha: f32,
     }

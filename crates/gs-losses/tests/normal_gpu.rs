@@ -212,7 +212,7 @@ fn a_surface_on_the_device_gives_the_same_result_and_its_gradients_stay_there() 
     let texels: Vec<f32> = (0..w * h)
         .flat_map(|p| {
             let n = &v.normal.data()[3 * p..3 * p + 3];
-            [v.z.data()[p], n[0], n[1], n[2], v.alpha.data()[p]]
+            [v.z.data()[p], n[0], n[1], n[2], 0.0, v.alpha.data()[p]]
         })
         .collect();
     let surface = gs_gpu::DeviceImage::upload(&ctx, "surface", (w, h, gs_gpu::SURFACE_CHANNELS), &texels).unwrap();

@@ -187,16 +187,25 @@ pub(crate) fn check_inputs<T>(
     sources: &[PhotometricSource<'_, T>],
     config: &PhotometricConfig,
 ) -> Result<()> {
-    config.validate()?;
     let cam = reference.camera;
     reference.normal.expect_size(cam, 3, "reference normal")?;
     reference
         .distance
         .expect_size(cam, 1, "reference distance")?;
-    reference
-        .plane_depth
-        .expect_size(cam, 1, "reference plane_depth")?;
-    grey_scale(&reference.grey, cam, "reference grey image")?;
+    check_views((cam, &reference.plane_depth, &reference.grey), sources, config)
+}
+
+/// The checks of L_p's inputs besides the reference's rendered plane (shared with the device
+/// twin's reference on the device): the configuration, the reference's plane depth and grey
+/// image, and each source's.
+pub(crate) fn check_views<T>(
+    (cam, plane_depth, grey): (&Camera, &MapView<'_, T>, &MapView<'_, T>),
+    sources: &[PhotometricSource<'_, T>],
+    config: &PhotometricConfig,
+) -> Result<()> {
+    config.validate()?;
+    plane_depth.expect_size(cam, 1, "reference plane_depth")?;
+    grey_scale(grey, cam, "reference grey image")?;
     for (k, s) in sources.iter().enumerate() {
         s.plane_depth
             .expect_size(s.camera, 1, &format!("source {k} plane_depth"))?;
@@ -222,18 +231,19 @@ fn grey_scale<T>(grey: &MapView<'_, T>, camera: &Camera, name: &str) -> Result<u
     Ok(s)
 }
 
-/// The cameras whose pixels are the grey images' pixels, and the reference grey scale.
+/// The cameras whose pixels are the grey images' pixels, and the reference grey scale, of the
+/// reference `camera` with its `grey` image and a source.
 pub(crate) fn patch_geometry<T: Real>(
-    reference: &PhotometricReference<'_, T>,
+    (camera, grey): (&Camera, &MapView<'_, T>),
     source: &PhotometricSource<'_, T>,
 ) -> Result<(PairGeometry<T>, usize)> {
-    let sr = grey_scale(&reference.grey, reference.camera, "reference grey image")?;
+    let sr = grey_scale(grey, camera, "reference grey image")?;
     let ss = grey_scale(&source.grey, source.camera, "source grey image")?;
     if sr == 1 && ss == 1 {
-        return Ok((PairGeometry::new(reference.camera, source.camera), 1));
+        return Ok((PairGeometry::new(camera, source.camera), 1));
     }
     let up = |c: &Camera, s: usize| c.resized(c.width * s as u32, c.height * s as u32).map_err(|e| MvsError::InvalidInput(e.to_string()));
-    Ok((PairGeometry::new(&up(reference.camera, sr)?, &up(source.camera, ss)?), sr))
+    Ok((PairGeometry::new(&up(camera, sr)?, &up(source.camera, ss)?), sr))
 }
 
 /// L_p over `sources` with υ and ω computed from the plane depths (docs/method.md §L_p, §Visibility).
@@ -282,7 +292,7 @@ pub fn photometric_loss_with_weights<T: Real>(
     let mut scratch_n = vec![T::ZERO; w * h * 3];
     let mut scratch_d = vec![T::ZERO; w * h];
     for (k, (source, vis)) in sources.iter().zip(weights).enumerate() {
-        let (g, grey_scale) = patch_geometry(reference, source)?;
+        let (g, grey_scale) = patch_geometry((reference.camera, &reference.grey), source)?;
         let selected = select_pixels(vis, config, k, w, h);
         let (stats, any) = source_pass(
             reference,

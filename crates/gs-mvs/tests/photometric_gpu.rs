@@ -175,8 +175,9 @@ fn keyed_grey_images_are_uploaded_once() {
     assert!(g.loss_of_views(&swapped, &others, &[2, 0], &config).is_err(), "a key for each view");
 }
 
-/// The gradient image kept on the device (`start_on_device`): the values and the gradient's
-/// bits of an evaluation that reads it back, and only each (source, row)'s sums come back. An
+/// A reference plane on the device and the gradient image kept there (`start_on_device`): the
+/// values and the gradient's bits of the host reference's evaluation, nothing per pixel goes
+/// up and only each (source, row)'s sums come back. An
 /// evaluation without a patch is made on the host and says so; the two ways of finishing
 /// refuse each other's evaluations.
 #[test]
@@ -185,12 +186,27 @@ fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     let v = views(64, 48, 3, 1);
     let (reference, sources) = inputs(&v);
     let config = PhotometricConfig::default();
-    let host = g.loss(&reference, &sources, &config).unwrap();
+    // The grey images held under their keys, so that each call uploads only its own inputs.
+    let keys: Vec<u64> = (0..=sources.len() as u64).collect();
+    g.loss_of_views(&reference, &sources, &keys, &config).unwrap();
     let before = ctx.transfers();
-    let started = g.start_on_device(&reference, &sources, None, &config).unwrap();
+    let host = g.loss_of_views(&reference, &sources, &keys, &config).unwrap();
+    let host_up = (ctx.transfers() - before).bytes_up;
+    // The reference's rendered plane on the device, as the rasterizer's surface image holds it.
+    let texels: Vec<f32> = (0..64 * 48)
+        .flat_map(|p| {
+            let n = &reference.normal.data[3 * p..3 * p + 3];
+            [0.0, n[0], n[1], n[2], reference.distance.data[p], 0.0]
+        })
+        .collect();
+    let image = gs_gpu::DeviceImage::upload(&ctx, "surface", (64, 48, gs_gpu::SURFACE_CHANNELS), &texels).unwrap();
+    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: reference.plane_depth, grey: reference.grey };
+    let before = ctx.transfers();
+    let started = g.start_on_device(&on_device, &sources, Some(&keys), &config).unwrap();
     let kept = g.finish_on_device(started).unwrap();
     let t = ctx.transfers() - before;
     assert_eq!((t.syncs, t.bytes_down), (1, 16 * sources.len() as u64 * 48), "the sums alone come back");
+    assert_eq!(host_up - t.bytes_up, 24 * 64 * 48, "the plane (a 24-byte SurfaceTexel a pixel) does not go up");
     let gs_mvs::PhotometricOnDevice::Device { loss, per_source, gradient } = kept else { panic!("evaluated on the device") };
     assert_eq!((loss, &per_source), (host.loss, &host.per_source));
     assert_eq!((gradient.width(), gradient.height(), gradient.channels()), (64, 48, gs_gpu::PLANE_GRAD_CHANNELS));
@@ -200,10 +216,14 @@ fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     assert_eq!((normal, distance), (host.grad_normal.clone(), host.grad_distance.clone()));
     assert!(host.grad_distance.iter().any(|&x| x != 0.0), "a gradient to compare");
     // No source: made on the host, with zero gradients.
-    let none = g.start_on_device(&reference, &[], None, &config).unwrap();
+    let none = g.start_on_device(&on_device, &[], None, &config).unwrap();
     assert!(matches!(g.finish_on_device(none).unwrap(), gs_mvs::PhotometricOnDevice::Host(out) if out.loss == 0.0));
-    let on_device = g.start_on_device(&reference, &sources, None, &config).unwrap();
-    assert!(g.finish(on_device).is_err());
+    let started = g.start_on_device(&on_device, &sources, None, &config).unwrap();
+    assert!(g.finish(started).is_err());
     let for_host = g.start(&reference, &sources, None, &config).unwrap();
     assert!(g.finish_on_device(for_host).is_err());
+    // A surface of another size is refused with its name.
+    let small = gs_gpu::DeviceImage::new(&ctx, "small", 32, 48, gs_gpu::SURFACE_CHANNELS).unwrap();
+    let err = g.start_on_device(&gs_mvs::SurfaceReference { surface: &small, ..on_device }, &sources, None, &config).err().expect("refused").to_string();
+    assert!(err.contains("reference surface"), "{err}");
 }

@@ -136,10 +136,11 @@ pub struct RenderRequest {
     /// without a round trip through the host (docs/architecture.md §GPU). The CPU backend
     /// renders the colour to the host as without it.
     pub color_on_device: bool,
-    /// With `plane_depth`, `normal` and `alpha`: the wgpu backend also writes the rendered
-    /// surface (plane depth, Ñ, A per pixel: gs-gpu's `SurfaceTexel`) into a new `DeviceImage`
-    /// ([`RenderOutput::device_surface`]), for the normal terms on the same device; the host
-    /// images come back as asked. The CPU backend ignores it.
+    /// With any geometry channel (normal, distance or plane depth): the wgpu backend also
+    /// writes the rendered surface (plane depth, Ñ, D, A per pixel: gs-gpu's `SurfaceTexel`)
+    /// into a new `DeviceImage` ([`RenderOutput::device_surface`]), for the normal terms and
+    /// L_p on the same device; the host images come back as asked (none of Ñ and D need to).
+    /// The CPU backend ignores it.
     pub surface_on_device: bool,
 }
 
@@ -261,7 +262,7 @@ pub struct RenderOutput {
     #[cfg(feature = "wgpu")]
     pub device_color: Option<gs_gpu::DeviceImage>,
     /// The rendered surface kept on the device ([`RenderRequest::surface_on_device`], wgpu
-    /// backend): `[H][W]` gs-gpu `SurfaceTexel`s (5 channels).
+    /// backend): `[H][W]` gs-gpu `SurfaceTexel`s (6 channels).
     #[cfg(feature = "wgpu")]
     pub device_surface: Option<gs_gpu::DeviceImage>,
     pub(crate) state: ForwardState,
@@ -288,14 +289,13 @@ pub struct OutputGradients<'a> {
     /// backward refuses it. At most one of it and `color`.
     #[cfg(feature = "wgpu")]
     pub device_color: Option<&'a gs_gpu::DeviceImage>,
-    /// ∂L/∂Ñ and ∂L/∂(plane depth) on the device, for a render with normal and plane depth
-    /// (the normal terms' gradients of its surface): the wgpu backward adds them into each
+    /// ∂L/∂Ñ and ∂L/∂(plane depth) on the device, for a render with geometry (the normal
+    /// terms' gradients of its surface): the wgpu backward adds them into each
     /// pixel's gradients there, beside `normal` and `plane_depth` from the host; the CPU
     /// backward refuses them.
     #[cfg(feature = "wgpu")]
     pub device_geometry: Option<DeviceGeometryGrads<'a>>,
-    /// A loss's gradient of Ñ and D on the device (L_p's), for a render with normal and
-    /// distance: the wgpu backward adds it, times its weight, into each pixel's gradients there;
+    /// A loss's gradient of Ñ and D on the device (L_p's), for a render with geometry: the wgpu backward adds it, times its weight, into each pixel's gradients there;
     /// the CPU backward refuses it.
     #[cfg(feature = "wgpu")]
     pub device_plane: Option<DevicePlaneGrads<'a>>,

@@ -197,13 +197,13 @@ fn check_device_color(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u
     Err(RasterError::InvalidGradients(format!("the device colour gradient {problem}")))
 }
 
-/// The device geometry gradients, if any: of a render with normal and plane depth, without a
-/// geometry cut, `w × h × 3` and `w × h × 1`.
+/// The device geometry gradients, if any: of a render with geometry, without a geometry cut,
+/// `w × h × 3` and `w × h × 1`.
 #[cfg(feature = "wgpu")]
 fn check_device_geometry(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
     let Some(g) = grads.device_geometry else { return Ok(()) };
-    let problem = if !(req.normal && req.plane_depth) {
-        "given but the render has no normal or plane depth".to_string()
+    let problem = if !req.geo() {
+        "given but the render has no geometry (normal, distance or plane depth)".to_string()
     } else if req.applied_cut() > 0.0 {
         format!("given for a render with geometry_cut = {} (the cut is forward only)", req.geometry_cut)
     } else {
@@ -217,14 +217,14 @@ fn check_device_geometry(grads: &OutputGradients, req: &RenderRequest, w: u32, h
     Err(RasterError::InvalidGradients(format!("the device geometry gradients {problem}")))
 }
 
-/// The device plane gradient, if any: of a render with normal and distance, without a
-/// geometry cut, `w × h × 4` with a finite weight.
+/// The device plane gradient, if any: of a render with geometry, without a geometry cut,
+/// `w × h × 4` with a finite weight.
 #[cfg(feature = "wgpu")]
 fn check_device_plane(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
     let Some(g) = grads.device_plane else { return Ok(()) };
     let size = (g.gradient.width(), g.gradient.height(), g.gradient.channels());
-    let problem = if !(req.normal && req.distance) {
-        "given but the render has no normal or distance".to_string()
+    let problem = if !req.geo() {
+        "given but the render has no geometry (normal, distance or plane depth)".to_string()
     } else if req.applied_cut() > 0.0 {
         format!("given for a render with geometry_cut = {} (the cut is forward only)", req.geometry_cut)
     } else if !g.weight.is_finite() {

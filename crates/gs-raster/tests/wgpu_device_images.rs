@@ -169,16 +169,17 @@ fn a_surface_kept_on_the_device_holds_the_host_images() {
     let texels = surface.read(r.context()).unwrap();
     let channel = |k: usize, c: usize| -> Vec<f32> { texels.chunks_exact(gs_gpu::SURFACE_CHANNELS).flat_map(|t| t[k..k + c].to_vec()).collect() };
     let host = |im: &Option<Image>| im.as_ref().unwrap().data().to_vec();
-    // Ñ and A are the accumulators' own values; the plane depth is the device's division.
+    // Ñ, D and A are the accumulators' own values; the plane depth is the device's division.
     assert_eq!(channel(1, 3), host(&out.normal), "Ñ");
-    assert_eq!(channel(4, 1), host(&out.alpha), "A");
+    assert_eq!(channel(4, 1), host(&out.distance), "D");
+    assert_eq!(channel(5, 1), host(&out.alpha), "A");
     let (z, want) = (channel(0, 1), host(&out.plane_depth));
     let e = max_relative(&z, &want);
     let differ = z.iter().zip(&want).filter(|(a, b)| a != b).count();
     eprintln!("plane depth: {differ} of {} pixels differ from the host's, by at most {e:e} of the largest", z.len());
     assert!(e < 1e-6, "plane depth: largest difference {e:e} of the largest depth");
     assert!(want.iter().filter(|v| **v != 0.0).count() > 100, "a surface in view");
-    // Without normal, plane depth or alpha there is no surface to keep.
+    // Without geometry there is no surface to keep.
     let colour_only = r.render(&g, cam, &RenderRequest { surface_on_device: true, ..RenderRequest::default() }, &config()).unwrap();
     assert!(colour_only.device_surface.is_none());
     // Nothing blended: zeros, as the host assembles them.
@@ -217,6 +218,19 @@ fn geometry_gradients_on_the_device_back_propagate_as_on_the_host() {
         eprintln!("{name}: largest difference {e:e} of the largest gradient");
         assert!(e < 1e-5, "{name}: largest difference {e:e} of the largest gradient");
     }
+    // A render of the plane depth alone (Ñ and D not read back; a training step whose loss
+    // terms all read the surface on the device) keeps the same surface and, with every gradient
+    // on the device, back-propagates with the same bits.
+    let full = OutputGradients { device_color: Some(&colour), device_geometry: Some(geometry), ..OutputGradients::default() };
+    let want = r.backward(&g, cam, &config(), &out, &full).unwrap();
+    let depth_alone = RenderRequest { normal: false, distance: false, ..request };
+    let before = ctx.transfers();
+    let alone = r.render(&g, cam, &depth_alone, &config()).unwrap();
+    let read = (ctx.transfers() - before).bytes_down;
+    assert!(alone.normal.is_none() && alone.distance.is_none() && alone.plane_depth.is_some());
+    assert_eq!(alone.device_surface.as_ref().unwrap().read(&ctx).unwrap(), out.device_surface.as_ref().unwrap().read(&ctx).unwrap());
+    assert!(read < 72 * 48 * 4 * 3, "{read} bytes read back: the plane depth and A, not Ñ and D");
+    assert_eq!(r.backward(&g, cam, &config(), &alone, &full).unwrap(), want, "the same gradients");
     // Beside a host gradient of the normal and of the plane depth, the device's add to them.
     let both = OutputGradients { normal: Some(&gr.normal), plane_depth: Some(&gr.plane_depth), ..device };
     let doubled = r.backward(&g, cam, &config(), &out, &both).unwrap();
@@ -231,7 +245,7 @@ fn geometry_gradients_on_the_device_back_propagate_as_on_the_host() {
     assert!(err.contains("need 72×48×3 and 72×48×1"), "{err}");
     let flat = r.render(&g, cam, &RenderRequest::default(), &config()).unwrap();
     let err = r.backward(&g, cam, &config(), &flat, &OutputGradients { device_geometry: Some(geometry), ..OutputGradients::default() }).unwrap_err().to_string();
-    assert!(err.contains("no normal or plane depth"), "{err}");
+    assert!(err.contains("no geometry"), "{err}");
 }
 
 #[test]

@@ -189,18 +189,18 @@ impl LossDevices {
         Ok(Deferred::ready(gs_mvs::photometric_loss(reference, sources, config)?))
     }
 
-    /// [`LossDevices::start_photometric_loss`] with the gradient image kept on the device,
-    /// where the patches run there (else made on the host, its gradient there).
+    /// [`LossDevices::start_photometric_loss`] of a reference whose rendered plane is on the
+    /// device (the rasterizer's surface image), the gradient image kept there.
     #[cfg(feature = "wgpu")]
     pub fn start_photometric_loss_on_device<'d>(
         &'d self,
-        reference: &gs_mvs::PhotometricReference<'_, f32>,
+        reference: &gs_mvs::SurfaceReference<'_>,
         sources: &[gs_mvs::PhotometricSource<'_, f32>],
         slots: &[usize],
         config: &gs_mvs::PhotometricConfig,
     ) -> gs_mvs::Result<Deferred<'d, gs_mvs::PhotometricOnDevice, gs_mvs::MvsError>> {
         let Some(d) = &self.photometric else {
-            return Ok(Deferred::ready(gs_mvs::PhotometricOnDevice::Host(gs_mvs::photometric_loss(reference, sources, config)?)));
+            return Err(gs_mvs::MvsError::InvalidInput("a reference surface on the device but no L_p kernels there".into()));
         };
         let greys = std::iter::once(&reference.grey).chain(sources.iter().map(|s| &s.grey));
         let keys: Vec<u64> = slots.iter().zip(greys).map(|(&slot, g)| view_key(slot, g.width, g.height)).collect();

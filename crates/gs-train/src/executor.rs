@@ -322,9 +322,20 @@ impl StepExecutor for ReferenceExecutor {
         // The colour stays on the device when L_I runs there and no exposure correction (on
         // the host) reads it: only L_I's row sums come back (docs/architecture.md §GPU).
         let color_on_device = self.devices.image_on_device() && state.exposure.is_none();
-        // The surface (z, Ñ, A) also stays there for L_nc/L_ns when they run on the device.
-        let surface_on_device = self.devices.normal_on_device() && plan.render.alpha;
-        let request = RenderRequest { radii: !self.adam_on_device, color_on_device, surface_on_device, ..plan.render };
+        // The surface (z, Ñ, D, A) stays there for L_nc/L_ns and L_p when they run on the
+        // device; Ñ and D then need not come back at all (the plane depth still does, for L_p's
+        // selection and visibility on the host).
+        let r = &plan.render;
+        let surface_on_device = self.devices.normal_on_device() && (r.normal || r.distance || r.plane_depth);
+        let plane_stays = surface_on_device && (plan.photometric.is_none() || self.devices.photometric_on_device());
+        let request = RenderRequest {
+            radii: !self.adam_on_device,
+            normal: r.normal && !plane_stays,
+            distance: r.distance && !plane_stays,
+            color_on_device,
+            surface_on_device,
+            ..plan.render
+        };
         let (rendered_depths, out) = self
             .render_views_of_step(run, state, plan, (camera, &request), (profile, phase, &mut clock))
             .map_err(|e| self.instead_of(e))?;

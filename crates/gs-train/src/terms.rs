@@ -373,6 +373,10 @@ impl LossTerm for PhotometricTerm {
     }
 
     fn start<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights) -> Result<Fold<'a>> {
+        #[cfg(feature = "wgpu")]
+        if let Some(surface) = x.render.device_surface.as_ref().filter(|_| x.devices.photometric_on_device()) {
+            return self.start_on_device(x, w, surface);
+        }
         let r = x.render;
         let reference = PhotometricReference {
             camera: x.camera,
@@ -381,46 +385,60 @@ impl LossTerm for PhotometricTerm {
             plane_depth: channel(&r.plane_depth, "plane depth")?.into(),
             grey: needed(x.grey, "the reference grey image")?.into(),
         };
-        let sources = x
-            .sources
+        let sources = Self::sources(x)?;
+        let slots: Vec<usize> = std::iter::once(x.slot).chain(x.sources.iter().map(|s| s.slot)).collect();
+        let started = x.devices.start_photometric_loss(&reference, &sources, &slots, &self.config)?;
+        Ok(Fold::new(move |grads, values| {
+            Self::fold_host(started.wait()?, w, grads, values);
+            Ok(())
+        }))
+    }
+}
+
+impl PhotometricTerm {
+    /// The sources' inputs of L_p.
+    fn sources<'a>(x: &'a TermInputs<'a>) -> Result<Vec<PhotometricSource<'a, f32>>> {
+        x.sources
             .iter()
             .map(|s| {
                 let grey = needed(s.grey, "a source grey image")?;
                 Ok(PhotometricSource { camera: s.camera, plane_depth: s.plane_depth.into(), grey: grey.into() })
             })
-            .collect::<Result<Vec<PhotometricSource<f32>>>>()?;
+            .collect()
+    }
+
+    /// L_p of a reference whose rendered plane is the device's `surface`: its gradient image
+    /// stays there for the backward (made on the host where the device cannot hold it).
+    #[cfg(feature = "wgpu")]
+    fn start_on_device<'a>(&'a self, x: &'a TermInputs<'a>, w: &'a LossWeights, surface: &'a gs_gpu::DeviceImage) -> Result<Fold<'a>> {
+        let reference = gs_mvs::SurfaceReference {
+            camera: x.camera,
+            surface,
+            plane_depth: channel(&x.render.plane_depth, "plane depth")?.into(),
+            grey: needed(x.grey, "the reference grey image")?.into(),
+        };
         let slots: Vec<usize> = std::iter::once(x.slot).chain(x.sources.iter().map(|s| s.slot)).collect();
-        #[cfg(feature = "wgpu")]
-        if x.devices.photometric_on_device() {
-            // The gradient image stays on the device for the backward there.
-            let started = x.devices.start_photometric_loss_on_device(&reference, &sources, &slots, &self.config)?;
-            return Ok(Fold::new(move |grads, values| {
-                match started.wait()? {
-                    gs_mvs::PhotometricOnDevice::Device { loss, gradient, .. } => {
-                        values.photometric = Some(loss);
-                        if grads.device_plane.replace((gradient, w.lambda_p)).is_some() {
-                            return Err(crate::TrainError::InvalidConfig("two plane gradients on the device in one step".into()));
-                        }
-                    }
-                    gs_mvs::PhotometricOnDevice::Host(lp) => {
-                        values.photometric = Some(lp.loss);
-                        let (gn, gd) = lp.grad_images();
-                        GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);
-                        GradientBuffers::add(&mut grads.distance, gd, w.lambda_p);
+        let started = x.devices.start_photometric_loss_on_device(&reference, &Self::sources(x)?, &slots, &self.config)?;
+        Ok(Fold::new(move |grads, values| {
+            match started.wait()? {
+                gs_mvs::PhotometricOnDevice::Device { loss, gradient, .. } => {
+                    values.photometric = Some(loss);
+                    if grads.device_plane.replace((gradient, w.lambda_p)).is_some() {
+                        return Err(crate::TrainError::InvalidConfig("two plane gradients on the device in one step".into()));
                     }
                 }
-                Ok(())
-            }));
-        }
-        let started = x.devices.start_photometric_loss(&reference, &sources, &slots, &self.config)?;
-        Ok(Fold::new(move |grads, values| {
-            let lp = started.wait()?;
-            values.photometric = Some(lp.loss);
-            let (gn, gd) = lp.grad_images();
-            GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);
-            GradientBuffers::add(&mut grads.distance, gd, w.lambda_p);
+                gs_mvs::PhotometricOnDevice::Host(lp) => Self::fold_host(lp, w, grads, values),
+            }
             Ok(())
         }))
+    }
+
+    /// L_p made on the host: its value, and its gradient weighted into the host's buffers.
+    fn fold_host(lp: gs_mvs::PhotometricOutput<f32>, w: &LossWeights, grads: &mut GradientBuffers, values: &mut LossValues) {
+        values.photometric = Some(lp.loss);
+        let (gn, gd) = lp.grad_images();
+        GradientBuffers::add(&mut grads.normal, gn, w.lambda_p);
+        GradientBuffers::add(&mut grads.distance, gd, w.lambda_p);
     }
 }
 

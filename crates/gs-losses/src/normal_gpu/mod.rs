@@ -376,11 +376,12 @@ struct Submitted {
     kept: Option<KeptOnDevice>,
 }
 
-/// The per-pixel surface records from the planar images: z, Ñ and A (0 without alpha).
+/// The per-pixel surface records from the planar images: z, Ñ and A (0 without alpha; D, which
+/// the normal terms do not read, 0).
 fn surface_texels(z: &Image, normal: &Image, alpha: Option<&Image>) -> Vec<SurfaceTexel> {
     let normals: &[[f32; 3]] = bytemuck::cast_slice(normal.data());
     let alpha = |p: usize| alpha.map_or(0.0, |a| a.data()[p]);
-    z.data().iter().zip(normals).enumerate().map(|(p, (&z, &normal))| SurfaceTexel { z, normal, alpha: alpha(p) }).collect()
+    z.data().iter().zip(normals).enumerate().map(|(p, (&z, &normal))| SurfaceTexel { z, normal, distance: 0.0, alpha: alpha(p) }).collect()
 }
 
 /// L_nc, L_ns and the number of active pairs of `n` pixels from the rows' sums (`row_sums`),
@@ -404,6 +405,6 @@ mod tests {
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
         gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
         let sizes = [bytes_of::<SurfaceTexel>(1), bytes_of::<PixelVec3>(1), bytes_of::<PixelTerms>(1), bytes_of::<DiffGrad>(1)];
-        assert_eq!(sizes, [20, 12, 16, 24]);
+        assert_eq!(sizes, [24, 12, 16, 24]);
     }
 }

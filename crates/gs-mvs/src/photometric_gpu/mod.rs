@@ -11,14 +11,17 @@
 //! ([`PhotometricGpu::loss_of_views`]) they stay there between calls and are uploaded once.
 
 mod reduce;
+mod reference;
 
 pub use reduce::reduce_kernel_source;
+pub use reference::SurfaceReference;
 
 use crate::error::{MvsError, Result};
 use crate::photometric::{
-    NccMode, PhotometricConfig, PhotometricOutput, PhotometricReference, PhotometricSource, SourceStats, check_inputs,
-    patch_geometry, photometric_loss, select_pixels,
+    NccMode, PhotometricConfig, PhotometricOutput, PhotometricReference, PhotometricSource, SourceStats, patch_geometry,
+    select_pixels,
 };
+use reference::{Plane, RefView};
 use crate::visibility::{Visibility, visibility_unchecked};
 use crate::geometry::PairGeometry;
 use rayon::prelude::*;
@@ -85,23 +88,14 @@ gs_gpu::wgsl_struct! {
 }
 
 /// The kernel's storage bindings, by name (slot order).
-const BINDINGS: [Binding<'static>; 7] = [
+const BINDINGS: [Binding<'static>; 6] = [
     Binding::read("pairs", "array<NccPair>"),
     Binding::read("entries", "array<u32>"),
-    Binding::read("normal", "array<PixelNormal>"),
-    Binding::read("distance", "array<f32>"),
+    Binding::read("surface", "array<SurfaceTexel>"),
     Binding::read("greys", "array<f32>"),
     Binding::read("rays", "array<f32>"),
     Binding::write("results", "array<NccResult>"),
 ];
-
-gs_gpu::wgsl_struct! {
-    /// The rendered normal Ñ of one reference pixel (WGSL `struct PixelNormal`): the `[H][W][3]`
-    /// normal image read as records, the same bytes. 12 bytes.
-    pub(crate) struct PixelNormal as "PixelNormal" {
-        n: [f32; 3],
-    }
-}
 
 /// The kernel's whole WGSL source (generated declarations, then `ncc.wgsl`).
 pub fn ncc_kernel_source() -> String {
@@ -112,7 +106,7 @@ pub fn ncc_kernel_source() -> String {
 /// layout test.
 fn generated_structs() -> [gs_gpu::GeneratedStruct; 4] {
     use gs_gpu::GeneratedStruct as G;
-    [G::of::<NccFrame>(), G::of::<NccPair>(), G::of::<NccResult>(), G::of::<PixelNormal>()]
+    [G::of::<NccFrame>(), G::of::<NccPair>(), G::of::<NccResult>(), G::of::<gs_gpu::SurfaceTexel>()]
 }
 
 fn declarations() -> String {
@@ -122,8 +116,8 @@ fn declarations() -> String {
 struct Buffers {
     pairs: BufId,
     entries: BufId,
-    normal: BufId,
-    distance: BufId,
+    /// The reference's rendered plane uploaded from the host (one `SurfaceTexel` a pixel).
+    surface: BufId,
     rays: BufId,
     results: BufId,
     /// υω of each entry.
@@ -194,8 +188,7 @@ impl PhotometricGpu {
         let bufs = Buffers {
             pairs: pool.add_storage("ncc pairs"),
             entries: pool.add_storage("ncc entries"),
-            normal: pool.add_storage("ncc normal"),
-            distance: pool.add_storage("ncc distance"),
+            surface: pool.add_storage("ncc surface"),
             rays: pool.add_storage("ncc rays"),
             results: pool.add_storage("ncc results"),
             weights: pool.add_storage("ncc weights"),
@@ -253,26 +246,28 @@ impl PhotometricGpu {
         keys: Option<&[u64]>,
         config: &PhotometricConfig,
     ) -> Result<PendingPhotometric> {
-        self.start_keeping(reference, sources, keys, config, false)
+        self.start_keeping(RefView::of_host(reference), sources, keys, config, false)
     }
 
-    /// [`PhotometricGpu::start`] whose gradient image stays on the device (a `DeviceImage` of
-    /// gs-gpu `PlaneGrad`s, for the rasterizer's backward there); only each (source, row)'s
-    /// sums come back. [`PhotometricGpu::finish_on_device`] reads it.
+    /// [`PhotometricGpu::start`] of a reference whose rendered plane is on the device (the
+    /// rasterizer's surface image) and whose gradient image stays there (a `DeviceImage` of
+    /// gs-gpu `PlaneGrad`s, for the rasterizer's backward there): neither crosses to the host,
+    /// only each (source, row)'s sums come back. [`PhotometricGpu::finish_on_device`] reads it.
     pub fn start_on_device(
         &mut self,
-        reference: &PhotometricReference<'_, f32>,
+        reference: &SurfaceReference<'_>,
         sources: &[PhotometricSource<'_, f32>],
         keys: Option<&[u64]>,
         config: &PhotometricConfig,
     ) -> Result<PendingPhotometric> {
-        self.start_keeping(reference, sources, keys, config, true)
+        let view = RefView::of_device(reference, &self.ctx)?;
+        self.start_keeping(view, sources, keys, config, true)
     }
 
-    /// [`PhotometricGpu::start`], the gradient image kept on the device when `keep`.
+    /// An evaluation of `reference` started, the gradient image kept on the device when `keep`.
     fn start_keeping(
         &mut self,
-        reference: &PhotometricReference<'_, f32>,
+        reference: RefView<'_>,
         sources: &[PhotometricSource<'_, f32>],
         keys: Option<&[u64]>,
         config: &PhotometricConfig,
@@ -282,10 +277,10 @@ impl PhotometricGpu {
             return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.map_or(0, <[u64]>::len), sources.len())));
         }
         let host = |r| Ok(PendingPhotometric(Pending::Ready(r)));
-        check_inputs(reference, sources, config)?;
+        reference.check(sources, config)?;
         let grey_values = reference.grey.data.len() + sources.iter().map(|s| s.grey.data.len()).sum::<usize>();
         if 4 * grey_values as u64 > self.ctx.max_storage_binding() {
-            return host(photometric_loss(reference, sources, config)?);
+            return host(reference.host_loss(&self.ctx, sources, config)?);
         }
         let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
         // υ/ω, the pair geometry and the seeded selection of each source, sources in parallel
@@ -295,7 +290,7 @@ impl PhotometricGpu {
             .enumerate()
             .map(|(k, source)| {
                 let vis = visibility_unchecked(&PairGeometry::new(reference.camera, source.camera), &reference.plane_depth, &source.plane_depth);
-                let (g, scale) = patch_geometry(reference, source)?;
+                let (g, scale) = patch_geometry((reference.camera, &reference.grey), source)?;
                 let selected = select_pixels(&vis, config, k, w, h);
                 let picked: Vec<Entry> = selected.iter().enumerate().filter(|(_, s)| **s == 2).map(|(p, _)| p as Entry).collect();
                 Ok(Prepared { vis, g, scale, selected, picked })
@@ -306,7 +301,7 @@ impl PhotometricGpu {
         let greys: Vec<&[f32]> = std::iter::once(reference.grey.data).chain(sources.iter().map(|s| s.grey.data)).collect();
         let items: Vec<_> = greys.iter().enumerate().map(|(i, g)| (keys.map(|k| (k[i], 0)), g.len())).collect();
         let Some(offsets) = self.greys.place(&self.ctx, &items, |i| Cow::Borrowed(greys[i])) else {
-            return host(photometric_loss(reference, sources, config)?);
+            return host(reference.host_loss(&self.ctx, sources, config)?);
         };
         let mut frame = NccFrame {
             width: w as u32,
@@ -340,7 +335,7 @@ impl PhotometricGpu {
             weights.extend(p.picked.iter().map(|&e| p.vis.weight(e as usize)));
         }
         if std::mem::size_of::<NccResult>() as u64 * entries.len() as u64 > self.ctx.max_storage_binding() {
-            return host(photometric_loss(reference, sources, config)?);
+            return host(reference.host_loss(&self.ctx, sources, config)?);
         }
         // What the host counted of each source; the device adds the patches' sums.
         let counted: Vec<SourceStats> = prepared
@@ -361,7 +356,7 @@ impl PhotometricGpu {
             true => Some(DeviceImage::new(&self.ctx, "L_p gradient", w, h, gs_gpu::PLANE_GRAD_CHANNELS).map_err(gpu_error)?),
             false => None,
         };
-        let (read, row_bytes) = self.submit(&inputs, reference, &ranges, &reduce::row_starts(&entries, &ranges, w, h), kept.as_ref())?;
+        let (read, row_bytes) = self.submit(&inputs, reference.plane, &ranges, &reduce::row_starts(&entries, &ranges, w, h), kept.as_ref())?;
         Ok(PendingPhotometric(Pending::Device { read, row_bytes, done, kept }))
     }
 
@@ -404,7 +399,7 @@ impl PhotometricGpu {
     fn submit(
         &mut self,
         inputs: &Inputs<'_>,
-        reference: &PhotometricReference<'_, f32>,
+        plane: Plane<'_>,
         ranges: &[std::ops::Range<usize>],
         row_starts: &[u32],
         kept: Option<&DeviceImage>,
@@ -415,11 +410,15 @@ impl PhotometricGpu {
         let grad_bytes = gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize);
         let grad_back = if kept.is_some() { 0 } else { grad_bytes };
         self.pool.begin_frame();
-        let uploads: [(BufId, &[u8]); 7] = [
+        // The reference's plane goes up only when it is on the host.
+        let texels = match plane {
+            Plane::Host { normal, distance } => reference::plane_texels(&normal, &distance),
+            Plane::Device(_) => Vec::new(),
+        };
+        let uploads: [(BufId, &[u8]); 6] = [
             (b.pairs, bytemuck::cast_slice(inputs.pairs)),
             (b.entries, bytemuck::cast_slice(inputs.entries)),
-            (b.normal, bytemuck::cast_slice(reference.normal.data)),
-            (b.distance, bytemuck::cast_slice(reference.distance.data)),
+            (b.surface, bytemuck::cast_slice(&texels)),
             (b.rays, bytemuck::cast_slice(inputs.rays)),
             (b.weights, bytemuck::cast_slice(inputs.weights)),
             (b.row_starts, bytemuck::cast_slice(row_starts)),
@@ -440,8 +439,11 @@ impl PhotometricGpu {
         }
         self.disp.write_frame(frame);
         let p = &self.pool;
-        let [pairs, entries, normal, distance, rays, results] = [b.pairs, b.entries, b.normal, b.distance, b.rays, b.results].map(|id| p.whole(id));
-        let patch_binds = [pairs, entries, normal, distance, self.greys.bind(), rays, results];
+        let [pairs, entries, mut surface, rays, results] = [b.pairs, b.entries, b.surface, b.rays, b.results].map(|id| p.whole(id));
+        if let Plane::Device(image) = plane {
+            surface = gs_gpu::Bind::whole(image.buffer());
+        }
+        let patch_binds = [pairs, entries, surface, self.greys.bind(), rays, results];
         let sum_binds = [b.entries, b.results, b.weights, b.row_starts, b.row_sums, b.scales, b.grads].map(|id| p.whole(id));
         let mut enc = self.disp.encoder();
         self.ctx.push_error_scopes();
@@ -554,6 +556,6 @@ mod tests {
         let src = ncc_kernel_source();
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
         gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(gs_gpu::bytes_of::<PixelNormal>(1), 12);
+        assert_eq!(gs_gpu::bytes_of::<gs_gpu::SurfaceTexel>(1), 24);
     }
 }

@@ -5,7 +5,8 @@
 // the same arithmetic each time, so every pass sees the same values.
 //
 // Generated before this file: `struct NccFrame` (binding 0), `struct NccPair`,
-// `struct NccResult`, `struct PixelNormal`, and the storage bindings `pairs`, `entries`, `normal`, `distance`,
+// `struct NccResult`, `struct SurfaceTexel`, and the storage bindings `pairs`, `entries`, `surface`
+// (the reference's rendered Ñ and D per pixel, from the rasterizer's surface image or the host),
 // `greys` (the reference grey image at 0, then each source's at its pair's offset), `rays`
 // (the x ray table of the reference grey image's columns, then the y table of its rows) and
 // `results`.
@@ -95,9 +96,9 @@ fn ncc_patch(ids: Ids) {
     let e = pass_.base + t;
     let pr = pairs[pass_.p1];
     let p = entries[e];
-    let np = normal[p].n;
-    let n = vec3<f32>(np[0], np[1], np[2]);
-    let inv_d = 1.0 / distance[p];
+    let st = surface[p];
+    let n = vec3<f32>(st.normal[0], st.normal[1], st.normal[2]);
+    let inv_d = 1.0 / st.distance;
     if (!(finite(inv_d) && finite(n.x) && finite(n.y) && finite(n.z))) {
         put_result(e, OUTSIDE, 0.0, vec3<f32>(0.0), 0.0);
         return;

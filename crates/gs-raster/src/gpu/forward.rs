@@ -37,7 +37,7 @@ pub(super) struct Readback {
     /// The colour kept on the device ([`RenderRequest::color_on_device`]): written there, not
     /// read back.
     colour: Option<DeviceImage>,
-    /// The surface (z, Ñ, A) kept on the device as well ([`RenderRequest::surface_on_device`]).
+    /// The surface (z, Ñ, D, A) kept on the device as well ([`RenderRequest::surface_on_device`]).
     surface: Option<DeviceImage>,
     pub(super) bytes: u64,
 }
@@ -100,7 +100,7 @@ impl WgpuRasterizer {
             false => Ok(None),
         };
         let colour = image(request.color && request.color_on_device, "rendered colour", 3)?;
-        let surface_wanted = request.surface_on_device && request.plane_depth && request.normal && request.alpha;
+        let surface_wanted = request.surface_on_device && request.geo();
         let surface = image(surface_wanted, "rendered surface", gs_gpu::SURFACE_CHANNELS)?;
         Ok(Readback::new(request, n, (w * h) as u64, staging, (colour, surface)))
     }
@@ -479,7 +479,7 @@ impl WgpuRasterizer {
     }
 
     /// `colour_out` or `surface_out` (`kernel`) per band of tile rows: each pixel's colour
-    /// (accumulated colour plus T_final · background) or surface (z, Ñ, A) into `image`, of
+    /// (accumulated colour plus T_final · background) or surface (z, Ñ, D, A) into `image`, of
     /// `bytes` a pixel; when nothing was blended (`empty`) the background, or zeros.
     fn device_image_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], (kernel, image, bytes): (&Kernel, &DeviceImage, u64), empty: bool) -> Result<()> {
         let (d, p, b) = (&self.disp, &self.pool, &self.bufs);

@@ -480,7 +480,7 @@ pub(crate) struct Kernels {
     pub plane_depth: Kernel,
     /// The rendered colour into a device image (`RenderRequest::color_on_device`).
     pub colour_out: Kernel,
-    /// The rendered surface (z, Ñ, A) into a device image (`RenderRequest::surface_on_device`).
+    /// The rendered surface (z, Ñ, D, A) into a device image (`RenderRequest::surface_on_device`).
     pub surface_out: Kernel,
     /// The normal terms' device gradients added into [`PixelGrad`] records.
     pub geometry_grad_add: Kernel,

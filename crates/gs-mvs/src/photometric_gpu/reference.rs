@@ -1,0 +1,105 @@
+//! The reference view of a device L_p evaluation: its rendered plane (Ñ, D) given on the host,
+//! or kept on the device in the rasterizer's surface image, so that it never crosses to the
+//! host (docs/architecture.md §GPU). The host's share of L_p (υ/ω, the pixel selection) reads
+//! the plane depth and the grey image, which are on the host either way.
+
+use super::gpu_error;
+use crate::error::{MvsError, Result};
+use crate::geometry::MapView;
+use crate::photometric::{PhotometricOutput, PhotometricReference, PhotometricSource, check_inputs, check_views, photometric_loss};
+use gs_core::Camera;
+use gs_gpu::{DeviceImage, GpuContext, SURFACE_CHANNELS, SurfaceTexel};
+
+/// The reference view of [`super::PhotometricGpu::start_on_device`]: as
+/// [`PhotometricReference`], with the rendered Ñ and D in a surface image on the device.
+#[derive(Debug, Clone, Copy)]
+pub struct SurfaceReference<'a> {
+    /// Reference camera.
+    pub camera: &'a Camera,
+    /// The rendered surface: gs-gpu `SurfaceTexel`s of the camera's size (Ñ and D are read).
+    pub surface: &'a DeviceImage,
+    /// Plane depth, 1 channel (υ, ω and the selection, on the host).
+    pub plane_depth: MapView<'a, f32>,
+    /// Grey GT reference image, 1 channel, W×H or s·W × s·H.
+    pub grey: MapView<'a, f32>,
+}
+
+/// Where a reference's rendered plane (Ñ, D) is.
+#[derive(Clone, Copy)]
+pub(super) enum Plane<'a> {
+    Host { normal: MapView<'a, f32>, distance: MapView<'a, f32> },
+    Device(&'a DeviceImage),
+}
+
+/// What an evaluation reads of its reference.
+#[derive(Clone, Copy)]
+pub(super) struct RefView<'a> {
+    pub camera: &'a Camera,
+    pub plane_depth: MapView<'a, f32>,
+    pub grey: MapView<'a, f32>,
+    pub plane: Plane<'a>,
+}
+
+impl<'a> RefView<'a> {
+    /// A host reference.
+    pub fn of_host(r: &PhotometricReference<'a, f32>) -> Self {
+        Self { camera: r.camera, plane_depth: r.plane_depth, grey: r.grey, plane: Plane::Host { normal: r.normal, distance: r.distance } }
+    }
+
+    /// A reference whose plane is on `ctx`'s device; an error names a surface of another
+    /// device, size or channel count.
+    pub fn of_device(r: &SurfaceReference<'a>, ctx: &GpuContext) -> Result<Self> {
+        let s = r.surface;
+        let (w, h) = (r.camera.width as usize, r.camera.height as usize);
+        if !s.is_on(ctx) {
+            return Err(MvsError::InvalidInput("the reference surface lives on another device".into()));
+        }
+        if (s.width(), s.height(), s.channels()) != (w, h, SURFACE_CHANNELS) {
+            return Err(MvsError::SizeMismatch {
+                map: "reference surface".into(),
+                expected: format!("{w}x{h}x{SURFACE_CHANNELS}"),
+                got: format!("{}x{}x{}", s.width(), s.height(), s.channels()),
+            });
+        }
+        Ok(Self { camera: r.camera, plane_depth: r.plane_depth, grey: r.grey, plane: Plane::Device(s) })
+    }
+
+    /// The checks of [`photometric_loss`]'s inputs.
+    pub fn check(&self, sources: &[PhotometricSource<'_, f32>], config: &crate::PhotometricConfig) -> Result<()> {
+        match self.plane {
+            Plane::Host { normal, distance } => check_inputs(&self.with_plane(normal, distance), sources, config),
+            Plane::Device(_) => check_views((self.camera, &self.plane_depth, &self.grey), sources, config),
+        }
+    }
+
+    /// L_p on the host (the reference), for what the device cannot hold: a plane on the device
+    /// is read back first (one round trip).
+    pub fn host_loss(&self, ctx: &GpuContext, sources: &[PhotometricSource<'_, f32>], config: &crate::PhotometricConfig) -> Result<PhotometricOutput<f32>> {
+        match self.plane {
+            Plane::Host { normal, distance } => photometric_loss(&self.with_plane(normal, distance), sources, config),
+            Plane::Device(surface) => {
+                let texels: Vec<SurfaceTexel> = bytemuck::pod_collect_to_vec(&ctx.download(surface.buffer(), 0, surface.bytes()).map_err(gpu_error)?);
+                let normal: Vec<f32> = texels.iter().flat_map(|t| t.normal).collect();
+                let distance: Vec<f32> = texels.iter().map(|t| t.distance).collect();
+                let (w, h) = (surface.width(), surface.height());
+                let reference = self.with_plane(MapView::new(w, h, 3, &normal)?, MapView::new(w, h, 1, &distance)?);
+                photometric_loss(&reference, sources, config)
+            }
+        }
+    }
+
+    /// The host reference with this view's camera, plane depth and grey image.
+    fn with_plane<'b>(&self, normal: MapView<'b, f32>, distance: MapView<'b, f32>) -> PhotometricReference<'b, f32>
+    where
+        'a: 'b,
+    {
+        PhotometricReference { camera: self.camera, normal, distance, plane_depth: self.plane_depth, grey: self.grey }
+    }
+}
+
+/// The surface records of a host plane (Ñ and D; the plane depth and A, which L_p does not
+/// read, 0).
+pub(super) fn plane_texels(normal: &MapView<'_, f32>, distance: &MapView<'_, f32>) -> Vec<SurfaceTexel> {
+    let normals: &[[f32; 3]] = bytemuck::cast_slice(normal.data);
+    normals.iter().zip(distance.data).map(|(&n, &d)| SurfaceTexel { z: 0.0, normal: n, distance: d, alpha: 0.0 }).collect()
+}
