@@ -124,6 +124,13 @@ impl DeviceImage {
         4 * self.len() as u64
     }
 
+    /// The binding of its pixels `first .. first + count` (a band of rows, for a kernel that
+    /// works band by band).
+    pub fn pixels(&self, first: u64, count: u64) -> crate::Bind<'_> {
+        let texel = 4 * self.channels as u64;
+        crate::Bind::range(&self.buffer, first * texel, count * texel)
+    }
+
     /// Whether it lives on `ctx`'s device (an image of another device cannot be bound there).
     pub fn is_on(&self, ctx: &GpuContext) -> bool {
         &self.device == ctx.device()

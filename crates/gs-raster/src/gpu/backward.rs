@@ -269,52 +269,30 @@ impl WgpuRasterizer {
     /// `colour_grad_add` per band of tile rows: the device colour gradient `image` added into
     /// the pixels' records (`ColourGrad`s when `colour_only`, else `PixelGrad`s).
     fn add_device_colour(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], image: &gs_gpu::DeviceImage, colour_only: bool) -> Result<()> {
-        let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let (p, b, k) = (&self.pool, &self.bufs, &self.kernels);
         let (kernel, rec) = match colour_only {
             true => (&k.colour_grad_add_colour, bytes_of::<ColourGrad>(1)),
             false => (&k.colour_grad_add, bytes_of::<PixelGrad>(1)),
         };
-        for &(_, _, p0, bp) in bands {
-            d.make_room(enc, 1);
-            let binds = [gs_gpu::Bind::range(image.buffer(), p0 * 12, bp * 12), p.range(b.pixgrad, p0 * rec, bp * rec)];
-            let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
-            d.dispatch_1d(enc, kernel, &binds, pass)?;
-        }
-        Ok(())
+        self.per_band(enc, bands, kernel, PassUniform::default(), |p0, bp| [image.pixels(p0, bp), p.range(b.pixgrad, p0 * rec, bp * rec)])
     }
 
     /// `geometry_grad_add` per band of tile rows: the device gradients of Ñ and of the plane
     /// depth (folded into Ñ and D with the band's accumulators) added into the pixels'
     /// `PixelGrad`s.
     fn add_device_geometry(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], g: crate::DeviceGeometryGrads<'_>) -> Result<()> {
-        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
-        let rec = bytes_of::<PixelGrad>(1);
-        for &(_, _, p0, bp) in bands {
-            d.make_room(enc, 1);
-            let binds = [
-                p.range(b.acc, p0 * 32, bp * 32),
-                gs_gpu::Bind::range(g.normal.buffer(), p0 * 12, bp * 12),
-                gs_gpu::Bind::range(g.plane_depth.buffer(), p0 * 4, bp * 4),
-                p.range(b.pixgrad, p0 * rec, bp * rec),
-            ];
-            let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
-            d.dispatch_1d(enc, &self.kernels.geometry_grad_add, &binds, pass)?;
-        }
-        Ok(())
+        let (p, b, rec) = (&self.pool, &self.bufs, bytes_of::<PixelGrad>(1));
+        self.per_band(enc, bands, &self.kernels.geometry_grad_add, PassUniform::default(), |p0, bp| {
+            [p.range(b.acc, p0 * 32, bp * 32), g.normal.pixels(p0, bp), g.plane_depth.pixels(p0, bp), p.range(b.pixgrad, p0 * rec, bp * rec)]
+        })
     }
 
     /// `plane_grad_add` per band of tile rows: a loss's device gradient of Ñ and D, times its
     /// weight, added into the pixels' `PixelGrad`s.
     fn add_device_plane(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], g: crate::DevicePlaneGrads<'_>) -> Result<()> {
-        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
-        let (rec, texel) = (bytes_of::<PixelGrad>(1), bytes_of::<gs_gpu::PlaneGrad>(1));
-        for &(_, _, p0, bp) in bands {
-            d.make_room(enc, 1);
-            let binds = [gs_gpu::Bind::range(g.gradient.buffer(), p0 * texel, bp * texel), p.range(b.pixgrad, p0 * rec, bp * rec)];
-            let pass = PassUniform { n: bp as u32, base: p0 as u32, p1: g.weight.to_bits(), ..Default::default() };
-            d.dispatch_1d(enc, &self.kernels.plane_grad_add, &binds, pass)?;
-        }
-        Ok(())
+        let (p, b, rec) = (&self.pool, &self.bufs, bytes_of::<PixelGrad>(1));
+        let pass = PassUniform { p1: g.weight.to_bits(), ..Default::default() };
+        self.per_band(enc, bands, &self.kernels.plane_grad_add, pass, |p0, bp| [g.gradient.pixels(p0, bp), p.range(b.pixgrad, p0 * rec, bp * rec)])
     }
 
     /// `raster_bwd` per band of tile rows and window of tile-list positions (last first).

@@ -16,7 +16,7 @@ use crate::{
 };
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Camera, Gaussians, Image};
-use gs_gpu::{Bind, DeviceImage, Encoder, Kernel, PassUniform};
+use gs_gpu::{DeviceImage, Encoder, Kernel, PassUniform};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -368,9 +368,9 @@ impl WgpuRasterizer {
             }
             self.copy_outputs(enc, cam, request, bands, n, rb);
         }
-        for (image, kernel, bytes) in [(&rb.colour, &self.kernels.colour_out, 12), (&rb.surface, &self.kernels.surface_out, bytes_of::<gs_gpu::SurfaceTexel>(1))] {
+        for (image, kernel) in [(&rb.colour, &self.kernels.colour_out), (&rb.surface, &self.kernels.surface_out)] {
             if let Some(image) = image {
-                self.device_image_bands(enc, bands, (kernel, image, bytes), entries == 0)?;
+                self.device_image_bands(enc, bands, (kernel, image), entries == 0)?;
             }
         }
         let (p, b) = (&self.pool, &self.bufs);
@@ -468,28 +468,19 @@ impl WgpuRasterizer {
     /// `plane_depth_plane` per band of tile rows: the plane depth of each pixel from the
     /// band's accumulators into `depth_plane`.
     fn plane_depth_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)]) -> Result<()> {
-        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
-        for &(_, _, p0, bp) in bands {
-            d.make_room(enc, 1);
-            let binds = [p.range(b.acc, p0 * 32, bp * 32), p.range(b.depth_plane, p0 * 4, bp * 4)];
-            let pass = PassUniform { n: bp as u32, base: p0 as u32, ..Default::default() };
-            d.dispatch_1d(enc, &self.kernels.plane_depth, &binds, pass)?;
-        }
-        Ok(())
+        let (p, b) = (&self.pool, &self.bufs);
+        self.per_band(enc, bands, &self.kernels.plane_depth, PassUniform::default(), |p0, bp| {
+            [p.range(b.acc, p0 * 32, bp * 32), p.range(b.depth_plane, p0 * 4, bp * 4)]
+        })
     }
 
     /// `colour_out` or `surface_out` (`kernel`) per band of tile rows: each pixel's colour
-    /// (accumulated colour plus T_final · background) or surface (z, Ñ, D, A) into `image`, of
-    /// `bytes` a pixel; when nothing was blended (`empty`) the background, or zeros.
-    fn device_image_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], (kernel, image, bytes): (&Kernel, &DeviceImage, u64), empty: bool) -> Result<()> {
-        let (d, p, b) = (&self.disp, &self.pool, &self.bufs);
-        for &(_, _, p0, bp) in bands {
-            d.make_room(enc, 1);
-            let binds = [p.range(b.acc, p0 * 32, bp * 32), p.range(b.final_t, p0 * 4, bp * 4), Bind::range(image.buffer(), p0 * bytes, bp * bytes)];
-            let pass = PassUniform { n: bp as u32, base: p0 as u32, mode: empty as u32, ..Default::default() };
-            d.dispatch_1d(enc, kernel, &binds, pass)?;
-        }
-        Ok(())
+    /// (accumulated colour plus T_final · background) or surface (z, Ñ, D, A) into `image`;
+    /// when nothing was blended (`empty`) the background, or zeros.
+    fn device_image_bands(&self, enc: &mut Encoder, bands: &[(u32, u32, u64, u64)], (kernel, image): (&Kernel, &DeviceImage), empty: bool) -> Result<()> {
+        let (p, b) = (&self.pool, &self.bufs);
+        let pass = PassUniform { mode: empty as u32, ..Default::default() };
+        self.per_band(enc, bands, kernel, pass, |p0, bp| [p.range(b.acc, p0 * 32, bp * 32), p.range(b.final_t, p0 * 4, bp * 4), image.pixels(p0, bp)])
     }
 
     /// Copies T_final, last contributors, counters, observed counts and the requested planes

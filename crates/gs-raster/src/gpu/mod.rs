@@ -309,6 +309,25 @@ impl WgpuRasterizer {
         self.ctx.is_software()
     }
 
+    /// One dispatch of `kernel` per band of tile rows, a thread per pixel: `binds(p0, bp)`
+    /// gives the band's bindings (its first pixel `p0`, `bp` pixels); the pass carries the band
+    /// with `pass`'s other fields.
+    pub(super) fn per_band<'b, const N: usize>(
+        &self,
+        enc: &mut gs_gpu::Encoder,
+        bands: &[(u32, u32, u64, u64)],
+        kernel: &gs_gpu::Kernel,
+        pass: gs_gpu::PassUniform,
+        binds: impl Fn(u64, u64) -> [gs_gpu::Bind<'b>; N],
+    ) -> Result<()> {
+        for &(_, _, p0, bp) in bands {
+            self.disp.make_room(enc, 1);
+            let band = gs_gpu::PassUniform { n: bp as u32, base: p0 as u32, ..pass };
+            self.disp.dispatch_1d(enc, kernel, &binds(p0, bp), band)?;
+        }
+        Ok(())
+    }
+
     /// The device context, for kernels that share this rasterizer's device (the loss terms').
     pub fn context(&self) -> &GpuContext {
         &self.ctx
