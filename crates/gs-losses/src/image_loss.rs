@@ -82,8 +82,8 @@ pub fn image_loss(
     guide: Option<&EdgeGuide>,
     cfg: &ImageLossConfig,
 ) -> Result<ImageLossOutput> {
-    let guide = check_inputs(Dims::of(rendered), gt, guide, cfg)?;
     let dims = Dims::of(rendered);
+    let guide = check_inputs(dims, gt, guide, cfg)?;
     let (a, b) = (rendered.data(), gt.data());
     let (b1, b2) = (cfg.beta1 as f64, cfg.beta2 as f64);
     let mut grad = vec![0.0f32; dims.len()];

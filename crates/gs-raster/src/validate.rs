@@ -153,6 +153,8 @@ pub(crate) fn check_all_grads(
     h: u32,
 ) -> Result<()> {
     let geo_grads = grads.normal.is_some() || grads.distance.is_some() || grads.plane_depth.is_some();
+    #[cfg(feature = "wgpu")]
+    let geo_grads = geo_grads || grads.device_geometry.is_some() || grads.device_plane.is_some();
     if req.applied_cut() > 0.0 && geo_grads {
         return Err(RasterError::InvalidGradients(format!(
             "geometry gradients of a render with geometry_cut = {} (the cut is forward only)",
@@ -197,18 +199,16 @@ fn check_device_color(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u
     Err(RasterError::InvalidGradients(format!("the device colour gradient {problem}")))
 }
 
-/// The device geometry gradients, if any: of a render with geometry, without a geometry cut,
-/// `w × h × 3` and `w × h × 1`.
+/// The device geometry gradients, if any: of a render with geometry (its cut is checked with
+/// the host's geometry gradients), `w × h × 3` and `w × h × 1`.
 #[cfg(feature = "wgpu")]
 fn check_device_geometry(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
     let Some(g) = grads.device_geometry else { return Ok(()) };
+    let size = |im: &gs_gpu::DeviceImage| (im.width(), im.height(), im.channels());
+    let (wu, hu) = (w as usize, h as usize);
     let problem = if !req.geo() {
         "given but the render has no geometry (normal, distance or plane depth)".to_string()
-    } else if req.applied_cut() > 0.0 {
-        format!("given for a render with geometry_cut = {} (the cut is forward only)", req.geometry_cut)
     } else {
-        let size = |im: &gs_gpu::DeviceImage| (im.width(), im.height(), im.channels());
-        let (wu, hu) = (w as usize, h as usize);
         match (size(g.normal), size(g.plane_depth)) {
             (n, z) if n == (wu, hu, 3) && z == (wu, hu, 1) => return Ok(()),
             ((a, b, c), (d, e, f)) => format!("are {a}×{b}×{c} and {d}×{e}×{f}, need {w}×{h}×3 and {w}×{h}×1"),
@@ -217,16 +217,14 @@ fn check_device_geometry(grads: &OutputGradients, req: &RenderRequest, w: u32, h
     Err(RasterError::InvalidGradients(format!("the device geometry gradients {problem}")))
 }
 
-/// The device plane gradient, if any: of a render with geometry, without a geometry cut,
-/// `w × h × 4` with a finite weight.
+/// The device plane gradient, if any: of a render with geometry (its cut is checked with the
+/// host's geometry gradients), `w × h × 4` with a finite weight.
 #[cfg(feature = "wgpu")]
 fn check_device_plane(grads: &OutputGradients, req: &RenderRequest, w: u32, h: u32) -> Result<()> {
     let Some(g) = grads.device_plane else { return Ok(()) };
     let size = (g.gradient.width(), g.gradient.height(), g.gradient.channels());
     let problem = if !req.geo() {
         "given but the render has no geometry (normal, distance or plane depth)".to_string()
-    } else if req.applied_cut() > 0.0 {
-        format!("given for a render with geometry_cut = {} (the cut is forward only)", req.geometry_cut)
     } else if !g.weight.is_finite() {
         format!("has the weight {}", g.weight)
     } else if size != (w as usize, h as usize, gs_gpu::PLANE_GRAD_CHANNELS) {

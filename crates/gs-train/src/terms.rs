@@ -257,6 +257,16 @@ impl<'a> Fold<'a> {
     }
 }
 
+/// Stores a term's gradient kept on the device in its one slot of the step (`what` names the
+/// slot): a second term writing the same slot is an error, not a silent overwrite.
+#[cfg(feature = "wgpu")]
+fn put_once<T>(slot: &mut Option<T>, gradient: T, what: &str) -> Result<()> {
+    match slot.replace(gradient) {
+        Some(_) => Err(crate::TrainError::InvalidConfig(format!("two {what} gradients on the device in one step"))),
+        None => Ok(()),
+    }
+}
+
 fn channel<'a>(c: &'a Option<Image>, name: &str) -> Result<&'a Image> {
     c.as_ref().ok_or_else(|| crate::TrainError::InvalidConfig(format!("the step plan did not request the {name} channel")))
 }
@@ -294,10 +304,7 @@ impl LossTerm for ImageTerm {
                 Ok(Fold::new(move |grads, values| {
                     let li = started.wait()?;
                     (values.l1, values.ssim, values.edge) = (li.l1, li.ssim, li.edge);
-                    if grads.device_color.replace(li.grad_rendered).is_some() {
-                        return Err(crate::TrainError::InvalidConfig("two colour gradients on the device in one step".into()));
-                    }
-                    Ok(())
+                    put_once(&mut grads.device_color, li.grad_rendered, "colour")
                 }))
             }
         }
@@ -335,10 +342,7 @@ impl LossTerm for NormalTerms {
                 let nl = started.wait()?;
                 values.normal_consistency = self.consistency.then_some(nl.l_nc);
                 values.normal_smoothing = self.smoothing.then_some(nl.l_ns);
-                if grads.device_geometry.replace((nl.grad_normal, nl.grad_plane_depth)).is_some() {
-                    return Err(crate::TrainError::InvalidConfig("two geometry gradients on the device in one step".into()));
-                }
-                Ok(())
+                put_once(&mut grads.device_geometry, (nl.grad_normal, nl.grad_plane_depth), "geometry")
             }));
         }
         let started = x.devices.start_normal_losses(
@@ -423,9 +427,7 @@ impl PhotometricTerm {
             match started.wait()? {
                 gs_mvs::PhotometricOnDevice::Device { loss, gradient, .. } => {
                     values.photometric = Some(loss);
-                    if grads.device_plane.replace((gradient, w.lambda_p)).is_some() {
-                        return Err(crate::TrainError::InvalidConfig("two plane gradients on the device in one step".into()));
-                    }
+                    put_once(&mut grads.device_plane, (gradient, w.lambda_p), "plane")?;
                 }
                 gs_mvs::PhotometricOnDevice::Host(lp) => Self::fold_host(lp, w, grads, values),
             }

@@ -261,7 +261,7 @@ impl WgpuRasterizer {
         let size = (cam.width as usize, cam.height as usize);
         let fold = |x, y| crate::pixel::pixel_grads(cam, config, grads, &st.final_t, geo, x, y);
         match colour_only {
-            true => upload(self, size, &fold, |c, final_t| ColourGrad { rgb: [c[0], c[1], c[2]], final_t }),
+            true => upload(self, size, &fold, |c, final_t| ColourGrad { channels: [c[0], c[1], c[2]], final_t }),
             false => upload(self, size, &fold, |channels, final_t| PixelGrad { channels, final_t }),
         }
     }

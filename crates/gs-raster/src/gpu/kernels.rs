@@ -210,34 +210,12 @@ gs_gpu::wgsl_struct! {
     /// ColourGrad`): a colour-only backward uploads these instead of [`PixelGrad`]s, whose
     /// other five channels would be zeros. 16 bytes.
     pub(crate) struct ColourGrad as "ColourGrad" {
-        rgb: [f32; 3],
+        /// The colour channels' gradients (named as [`PixelGrad`]'s, whose first three they
+        /// are, so that one WGSL body adds into either record).
+        channels: [f32; 3],
         final_t: f32,
     }
 }
-
-/// `colour_grad_add`'s addition into a `PixelGrad` record: the colour channels take the
-/// gradient, the final transmittance's coefficient loses background · gradient (as the host's
-/// fold, `pixel::pixel_grads`, makes them).
-const ADD_COLOUR_FULL: &str = "fn add_colour(p: u32, g: vec3<f32>) {
-    var r = pixgrad[p];
-    for (var k = 0u; k < 3u; k++) {
-        r.channels[k] += g[k];
-    }
-    r.final_t -= cam.bg_r * g.x + cam.bg_g * g.y + cam.bg_b * g.z;
-    pixgrad[p] = r;
-}
-";
-
-/// `colour_grad_add`'s addition into a `ColourGrad` record (as [`ADD_COLOUR_FULL`]).
-const ADD_COLOUR_COLOUR: &str = "fn add_colour(p: u32, g: vec3<f32>) {
-    var r = pixgrad[p];
-    for (var k = 0u; k < 3u; k++) {
-        r.rgb[k] += g[k];
-    }
-    r.final_t -= cam.bg_r * g.x + cam.bg_g * g.y + cam.bg_b * g.z;
-    pixgrad[p] = r;
-}
-";
 
 /// `raster_bwd`'s read of a pixel's gradients from `PixelGrad` records.
 const PIXEL_GRAD_FULL: &str = "fn pixel_grad(p: u32) -> PixelGrad {\n    return pixgrad[p];\n}\n";
@@ -251,7 +229,7 @@ const PIXEL_GRAD_COLOUR: &str = "fn pixel_grad(p: u32) -> PixelGrad {
         g.channels[k] = 0.0;
     }
     for (var k = 0u; k < 3u; k++) {
-        g.channels[k] = c.rgb[k];
+        g.channels[k] = c.channels[k];
     }
     g.final_t = c.final_t;
     return g;
@@ -404,8 +382,8 @@ fn specs() -> Vec<Spec<'static>> {
         ),
         raster_bwd_spec(PIXEL_GRAD_FULL, "array<PixelGrad>"),
         raster_bwd_spec(PIXEL_GRAD_COLOUR, "array<ColourGrad>"),
-        colour_grad_spec(ADD_COLOUR_FULL, "array<PixelGrad>"),
-        colour_grad_spec(ADD_COLOUR_COLOUR, "array<ColourGrad>"),
+        colour_grad_spec("array<PixelGrad>"),
+        colour_grad_spec("array<ColourGrad>"),
         spec(
             "grad_reduce",
             &[include_str!("grad_reduce.wgsl")],
@@ -441,13 +419,13 @@ fn raster_bwd_spec(read: &'static str, records: &'static str) -> Spec<'static> {
     }
 }
 
-/// `colour_grad_add` adding a device colour gradient into `pixgrad` records of type
-/// `records` through `add` (the same two variants as `raster_bwd`).
-fn colour_grad_spec(add: &'static str, records: &'static str) -> Spec<'static> {
+/// `colour_grad_add` adding a device colour gradient into `pixgrad` records of type `records`
+/// (the same two record types as `raster_bwd`'s; one WGSL body serves both).
+fn colour_grad_spec(records: &'static str) -> Spec<'static> {
     use Binding as B;
     Spec {
         entry: "colour_grad_add",
-        sources: vec![include_str!("colour_grad.wgsl"), add],
+        sources: vec![include_str!("colour_grad.wgsl")],
         bindings: vec![B::read("colour_grad", "array<f32>"), B::write("pixgrad", records)],
     }
 }
