@@ -113,6 +113,18 @@ impl PreparedConv {
         Self { cout, cin, gemm_kernel, direct_kernel, bias: bias.to_vec() }
     }
 
+    /// The kernel as `[9·cin][cout]`, row `(ky·3 + kx)·cin + ci` (the device kernel's layout).
+    #[cfg(feature = "wgpu")]
+    pub(crate) fn gemm_kernel(&self) -> &[f32] {
+        &self.gemm_kernel
+    }
+
+    /// The bias, `[cout]`.
+    #[cfg(feature = "wgpu")]
+    pub(crate) fn bias(&self) -> &[f32] {
+        &self.bias
+    }
+
     /// Multiply-accumulates of this layer on an `h × w` image.
     pub fn macs(&self, h: usize, w: usize) -> u64 {
         (h * w) as u64 * (9 * self.cin * self.cout) as u64

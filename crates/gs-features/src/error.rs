@@ -20,6 +20,9 @@ pub enum FeatureError {
     /// A parameter outside its documented range (channel reduction, cache index, caps).
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),
+    /// The device failed (a kernel did not build, or a dispatch or readback failed).
+    #[error("device: {0}")]
+    Device(String),
     /// Reading a weight file from disk failed.
     #[error("cannot read {path}: {message}")]
     Io {

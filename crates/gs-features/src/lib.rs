@@ -33,6 +33,8 @@
 pub mod cache;
 pub mod conv;
 pub mod error;
+#[cfg(feature = "wgpu")]
+pub mod gpu;
 pub mod map;
 pub mod net;
 pub mod weights;
@@ -40,6 +42,8 @@ pub mod weights;
 pub use cache::FeatureCache;
 pub use conv::ConvAlgorithm;
 pub use error::{FeatureError, Result};
+#[cfg(feature = "wgpu")]
+pub use gpu::Vgg16Gpu;
 pub use map::{
     COSINE_EPS, FeatureMap, FeatureSample, StoragePrecision, cosine, cosine_with_grad,
 };

@@ -37,7 +37,7 @@ impl FeatureLevel {
         }
     }
     /// Number of conv layers run.
-    fn conv_layers(self) -> usize {
+    pub(crate) fn conv_layers(self) -> usize {
         match self {
             Self::Conv2_2 => 4,
             Self::Conv3_3 => 7,
@@ -153,16 +153,35 @@ impl Vgg16 {
     /// in each direction and at most `max_pixels` pixels.
     pub fn extract_with(&self, image: &Image, opts: &ExtractOptions) -> Result<FeatureMap> {
         let act = self.forward(image, opts)?;
-        let stride = opts.level.stride() as f32;
-        let mut map = FeatureMap::from_vec(act.w, act.h, act.c, stride, act.interior())?;
-        if let Some(d) = opts.reduce_to {
-            map = project_channels(&map, d, opts.reduce_seed)?;
-        }
-        Ok(map.with_precision(opts.precision))
+        finish_map(act, opts)
     }
 
     /// Runs the network; returns the padded activation of `opts.level`.
     pub(crate) fn forward(&self, image: &Image, opts: &ExtractOptions) -> Result<Padded> {
+        let mut x = self.input(image, opts)?;
+        let l = &self.layers;
+        let alg = opts.algorithm;
+        // Blocks 1 and 2 run strip-fused (no full-resolution intermediates); block 3 works at
+        // 1/4 resolution where whole-tensor layers are cheap in memory.
+        x = fused_block(&x, &l[0], &l[1], true, alg);
+        x = fused_block(&x, &l[2], &l[3], opts.level == FeatureLevel::Conv3_3, alg);
+        if opts.level == FeatureLevel::Conv3_3 {
+            for layer in &l[4..7] {
+                x = layer.forward(&x, alg);
+            }
+        }
+        Ok(x)
+    }
+
+    /// The conv layers, conv1_1 first.
+    #[cfg(feature = "wgpu")]
+    pub(crate) fn layers(&self) -> &[PreparedConv] {
+        &self.layers
+    }
+
+    /// The network's input: `image` checked (channels, size, cap, finite values, `reduce_to`)
+    /// and normalised as torchvision ImageNet, with a zero border.
+    pub(crate) fn input(&self, image: &Image, opts: &ExtractOptions) -> Result<Padded> {
         let (w, h, ch) = (image.width(), image.height(), image.channels());
         if ch != 3 && ch != 1 {
             return Err(FeatureError::InvalidImage(format!(
@@ -209,19 +228,19 @@ impl Vgg16 {
                 }
             }
         }
-        let l = &self.layers;
-        let alg = opts.algorithm;
-        // Blocks 1 and 2 run strip-fused (no full-resolution intermediates); block 3 works at
-        // 1/4 resolution where whole-tensor layers are cheap in memory.
-        x = fused_block(&x, &l[0], &l[1], true, alg);
-        x = fused_block(&x, &l[2], &l[3], opts.level == FeatureLevel::Conv3_3, alg);
-        if opts.level == FeatureLevel::Conv3_3 {
-            for layer in &l[4..7] {
-                x = layer.forward(&x, alg);
-            }
-        }
         Ok(x)
     }
+}
+
+/// The feature map of the activation `act` at `opts.level`: its interior, projected to
+/// `opts.reduce_to` channels when asked, stored at `opts.precision`.
+pub(crate) fn finish_map(act: Padded, opts: &ExtractOptions) -> Result<FeatureMap> {
+    let stride = opts.level.stride() as f32;
+    let mut map = FeatureMap::from_vec(act.w, act.h, act.c, stride, act.interior())?;
+    if let Some(d) = opts.reduce_to {
+        map = project_channels(&map, d, opts.reduce_seed)?;
+    }
+    Ok(map.with_precision(opts.precision))
 }
 
 /// The fixed seeded projection `[C][D]` (entries N(0, 1/D)) applied as F' = F·P.
