@@ -42,6 +42,7 @@ image_parity=$(exe test --release --test image_gpu --no-run)
 normal_parity=$(exe test --release --test normal_gpu --no-run)
 resident_parity=$(exe test --release --test wgpu_resident --no-run)
 guess_parity=$(exe test --release --test wgpu_guessed_render --no-run)
+vgg_parity=$(exe test --release --test vgg_gpu --no-run)
 strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
@@ -51,6 +52,7 @@ strip -o .gpu/bin/image-parity "$image_parity"
 strip -o .gpu/bin/normal-parity "$normal_parity"
 strip -o .gpu/bin/resident-parity "$resident_parity"
 strip -o .gpu/bin/guess-parity "$guess_parity"
+strip -o .gpu/bin/vgg-parity "$vgg_parity"
 [ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
 if [ -n "$bench_base" ]; then
   case "$bench_base" in *.gz) gunzip -c "$bench_base" > .gpu/bin/raster-bench-baseline ;; *) strip -o .gpu/bin/raster-bench-baseline "$bench_base" ;; esac

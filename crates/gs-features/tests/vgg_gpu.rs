@@ -64,7 +64,7 @@ fn device_features_match_the_host_at_both_levels() {
         let host = net.extract(&img, level).unwrap();
         let device = gpu.extract(&img, level).unwrap();
         let err = relative_error(&device, &host);
-        eprintln!("{level:?}: max |device − host| / max |host| = {err:.2e}");
+        eprintln!("VGG16 {level:?}: relative error, max |device − host| / max |host| = {err:.2e}");
         assert!(err <= TOLERANCE, "{level:?}: {err}");
         // The sums have one order: the same image gives the same bits again.
         assert_eq!(gpu.extract(&img, level).unwrap(), device, "{level:?} repeats");

@@ -2,6 +2,7 @@
 //! the reference or a source: the edge guide (∇I, δ; docs/method.md §L_I, §L_nc, §L_ns), the grey image of
 //! L_p (§L_p) and the VGG16 feature map F of L_f (§L_f). Built lazily, indexed by training slot.
 
+use crate::devices::LossDevices;
 use crate::error::{Result, TrainError};
 use gs_core::{Image, Scene};
 use gs_features::{FeatureLevel, FeatureMap, Vgg16};
@@ -109,15 +110,20 @@ impl ViewCaches {
         self.greys[slot].as_ref()
     }
 
-    /// Extracts the feature map of slot `slot` from `photo` when missing (loading the bundled
-    /// VGG16 on first use).
-    pub fn ensure_features(&mut self, slot: usize, photo: &Image, level: FeatureLevel) -> Result<()> {
+    /// Extracts the feature map of slot `slot` from `photo` when missing: on the device where
+    /// `devices` has an extractor, else on the host (loading the bundled VGG16 on first use).
+    pub fn ensure_features(&mut self, slot: usize, photo: &Image, level: FeatureLevel, devices: &LossDevices) -> Result<()> {
         if self.features[slot].is_none() {
-            if self.vgg.is_none() {
-                self.vgg = Some(Vgg16::bundled()?);
-            }
-            let net = self.vgg.as_ref().expect("set above");
-            self.features[slot] = Some(net.extract(photo, level)?);
+            let map = match devices.device_features(photo, level) {
+                Some(map) => map?,
+                None => {
+                    if self.vgg.is_none() {
+                        self.vgg = Some(Vgg16::bundled()?);
+                    }
+                    self.vgg.as_ref().expect("set above").extract(photo, level)?
+                }
+            };
+            self.features[slot] = Some(map);
         }
         Ok(())
     }

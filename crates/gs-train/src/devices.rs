@@ -1,8 +1,9 @@
 //! The loss terms' device executors, passed to the terms explicitly through
 //! [`crate::terms::TermInputs`] (docs/architecture.md §GPU): L_p's patches
 //! ([`gs_mvs::PhotometricGpu`]), L_f's feature alignment ([`gs_mvs::FeatureGpu`]), L_I
-//! ([`gs_losses::ImageLossGpu`]: L1, D-SSIM and the edge term) and L_nc with L_ns
-//! ([`gs_losses::NormalGpu`]), on the wgpu rasterizer's own device (one context, cloned).
+//! ([`gs_losses::ImageLossGpu`]: L1, D-SSIM and the edge term), L_nc with L_ns
+//! ([`gs_losses::NormalGpu`]) and L_f's VGG16 maps of each view ([`gs_features::Vgg16Gpu`]), on
+//! the wgpu rasterizer's own device (one context, cloned).
 //! Without the `wgpu` feature there are none and the CPU reference evaluates every term.
 
 /// Which of the terms with a device kernel built only for the runs that use them a run
@@ -37,6 +38,9 @@ pub struct LossDevices {
     /// L_nc and L_ns.
     #[cfg(feature = "wgpu")]
     pub normal: Option<std::cell::RefCell<gs_losses::NormalGpu>>,
+    /// L_f's VGG16 feature maps (once a view), on a hardware adapter only.
+    #[cfg(feature = "wgpu")]
+    pub vgg: Option<std::cell::RefCell<gs_features::Vgg16Gpu>>,
     /// The adapter they run on, in words.
     adapter: Option<String>,
 }
@@ -52,13 +56,24 @@ impl LossDevices {
                 true => Some(gs_mvs::PhotometricGpu::new(ctx).map_err(|e| format!("L_p: {e}"))?.into()),
                 false => None,
             };
-            let features = match uses.features {
-                true => Some(gs_mvs::FeatureGpu::new(ctx).map_err(|e| format!("L_f: {e}"))?.into()),
-                false => None,
+            let (features, vgg) = match uses.features {
+                true => {
+                    // On a software adapter the device is this CPU, where the host's extractor is
+                    // about 100 times faster than the kernels (BENCHMARKS.md, stop 62).
+                    let vgg = match ctx.is_software() {
+                        true => None,
+                        false => {
+                            let net = gs_features::Vgg16::bundled().map_err(|e| format!("L_f's VGG16: {e}"))?;
+                            Some(gs_features::Vgg16Gpu::new(ctx, &net).map_err(|e| format!("L_f's VGG16: {e}"))?.into())
+                        }
+                    };
+                    (Some(gs_mvs::FeatureGpu::new(ctx).map_err(|e| format!("L_f: {e}"))?.into()), vgg)
+                }
+                false => (None, None),
             };
             let image = Some(gs_losses::ImageLossGpu::new(ctx).map_err(|e| format!("L_I: {e}"))?.into());
             let normal = Some(gs_losses::NormalGpu::new(ctx).map_err(|e| format!("L_nc and L_ns: {e}"))?.into());
-            return Ok(Self { photometric, features, image, normal, adapter: Some(ctx.description()) });
+            return Ok(Self { photometric, features, image, normal, vgg, adapter: Some(ctx.description()) });
         }
         let _ = (rasterizer, uses);
         Ok(Self::default())
@@ -228,21 +243,32 @@ impl LossDevices {
         gs_mvs::feature_loss(&reference.as_reference(), &sources)
     }
 
+    /// The VGG16 feature map of `photo` at `level` (L_f's F, once a view) made on the device
+    /// when there is an extractor there; `None` when the caller makes it on the host.
+    pub fn device_features(&self, photo: &gs_core::Image, level: gs_features::FeatureLevel) -> Option<gs_features::Result<gs_features::FeatureMap>> {
+        #[cfg(feature = "wgpu")]
+        if let Some(d) = &self.vgg {
+            return Some(d.borrow_mut().extract(photo, level));
+        }
+        let _ = (photo, level);
+        None
+    }
+
     /// Each part of the loss terms and whether it runs on the device (the rest runs on the CPU),
     /// in the order the terms run.
     pub fn term_parts(&self) -> [(&'static str, bool); 7] {
         #[cfg(feature = "wgpu")]
-        let (image, normal, photometric, features) =
-            (self.image.is_some(), self.normal.is_some(), self.photometric.is_some(), self.features.is_some());
+        let (image, normal, photometric, features, vgg) =
+            (self.image.is_some(), self.normal.is_some(), self.photometric.is_some(), self.features.is_some(), self.vgg.is_some());
         #[cfg(not(feature = "wgpu"))]
-        let (image, normal, photometric, features) = (false, false, false, false);
+        let (image, normal, photometric, features, vgg) = (false, false, false, false, false);
         [
             ("L_I (L1, D-SSIM, edge term)", image),
             ("L_nc and L_ns", normal),
             ("L_p: NCC of the patches", photometric),
             ("L_p: pixel selection, visibility υ and weight ω", false),
             ("L_f: feature alignment", features),
-            ("L_f: VGG16 features of each view (once a view)", false),
+            ("L_f: VGG16 features of each view (once a view)", vgg),
             ("exposure compensation", false),
         ]
     }

@@ -178,7 +178,7 @@ impl ReferenceExecutor {
         if plan.phase.features && !plan.sources.is_empty() {
             let level = cfg.feature_layer;
             for k in with_reference(&plan.sources) {
-                self.caches.ensure_features(k, photo(scene, views, k), level)?;
+                self.caches.ensure_features(k, photo(scene, views, k), level, &self.devices)?;
             }
         }
         Ok(())

@@ -1,8 +1,10 @@
 #![cfg(feature = "wgpu")]
-//! L_f through the `LossTerm` contract on a wgpu rasterizer: the feature alignment runs on the
-//! device (`gs_mvs::FeatureGpu`) and `parts_on` says so, and the first L_f step of one lent
-//! state gives the CPU executor's L_f within 1e-4 relative (the renders of the two backends
-//! differ by float error, the alignment's arithmetic by fused operations at most).
+//! L_f through the `LossTerm` contract on a wgpu rasterizer: the feature alignment
+//! (`gs_mvs::FeatureGpu`) runs on the device, and each view's VGG16 map
+//! (`gs_features::Vgg16Gpu`) is made there on a hardware adapter (on lavapipe by the host's
+//! faster code), and `parts_on` says so, and the first L_f step of one lent state gives the CPU
+//! executor's L_f within 1e-4 relative (the renders of the two backends differ by float
+//! error, the maps by their sums' order, the alignment's arithmetic by fused operations).
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
 
@@ -48,6 +50,10 @@ fn the_feature_term_runs_on_the_device_and_matches_the_cpu() {
     let Some((gpu, parts)) = lf(Backend::Wgpu) else { return };
     let align = parts.iter().find(|p| p.part == "L_f: feature alignment").unwrap();
     assert!(align.on.starts_with("wgpu on "), "L_f's alignment runs on {}", align.on);
+    // The maps are made on the device only where it is not this CPU (lavapipe: the host).
+    let software = gs_gpu::GpuContext::new(&gs_gpu::GpuOptions::default()).unwrap().is_software();
+    let vgg = parts.iter().find(|p| p.part == "L_f: VGG16 features of each view (once a view)").unwrap();
+    assert_eq!(vgg.on.starts_with("wgpu on "), !software, "L_f's VGG16 runs on {}", vgg.on);
     let rel = (cpu - gpu).abs() / cpu.abs();
     eprintln!("L_f: CPU {cpu:.8e}, wgpu {gpu:.8e}, relative difference {rel:.2e}");
     assert!(cpu > 0.0 && rel <= 1e-4, "L_f: CPU {cpu} against wgpu {gpu}");
