@@ -18,16 +18,7 @@ use gs_gpu::{GpuContext, GpuOptions};
 const TOLERANCE: f32 = 2e-5;
 
 fn context(options: &GpuOptions) -> Option<GpuContext> {
-    match GpuContext::new(options) {
-        Ok(c) => {
-            eprintln!("wgpu adapter: {}", c.description());
-            Some(c)
-        }
-        Err(e) => {
-            gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
-            None
-        }
-    }
+    gs_testdata::wgpu_context!(options)
 }
 
 /// A 61 × 43 crop of the built-in scene's first view (200 × 150), where the object and the

@@ -14,16 +14,7 @@ use gs_gpu::{
 /// A context on this machine's adapter, or `None` (skip) when there is none locally; panics
 /// in CI.
 fn context() -> Option<GpuContext> {
-    match GpuContext::new(&GpuOptions::default()) {
-        Ok(c) => {
-            eprintln!("wgpu adapter: {}", c.description());
-            Some(c)
-        }
-        Err(e) => {
-            gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
-            None
-        }
-    }
+    gs_testdata::wgpu_context!(&GpuOptions::default())
 }
 
 /// Deterministic pseudo-random u32s (xorshift).

@@ -22,16 +22,8 @@ fn gpu() -> Option<ImageLossGpu> {
 
 /// The executor and its context (for its traffic ledger).
 fn gpu_and_context() -> Option<(ImageLossGpu, GpuContext)> {
-    match GpuContext::new(&GpuOptions::default()) {
-        Ok(c) => {
-            eprintln!("wgpu adapter: {}", c.description());
-            Some((ImageLossGpu::new(&c).expect("the L_I kernels on an adapter that exists"), c))
-        }
-        Err(e) => {
-            gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
-            None
-        }
-    }
+    let c = gs_testdata::wgpu_context!(&GpuOptions::default())?;
+    Some((ImageLossGpu::new(&c).expect("the L_I kernels on an adapter that exists"), c))
 }
 
 /// A rendered-like image and a ground truth near it: smooth structure plus noise.

@@ -19,16 +19,8 @@ fn gpu() -> Option<NormalGpu> {
 
 /// The executor and its context (for its traffic ledger).
 fn gpu_and_context() -> Option<(NormalGpu, GpuContext)> {
-    match GpuContext::new(&GpuOptions::default()) {
-        Ok(c) => {
-            eprintln!("wgpu adapter: {}", c.description());
-            Some((NormalGpu::new(&c).expect("the normal kernels on an adapter that exists"), c))
-        }
-        Err(e) => {
-            gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
-            None
-        }
-    }
+    let c = gs_testdata::wgpu_context!(&GpuOptions::default())?;
+    Some((NormalGpu::new(&c).expect("the normal kernels on an adapter that exists"), c))
 }
 
 /// A view of a unit sphere at depth 3 before a slanted plane, with a few depth holes: plane

@@ -21,16 +21,7 @@ use gs_mvs::{AlignView, FeatureGpu, MapView};
 mod common;
 
 fn context() -> Option<GpuContext> {
-    match GpuContext::new(&GpuOptions::default()) {
-        Ok(c) => {
-            eprintln!("wgpu adapter: {}", c.description());
-            Some(c)
-        }
-        Err(e) => {
-            gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
-            None
-        }
-    }
+    gs_testdata::wgpu_context!(&GpuOptions::default())
 }
 
 /// Smooth features at stride 2: channel k of feature pixel (x, y) from the view's grey image

@@ -25,17 +25,8 @@ fn gpu() -> Option<PhotometricGpu> {
 
 /// The executor and its context (for its traffic ledger).
 fn gpu_and_context() -> Option<(PhotometricGpu, GpuContext)> {
-    match GpuContext::new(&GpuOptions::default()).map(|c| (PhotometricGpu::new(&c), c)) {
-        Ok((Ok(g), c)) => {
-            eprintln!("wgpu adapter: {}", g.adapter_description());
-            Some((g, c))
-        }
-        Ok((Err(e), _)) => panic!("the L_p kernel on an adapter that exists: {e}"),
-        Err(e) => {
-            gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
-            None
-        }
-    }
+    let c = gs_testdata::wgpu_context!(&GpuOptions::default())?;
+    Some((PhotometricGpu::new(&c).unwrap_or_else(|e| panic!("the L_p kernel on an adapter that exists: {e}")), c))
 }
 
 /// The maps of every camera, the reference's normals tilted a little, and the grey images at

@@ -113,6 +113,25 @@ macro_rules! skip_or_fail {
     };
 }
 
+/// `wgpu_context!(&options)`: a `gs_gpu::GpuContext` on this machine's adapter (its name
+/// printed), or `None` after the SKIPPED line (a failure under `CI=true`, where `.ci/run`
+/// installs lavapipe). The calling test's crate depends on gs-gpu.
+#[macro_export]
+macro_rules! wgpu_context {
+    ($options:expr) => {
+        match gs_gpu::GpuContext::new($options) {
+            Ok(c) => {
+                eprintln!("wgpu adapter: {}", c.description());
+                Some(c)
+            }
+            Err(e) => {
+                $crate::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
+                None
+            }
+        }
+    };
+}
+
 /// `slurm!()`: the Slurm cluster to submit to ([`sched::slurm`]) with the running test's name,
 /// `None` after the SKIPPED line (a failure under `CI=true`).
 #[macro_export]
