@@ -3,7 +3,8 @@
 //! The feature extractor f(·) behind VA-GS's multi-view feature-alignment loss L_f
 //! (docs/method.md §L_f): the first seven convolutions of ImageNet-pretrained VGG16
 //! (torchvision IMAGENET1K_V1, bundled in the crate as f16 with a CRC-32-checked header), run
-//! inference-only on the CPU with rayon. F is taken at conv2_2 (128 channels, 1/2 resolution,
+//! inference-only on the CPU with rayon, or on a wgpu device with `Vgg16Gpu` (the `wgpu`
+//! feature: the same maps to f32 rounding). F is taken at conv2_2 (128 channels, 1/2 resolution,
 //! the default) or conv3_3 (256 channels, 1/4 resolution), computed once per training image
 //! ([`FeatureCache`]), and sampled bilinearly at image pixel coordinates with its gradient
 //! w.r.t. the position ([`FeatureMap::sample_bilinear_into`]; gs-mvs implements its
