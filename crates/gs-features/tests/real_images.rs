@@ -19,12 +19,6 @@ fn bunny_image(i: usize) -> gs_core::Image {
     load_rgb(&shared().join(format!("data/synth-bunny/images/{i:04}.png")))
 }
 
-/// The first view of the built-in scene at its default size (200 × 150).
-fn builtin_image() -> gs_core::Image {
-    let opts = gs_synth::BuiltinOptions { views: 2, points: 10, ..Default::default() };
-    gs_synth::generate(&opts).unwrap().scene.views.swap_remove(0).image
-}
-
 fn feature(map: &FeatureMap, x: usize, y: usize) -> Vec<f32> {
     let mut v = vec![0.0; map.channels()];
     map.pixel_into(x, y, &mut v);

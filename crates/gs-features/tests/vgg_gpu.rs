@@ -11,28 +11,27 @@
 //! fuse a·b + c), so every value is within 2e-5 of the map's largest magnitude (lavapipe:
 //! see the printed figure); the layout and the pools are exact.
 
+mod common;
+
 use gs_core::Image;
 use gs_features::{ExtractOptions, FeatureError, FeatureLevel, FeatureMap, StoragePrecision, Vgg16, Vgg16Gpu};
-use gs_gpu::{GpuContext, GpuOptions};
+use gs_gpu::GpuOptions;
 
 const TOLERANCE: f32 = 2e-5;
 
-fn context(options: &GpuOptions) -> Option<GpuContext> {
-    gs_testdata::wgpu_context!(options)
+/// The host's extractor and the device's on a context made with `options` (`None`: no adapter,
+/// after the SKIPPED line).
+fn extractors(options: &GpuOptions) -> Option<(Vgg16, Vgg16Gpu)> {
+    let ctx = gs_testdata::wgpu_context!(options)?;
+    let net = Vgg16::bundled().unwrap();
+    let gpu = Vgg16Gpu::new(&ctx, &net).unwrap();
+    Some((net, gpu))
 }
 
 /// A 61 × 43 crop of the built-in scene's first view (200 × 150), where the object and the
 /// walls meet.
 fn photo() -> Image {
-    let opts = gs_synth::BuiltinOptions { views: 2, points: 10, ..Default::default() };
-    let full = gs_synth::generate(&opts).unwrap().scene.views.swap_remove(0).image;
-    let (x0, y0, w, h) = (70, 50, 61, 43);
-    let c = full.channels();
-    let mut data = Vec::with_capacity(w * h * c);
-    for y in y0..y0 + h {
-        data.extend_from_slice(&full.row(y)[x0 * c..(x0 + w) * c]);
-    }
-    Image::from_vec(w, h, c, data).unwrap()
+    common::crop(&common::builtin_image(), 70, 50, 61, 43)
 }
 
 /// The largest |device − host| over the map's largest magnitude, after checking the layout.
@@ -47,9 +46,7 @@ fn relative_error(device: &FeatureMap, host: &FeatureMap) -> f32 {
 
 #[test]
 fn device_features_match_the_host_at_both_levels() {
-    let Some(ctx) = context(&GpuOptions::default()) else { return };
-    let net = Vgg16::bundled().unwrap();
-    let mut gpu = Vgg16Gpu::new(&ctx, &net).unwrap();
+    let Some((net, mut gpu)) = extractors(&GpuOptions::default()) else { return };
     let img = photo();
     for level in [FeatureLevel::Conv2_2, FeatureLevel::Conv3_3] {
         let host = net.extract(&img, level).unwrap();
@@ -64,9 +61,7 @@ fn device_features_match_the_host_at_both_levels() {
 
 #[test]
 fn options_are_finished_as_the_host_finishes_them() {
-    let Some(ctx) = context(&GpuOptions::default()) else { return };
-    let net = Vgg16::bundled().unwrap();
-    let mut gpu = Vgg16Gpu::new(&ctx, &net).unwrap();
+    let Some((net, mut gpu)) = extractors(&GpuOptions::default()) else { return };
     let img = photo();
     let grey = img.to_grey().unwrap();
     let opts = ExtractOptions { reduce_to: Some(24), precision: StoragePrecision::F16, ..ExtractOptions::at(FeatureLevel::Conv2_2) };
@@ -82,10 +77,9 @@ fn options_are_finished_as_the_host_finishes_them() {
 
 #[test]
 fn bad_images_get_the_host_errors() {
-    let Some(ctx) = context(&GpuOptions::default()) else { return };
-    let net = Vgg16::bundled().unwrap();
-    let mut gpu = Vgg16Gpu::new(&ctx, &net).unwrap();
-    let mut nan = photo();
+    let Some((net, mut gpu)) = extractors(&GpuOptions::default()) else { return };
+    let img = photo();
+    let mut nan = img.clone();
     nan.set(3, 2, 1, f32::NAN);
     let bad = [
         nan,
@@ -99,15 +93,13 @@ fn bad_images_get_the_host_errors() {
         assert_eq!(got, want);
     }
     let capped = ExtractOptions { max_pixels: 100, ..ExtractOptions::default() };
-    assert_eq!(gpu.extract_with(&photo(), &capped).unwrap_err(), net.extract_with(&photo(), &capped).unwrap_err());
+    assert_eq!(gpu.extract_with(&img, &capped).unwrap_err(), net.extract_with(&img, &capped).unwrap_err());
 }
 
 #[test]
 fn activations_beyond_one_binding_are_extracted_on_the_host() {
     // conv1's padded 63 × 45 × 64 activation is 726 KB: a 256 KiB binding cannot hold it.
-    let Some(ctx) = context(&GpuOptions { max_storage_binding: Some(256 << 10), ..Default::default() }) else { return };
-    let net = Vgg16::bundled().unwrap();
-    let mut gpu = Vgg16Gpu::new(&ctx, &net).unwrap();
+    let Some((net, mut gpu)) = extractors(&GpuOptions { max_storage_binding: Some(256 << 10), ..Default::default() }) else { return };
     let img = photo();
     assert_eq!(gpu.extract(&img, FeatureLevel::Conv2_2).unwrap(), net.extract(&img, FeatureLevel::Conv2_2).unwrap());
 }

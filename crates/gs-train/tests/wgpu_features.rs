@@ -33,7 +33,8 @@ fn the_feature_term_runs_on_the_device_and_matches_the_cpu() {
     assert!(plan.phase.features && !plan.sources.is_empty(), "iteration {first_lf} runs L_f");
     let (budget, raster) = (*trainer.budget(), trainer.raster_config().clone());
     let run = RunInputs { config: &cfg, scene: &scene, train_views: &train, extent: trainer.extent(), raster: &raster, budget: &budget };
-    let lf = |backend: Backend| -> Option<(f64, Vec<gs_train::PartPlace>)> {
+    // L_f, where each part ran, and whether the rasterizer's device is a software adapter.
+    let lf = |backend: Backend| -> Option<(f64, Vec<gs_train::PartPlace>, bool)> {
         let r = match Rasterizer::new(backend) {
             Ok(r) => r,
             Err(e) => {
@@ -41,17 +42,17 @@ fn the_feature_term_runs_on_the_device_and_matches_the_cpu() {
                 return None;
             }
         };
+        let software = r.gpu_context().is_some_and(|c| c.is_software());
         let mut executor = ReferenceExecutor::new(r, train.len(), TermsUsed::of(&cfg), false);
         let mut s = state.clone();
         let values = executor.execute(&run, &mut s, &plan, &mut gs_train::StepProfile::default()).unwrap();
-        Some((values.features.expect("L_f ran"), executor.parts_on()))
+        Some((values.features.expect("L_f ran"), executor.parts_on(), software))
     };
-    let (cpu, _) = lf(Backend::Cpu).unwrap();
-    let Some((gpu, parts)) = lf(Backend::Wgpu) else { return };
+    let (cpu, ..) = lf(Backend::Cpu).unwrap();
+    let Some((gpu, parts, software)) = lf(Backend::Wgpu) else { return };
     let align = parts.iter().find(|p| p.part == "L_f: feature alignment").unwrap();
     assert!(align.on.starts_with("wgpu on "), "L_f's alignment runs on {}", align.on);
     // The maps are made on the device only where it is not this CPU (lavapipe: the host).
-    let software = gs_gpu::GpuContext::new(&gs_gpu::GpuOptions::default()).unwrap().is_software();
     let vgg = parts.iter().find(|p| p.part == "L_f: VGG16 features of each view (once a view)").unwrap();
     assert_eq!(vgg.on.starts_with("wgpu on "), !software, "L_f's VGG16 runs on {}", vgg.on);
     let rel = (cpu - gpu).abs() / cpu.abs();

@@ -22,6 +22,12 @@ pub fn load_rgb(path: &std::path::Path) -> Image {
     Image::from_vec(w as usize, h as usize, 3, data).unwrap()
 }
 
+/// The first view of the built-in scene at its default size (200 × 150).
+pub fn builtin_image() -> Image {
+    let opts = gs_synth::BuiltinOptions { views: 2, points: 10, ..Default::default() };
+    gs_synth::generate(&opts).unwrap().scene.views.swap_remove(0).image
+}
+
 pub fn crop(img: &Image, x0: usize, y0: usize, w: usize, h: usize) -> Image {
     let c = img.channels();
     let mut data = Vec::with_capacity(w * h * c);
