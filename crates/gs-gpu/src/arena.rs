@@ -6,7 +6,9 @@
 //! input) is uploaded every call into a slot no other array of that call uses.
 //!
 //! The caller's contract: one key names one content for the arena's life (e.g. a view's photo
-//! at one resolution). The arena checks the length, not the values.
+//! at one resolution), or, placed with [`Arena::place_versions`], one content per version (e.g. a
+//! view's depth rendered at one iteration): a new version replaces the old one in its slot. The
+//! arena checks the length and the version, not the values.
 
 use crate::{Bind, GpuContext};
 use std::borrow::Cow;
@@ -20,6 +22,8 @@ struct Slot {
     /// `None` for an array of one call.
     key: Option<ArenaKey>,
     floats: usize,
+    /// The caller's version of the content (0 for [`Arena::place`]).
+    version: u64,
     used: u64,
 }
 
@@ -62,6 +66,19 @@ impl Arena {
     /// on the device (a copy from a [`crate::DeviceImage`]) before its passes read it. Such an
     /// item is never held under a key: it is placed like an item of one call.
     pub fn place_with<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], upload: impl Fn(usize) -> Option<Cow<'d, [f32]>>) -> Option<Vec<u32>> {
+        self.place_inner(ctx, items, &vec![0; items.len()], upload)
+    }
+
+    /// [`Arena::place`] of arrays whose content changes under one key: item i is held as
+    /// `versions[i]`, and a key held at another version is uploaded again into its own slot.
+    pub fn place_versions<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], versions: &[u64], upload: impl Fn(usize) -> Cow<'d, [f32]>) -> Option<Vec<u32>> {
+        if versions.len() != items.len() {
+            return None;
+        }
+        self.place_inner(ctx, items, versions, |i| Some(upload(i)))
+    }
+
+    fn place_inner<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], versions: &[u64], upload: impl Fn(usize) -> Option<Cow<'d, [f32]>>) -> Option<Vec<u32>> {
         let largest = items.iter().map(|&(_, floats)| floats).max()?;
         let mut keyed: Vec<ArenaKey> = items.iter().filter_map(|&(k, _)| k).collect();
         keyed.sort_unstable();
@@ -78,7 +95,8 @@ impl Arena {
             }
             self.grow(ctx, needed.max(FIRST_SLOTS).min(fit))?;
         }
-        let missing = items.iter().filter(|&&(k, f)| self.holding(k, f).is_none()).count();
+        // A key held at another version reuses its slot: it needs no free one.
+        let missing = items.iter().filter(|&&(k, _)| self.keyed(k).is_none()).count();
         let free = self.slots.iter().filter(|s| s.is_none()).count();
         if self.slots.len() < needed || missing > free {
             // Room for this call's arrays first by growing (doubling, within the budget), then
@@ -94,8 +112,8 @@ impl Arena {
         }
         self.clock += 1;
         let mut offsets = Vec::with_capacity(items.len());
-        for (i, &(key, floats)) in items.iter().enumerate() {
-            let slot = self.slot_of(ctx, key, floats, || upload(i));
+        for (i, (&(key, floats), &version)) in items.iter().zip(versions).enumerate() {
+            let slot = self.slot_of(ctx, (key, floats, version), || upload(i));
             offsets.push(u32::try_from(slot * self.slot_floats).ok()?);
         }
         Some(offsets)
@@ -130,16 +148,16 @@ impl Arena {
         Some(())
     }
 
-    /// The slot holding `key`, else the slot `values` is uploaded into: a free one, else one
-    /// that this call has not used, an earlier call's unkeyed array first, then the least
-    /// recently used.
-    fn slot_of<'d>(&mut self, ctx: &GpuContext, key: Option<ArenaKey>, floats: usize, values: impl FnOnce() -> Option<Cow<'d, [f32]>>) -> usize {
+    /// The slot holding `key` at `version`, else the slot `values` is uploaded into: the one
+    /// holding `key` at another version or length, a free one, else one that this call has not
+    /// used, an earlier call's unkeyed array first, then the least recently used.
+    fn slot_of<'d>(&mut self, ctx: &GpuContext, (key, floats, version): (Option<ArenaKey>, usize, u64), values: impl FnOnce() -> Option<Cow<'d, [f32]>>) -> usize {
         let clock = self.clock;
-        if let Some(i) = self.holding(key, floats) {
-            self.slots[i] = Some(Slot { key, floats, used: clock });
+        if let Some(i) = self.holding(key, floats, version) {
+            self.slots[i] = Some(Slot { key, floats, version, used: clock });
             return i;
         }
-        let i = self.slots.iter().position(Option::is_none).unwrap_or_else(|| {
+        let i = self.keyed(key).or_else(|| self.slots.iter().position(Option::is_none)).unwrap_or_else(|| {
             let unused = self.slots.iter().enumerate().filter(|(_, s)| s.is_some_and(|s| s.used < clock));
             unused.min_by_key(|(_, s)| s.map(|s| (s.key.is_some(), s.used))).map_or(0, |(i, _)| i)
         });
@@ -152,14 +170,20 @@ impl Arena {
             // Filled by the caller: not held under the key, whose content it may not be.
             None => None,
         };
-        self.slots[i] = Some(Slot { key, floats, used: clock });
+        self.slots[i] = Some(Slot { key, floats, version, used: clock });
         i
     }
 
-    /// The slot holding the array `key` names with `floats` values (never one without a key).
-    fn holding(&self, key: Option<ArenaKey>, floats: usize) -> Option<usize> {
+    /// The slot holding the array `key` names with `floats` values at `version` (never one
+    /// without a key).
+    fn holding(&self, key: Option<ArenaKey>, floats: usize, version: u64) -> Option<usize> {
+        self.keyed(key).filter(|&i| self.slots[i].is_some_and(|s| s.floats == floats && s.version == version))
+    }
+
+    /// The slot held under `key`, whatever its version (never one without a key).
+    fn keyed(&self, key: Option<ArenaKey>) -> Option<usize> {
         let key = key?;
-        self.slots.iter().position(|s| s.is_some_and(|s| s.key == Some(key) && s.floats == floats))
+        self.slots.iter().position(|s| s.is_some_and(|s| s.key == Some(key)))
     }
 
     /// The arena bound whole.

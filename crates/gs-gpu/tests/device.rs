@@ -341,6 +341,27 @@ fn arena_keeps_keyed_arrays_and_evicts_the_least_recently_used() {
     assert!(arena.place(&ctx, &[(None, 4), (None, 4), (None, 4), (None, 4)], |_| Cow::Owned(data(0.0))).is_none());
 }
 
+/// A key placed by version keeps one slot: the same version is held, a new one goes up into
+/// that slot (the arena never fills with a view's older contents); a version list of another
+/// length is refused.
+#[test]
+fn arena_replaces_a_keys_older_version_in_place() {
+    let Some(ctx) = context() else { return };
+    let mut arena = Arena::new(&ctx, "test arena", 64 * 16);
+    let data = |v: f32| vec![v; 4];
+    let first = arena.place_versions(&ctx, &[(Some((5, 1)), 4)], &[10], |_| Cow::Owned(data(1.0))).unwrap();
+    let before = ctx.transfers().bytes_up;
+    let held = arena.place_versions(&ctx, &[(Some((5, 1)), 4)], &[10], |_| panic!("version 10 is held")).unwrap();
+    assert_eq!((held[0], ctx.transfers().bytes_up - before), (first[0], 0));
+    for version in 11..40u64 {
+        let at = arena.place_versions(&ctx, &[(Some((5, 1)), 4)], &[version], |_| Cow::Owned(data(version as f32))).unwrap();
+        assert_eq!(at[0], first[0], "version {version} replaces the last in its slot");
+        assert_eq!(read_arena(&ctx, &arena, at[0], 4), data(version as f32));
+    }
+    assert_eq!(arena.buffer().size(), 8 * 16, "still the first eight slots");
+    assert!(arena.place_versions(&ctx, &[(Some((5, 1)), 4)], &[], |_| Cow::Owned(data(0.0))).is_none());
+}
+
 /// An arena starts small and doubles when full, keeping what it holds (copied on the device,
 /// nothing uploaded again), until its budget; larger arrays start it again.
 #[test]
