@@ -351,23 +351,33 @@ pub(crate) fn select_pixels<T: Real>(
             }
         }
     }
-    match config.max_pixels_per_source {
-        Some(cap) if candidates.len() > cap => {
+    match drawn_candidates(candidates.len(), config, k) {
+        Some(drawn) => {
             for &p in &candidates {
                 sel[p] = 1;
             }
-            let mut rng = Rng::new(config.seed).fork(k as u64);
-            for c in rng.choose_distinct(candidates.len(), cap) {
+            for c in drawn {
                 sel[candidates[c]] = 2;
             }
         }
-        _ => {
+        None => {
             for &p in &candidates {
                 sel[p] = 2;
             }
         }
     }
     sel
+}
+
+/// Which of source `k`'s `n` candidates (ranks in row-major order) are evaluated: `None` for all
+/// of them (within the cap), else the cap's number drawn without replacement with the seed
+/// (`Rng::new(seed).fork(k)`). The host's selection and the device's (which draws here from
+/// the device's candidate counts) share it, so both evaluate the same patches.
+pub(crate) fn drawn_candidates(n: usize, config: &PhotometricConfig, k: usize) -> Option<Vec<usize>> {
+    match config.max_pixels_per_source {
+        Some(cap) if n > cap => Some(Rng::new(config.seed).fork(k as u64).choose_distinct(n, cap)),
+        _ => None,
+    }
 }
 
 /// Result of one patch.

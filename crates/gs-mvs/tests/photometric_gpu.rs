@@ -166,46 +166,103 @@ fn keyed_grey_images_are_uploaded_once() {
     assert!(g.loss_of_views(&swapped, &others, &[2, 0], &config).is_err(), "a key for each view");
 }
 
-/// A reference plane on the device and the gradient image kept there (`start_on_device`): the
-/// values and the gradient's bits of the host reference's evaluation, nothing per pixel goes
-/// up and only each (source, row)'s sums come back. An
-/// evaluation without a patch is made on the host and says so; the two ways of finishing
-/// refuse each other's evaluations.
+/// The reference's rendered surface on the device, as the rasterizer's surface image holds it
+/// (plane depth z, Ñ, D, A).
+fn surface_of(ctx: &GpuContext, reference: &PhotometricReference<'_, f32>) -> gs_gpu::DeviceImage {
+    let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
+    let texels: Vec<f32> = (0..w * h)
+        .flat_map(|p| {
+            let n = &reference.normal.data[3 * p..3 * p + 3];
+            [reference.plane_depth.data[p], n[0], n[1], n[2], reference.distance.data[p], 0.0]
+        })
+        .collect();
+    gs_gpu::DeviceImage::upload(ctx, "surface", (w, h, gs_gpu::SURFACE_CHANNELS), &texels).unwrap()
+}
+
+/// `start_on_device` (υ/ω and the selection on the device) against the CPU reference: the same
+/// candidates and drawn patches, the visibility counts, ω's mean within 1e-5 relative, and the
+/// patch tolerances of `compare`. Returns the call's traffic.
+fn compare_on_device(label: &str, v: &Views, config: &PhotometricConfig, g: &mut PhotometricGpu, ctx: &GpuContext) -> gs_gpu::Transfers {
+    let (reference, sources) = inputs(v);
+    let cpu = photometric_loss(&reference, &sources, config).unwrap();
+    let image = surface_of(ctx, &reference);
+    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: reference.plane_depth, grey: reference.grey };
+    let before = ctx.transfers();
+    let started = g.start_on_device(&on_device, &sources, None, config).unwrap();
+    let gs_mvs::PhotometricOnDevice::Device { loss, per_source, gradient } = g.finish_on_device(started).unwrap() else { panic!("{label}: evaluated on the device") };
+    let t = ctx.transfers() - before;
+    for (k, (a, b)) in cpu.per_source.iter().zip(&per_source).enumerate() {
+        assert_eq!((a.n_candidates, a.n_sampled), (b.n_candidates, b.n_sampled), "{label} source {k}: the same selection");
+        let (va, vb) = (&a.visibility, &b.visibility);
+        assert_eq!((va.n_upsilon, va.n_omega_positive), (vb.n_upsilon, vb.n_omega_positive), "{label} source {k}");
+        let dw = (va.mean_omega_over_upsilon - vb.mean_omega_over_upsilon).abs();
+        assert!(dw <= 1e-5 * va.mean_omega_over_upsilon, "{label} source {k}: mean ω {} vs {}", va.mean_omega_over_upsilon, vb.mean_omega_over_upsilon);
+        let flips = a.n_valid.abs_diff(b.n_valid) + a.n_inside_source.abs_diff(b.n_inside_source);
+        assert!(a.n_valid > 100 && flips as f64 <= 0.002 * a.n_valid as f64 + 1.0, "{label} source {k}: |V| {} vs {}", a.n_valid, b.n_valid);
+        for (what, x, y) in [("Σ cost", a.cost_sum, b.cost_sum), ("Σ υω·cost", a.weighted_cost_sum, b.weighted_cost_sum)] {
+            assert!((x - y).abs() <= 1e-4 * x.abs(), "{label} source {k}: {what} {x} vs {y}");
+        }
+    }
+    let rel = (cpu.loss - loss).abs() / cpu.loss;
+    assert!(rel < 1e-4, "{label}: L_p {} (CPU) vs {loss} (device), relative {rel:e}", cpu.loss);
+    let values = gradient.read(ctx).unwrap();
+    let dev: Vec<f32> = values.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).chain(values.chunks_exact(4).map(|p| p[3])).collect();
+    let host: Vec<f32> = cpu.grad_normal.iter().chain(&cpu.grad_distance).copied().collect();
+    let num: f64 = host.iter().zip(&dev).map(|(x, y)| ((x - y) as f64).powi(2)).sum();
+    let den: f64 = host.iter().map(|x| (*x as f64).powi(2)).sum();
+    let e = (num / den.max(1e-30)).sqrt();
+    eprintln!("{label}: L_p relative {rel:.2e}, gradient relative L2 {e:.2e}, {} waits", t.syncs);
+    assert!(den > 0.0 && e < 2e-3, "{label}: gradient relative L2 error {e:e}");
+    t
+}
+
+/// υ/ω and the selection made on the device choose the host's patches: every candidate in one
+/// submission and one wait where no source can exceed the cap (both NCC readings), and under
+/// the cap the host's seeded draw from the device's candidate counts (one more wait).
+#[test]
+fn device_selection_chooses_the_hosts_patches() {
+    let Some((mut g, ctx)) = gpu_and_context() else { return };
+    let v = views(64, 48, 3, 1);
+    for ncc in [NccMode::Pgsr, NccMode::Plain] {
+        let config = PhotometricConfig { patch_size: 7, ncc, max_pixels_per_source: None, seed: 0 };
+        assert_eq!(compare_on_device(&format!("{ncc:?}, all candidates"), &v, &config, &mut g, &ctx).syncs, 1);
+    }
+    let v = views(48, 36, 4, 2);
+    let config = PhotometricConfig { patch_size: 7, ncc: NccMode::Pgsr, max_pixels_per_source: Some(600), seed: 11 };
+    assert_eq!(compare_on_device("grey 2x, cap 600", &v, &config, &mut g, &ctx).syncs, 2);
+}
+
+/// A reference plane on the device and the gradient image kept there (`start_on_device`):
+/// nothing per pixel goes up (the plane, υω and the entries are the device's; a source's depth
+/// goes up once a version), and only each (source, row)'s sums and visibility counts come back,
+/// in one wait; the same inputs give the same bits. An evaluation without a source is made on
+/// the host and says so; the two ways of finishing refuse each other's evaluations.
 #[test]
 fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     let Some((mut g, ctx)) = gpu_and_context() else { return };
     let v = views(64, 48, 3, 1);
     let (reference, sources) = inputs(&v);
     let config = PhotometricConfig::default();
-    // The grey images held under their keys, so that each call uploads only its own inputs.
-    let keys: Vec<u64> = (0..=sources.len() as u64).collect();
-    g.loss_of_views(&reference, &sources, &keys, &config).unwrap();
-    let before = ctx.transfers();
-    let host = g.loss_of_views(&reference, &sources, &keys, &config).unwrap();
-    let host_up = (ctx.transfers() - before).bytes_up;
-    // The reference's rendered plane on the device, as the rasterizer's surface image holds it.
-    let texels: Vec<f32> = (0..64 * 48)
-        .flat_map(|p| {
-            let n = &reference.normal.data[3 * p..3 * p + 3];
-            [0.0, n[0], n[1], n[2], reference.distance.data[p], 0.0]
-        })
-        .collect();
-    let image = gs_gpu::DeviceImage::upload(&ctx, "surface", (64, 48, gs_gpu::SURFACE_CHANNELS), &texels).unwrap();
+    let image = surface_of(&ctx, &reference);
     let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: reference.plane_depth, grey: reference.grey };
-    let before = ctx.transfers();
-    let started = g.start_on_device(&on_device, &sources, Some(&keys), &config).unwrap();
-    let kept = g.finish_on_device(started).unwrap();
-    let t = ctx.transfers() - before;
-    assert_eq!((t.syncs, t.bytes_down), (1, 16 * sources.len() as u64 * 48), "the sums alone come back");
-    assert_eq!(host_up - t.bytes_up, 24 * 64 * 48, "the plane (a 24-byte SurfaceTexel a pixel) does not go up");
-    let gs_mvs::PhotometricOnDevice::Device { loss, per_source, gradient } = kept else { panic!("evaluated on the device") };
-    assert_eq!((loss, &per_source), (host.loss, &host.per_source));
-    assert_eq!((gradient.width(), gradient.height(), gradient.channels()), (64, 48, gs_gpu::PLANE_GRAD_CHANNELS));
-    let values = gradient.read(&ctx).unwrap();
-    let normal: Vec<f32> = values.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-    let distance: Vec<f32> = values.chunks_exact(4).map(|p| p[3]).collect();
-    assert_eq!((normal, distance), (host.grad_normal.clone(), host.grad_distance.clone()));
-    assert!(host.grad_distance.iter().any(|&x| x != 0.0), "a gradient to compare");
+    let views: Vec<u64> = (0..=sources.len() as u64).collect();
+    let mut call = |versions: &[u64]| {
+        let before = ctx.transfers();
+        let keys = gs_mvs::ViewKeys { views: &views, depth_versions: versions };
+        let started = g.start_on_device(&on_device, &sources, Some(keys), &config).unwrap();
+        let gs_mvs::PhotometricOnDevice::Device { loss, per_source, gradient } = g.finish_on_device(started).unwrap() else { panic!("on the device") };
+        (ctx.transfers() - before, loss, per_source, gradient.read(&ctx).unwrap())
+    };
+    let (first, ..) = call(&[5, 5]);
+    let (held, loss, per_source, gradient) = call(&[5, 5]);
+    let depth_bytes = 4 * 64 * 48;
+    assert_eq!(first.bytes_up - held.bytes_up, 2 * depth_bytes + 3 * depth_bytes, "grey images and depths go up once");
+    assert!(held.bytes_up < depth_bytes, "{} bytes up: no per-pixel array", held.bytes_up);
+    assert_eq!((held.syncs, held.bytes_down), (1, 2 * 16 * sources.len() as u64 * 48), "the sums and the counts alone come back");
+    let (newer, loss2, per_source2, gradient2) = call(&[5, 6]);
+    assert_eq!(newer.bytes_up - held.bytes_up, depth_bytes, "a new version of one depth goes up");
+    assert_eq!((loss, &per_source, &gradient), (loss2, &per_source2, &gradient2));
+    assert!(gradient.iter().any(|&x| x != 0.0), "a gradient to compare");
     // No source: made on the host, with zero gradients.
     let none = g.start_on_device(&on_device, &[], None, &config).unwrap();
     assert!(matches!(g.finish_on_device(none).unwrap(), gs_mvs::PhotometricOnDevice::Host(out) if out.loss == 0.0));
@@ -213,6 +270,8 @@ fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     assert!(g.finish(started).is_err());
     let for_host = g.start(&reference, &sources, None, &config).unwrap();
     assert!(g.finish_on_device(for_host).is_err());
+    let short = gs_mvs::ViewKeys { views: &views, depth_versions: &[1] };
+    assert!(g.start_on_device(&on_device, &sources, Some(short), &config).is_err(), "a version for each source");
     // A surface of another size is refused with its name.
     let small = gs_gpu::DeviceImage::new(&ctx, "small", 32, 48, gs_gpu::SURFACE_CHANNELS).unwrap();
     let err = g.start_on_device(&gs_mvs::SurfaceReference { surface: &small, ..on_device }, &sources, None, &config).err().expect("refused").to_string();

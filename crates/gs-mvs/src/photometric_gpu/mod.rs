@@ -2,19 +2,27 @@
 //! kernel (`ncc.wgsl`) evaluates every selected (pixel, source) patch — its NCC cost and the
 //! gradient with respect to the rendered plane (Ñ, D) — and three more (`reduce.wgsl`) sum
 //! them in fixed orders into each (source, row)'s statistics and the gradient image, which
-//! alone come back. υ/ω and the seeded pixel selection stay on the host and use the
-//! reference's own code, so the two executors choose the same patches and differ only in the
-//! patch arithmetic and the f32 sums (the tolerances are in `tests/photometric_gpu.rs`): one
-//! seed gives one result on one device (docs/method.md §L_p, docs/architecture.md §GPU).
+//! alone come back. For a reference whose plane is on the host, υ/ω and the seeded pixel
+//! selection run on the host with the reference's own code, so the two executors choose the
+//! same patches and differ only in the patch arithmetic and the f32 sums; for a reference whose
+//! plane is on the device they run there too ([`select`]: the same rules and draw, υ/ω within
+//! rounding). The tolerances are in `tests/photometric_gpu.rs`; one seed gives one result on one
+//! device (docs/method.md §L_p, docs/architecture.md §GPU).
 //!
-//! The grey images go into an arena (gs-gpu's [`Arena`]); keyed by view
-//! ([`PhotometricGpu::loss_of_views`]) they stay there between calls and are uploaded once.
+//! The grey images (and the sources' plane depths) go into an arena (gs-gpu's [`Arena`]); keyed
+//! by view ([`PhotometricGpu::loss_of_views`], [`ViewKeys`]) they stay there between calls and
+//! are uploaded once (a depth once a version).
 
+mod outcome;
 mod reduce;
 mod reference;
+mod select;
 
+pub use outcome::{PendingPhotometric, PhotometricOnDevice};
 pub use reduce::reduce_kernel_source;
 pub use reference::SurfaceReference;
+pub use select::{selection_kernel_source, visibility_kernel_source};
+use outcome::{Done, Pending};
 
 use crate::error::{MvsError, Result};
 use crate::photometric::{
@@ -49,9 +57,11 @@ gs_gpu::wgsl_struct! {
         pixels: u32,
         /// Where the reference grey image starts in `greys` (the arena), in floats.
         ref_offset: u32,
+        /// Entries a source may hold when the device selects them (source k's from k · slot).
+        slot: u32,
+        /// 1 when the host drew the device's candidates (`masks`), 0 when all are evaluated.
+        capped: u32,
         pad0: u32,
-        pad1: u32,
-        pad2: u32,
     }
 }
 
@@ -88,10 +98,11 @@ gs_gpu::wgsl_struct! {
 }
 
 /// The kernel's storage bindings, by name (slot order).
-const BINDINGS: [Binding<'static>; 6] = [
+const BINDINGS: [Binding<'static>; 7] = [
     Binding::read("pairs", "array<NccPair>"),
     Binding::read("entries", "array<u32>"),
     Binding::read("surface", "array<SurfaceTexel>"),
+    Binding::read("row_starts", "array<u32>"),
     Binding::read("greys", "array<f32>"),
     Binding::read("rays", "array<f32>"),
     Binding::write("results", "array<NccResult>"),
@@ -99,7 +110,7 @@ const BINDINGS: [Binding<'static>; 6] = [
 
 /// The kernel's whole WGSL source (generated declarations, then `ncc.wgsl`).
 pub fn ncc_kernel_source() -> String {
-    gs_gpu::kernel_source(&[&declarations(), include_str!("ncc.wgsl")], &BINDINGS)
+    gs_gpu::kernel_source(&[&declarations(), include_str!("sampling.wgsl"), include_str!("ncc.wgsl")], &BINDINGS)
 }
 
 /// The frame uniform and the storage records: one list for the kernel's declarations and the
@@ -130,6 +141,15 @@ struct Buffers {
     grads: BufId,
     /// The readback of the sums (pooled: a mappable buffer per call is costly to create).
     staging: BufId,
+    /// The device selection's: visibility records per pair, per (source, pixel) and per
+    /// (source, row); each row's first candidate rank and the drawn candidates' bitmask (capped);
+    /// the readback of the rows' counts (capped).
+    vis_pairs: BufId,
+    vis: BufId,
+    vis_rows: BufId,
+    cand_starts: BufId,
+    masks: BufId,
+    vis_staging: BufId,
 }
 
 /// The device executor of L_p: its context, buffers and kernels.
@@ -140,14 +160,31 @@ pub struct PhotometricGpu {
     kernel: Kernel,
     /// The reduction's passes ([`reduce::PASSES`]).
     sums: Vec<Kernel>,
+    /// The device selection's passes.
+    selection: select::SelectionKernels,
     bufs: Buffers,
-    /// The grey images, kept per view between calls when the caller keys them
-    /// ([`PhotometricGpu::loss_of_views`]).
+    /// The grey images (and the sources' plane depths), kept per view between calls when the
+    /// caller keys them ([`PhotometricGpu::loss_of_views`]).
     greys: Arena,
+}
+
+/// The keys under which [`PhotometricGpu::start_on_device`] keeps its per-view arrays on the
+/// device between calls.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewKeys<'a> {
+    /// One per view, the reference's then each source's (e.g. its training slot): a view's grey
+    /// image is held under its key, as [`PhotometricGpu::loss_of_views`] holds it.
+    pub views: &'a [u64],
+    /// One per source: the version of its plane depth under its view's key (e.g. the iteration
+    /// that rendered it); another version is uploaded again, into the same slot.
+    pub depth_versions: &'a [u64],
 }
 
 /// How much device memory the arena of grey images holds (bytes), at most one storage binding.
 const ARENA_BYTES: u64 = 512 << 20;
+
+/// The arena part of a view's plane depth (its grey image is part 0).
+const DEPTH_PART: u32 = 1;
 
 impl std::fmt::Debug for PhotometricGpu {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -173,11 +210,38 @@ struct Prepared {
     picked: Vec<Entry>,
 }
 
+/// The entries of an evaluation: the host's (uploaded with their υω and each source's row
+/// starts), or selected on the device, `slot` a source.
+enum Entries<'a> {
+    Host { entries: &'a [Entry], weights: &'a [f32], row_starts: &'a [u32] },
+    Device { slot: usize },
+}
+
+impl Entries<'_> {
+    fn count(&self, sources: usize) -> usize {
+        match self {
+            Entries::Host { entries, .. } => entries.len(),
+            Entries::Device { slot } => sources * slot,
+        }
+    }
+}
+
+/// What an evaluation's readback holds, in order: each (source, row)'s sums, each (source,
+/// row)'s visibility counts when the host has not read them, and the gradient image unless it
+/// stays on the device.
+#[derive(Debug, Clone, Copy)]
+struct Readback {
+    rows: u64,
+    vis: u64,
+    grads: u64,
+}
+
 impl PhotometricGpu {
     /// The executor on `ctx`'s device (shared, e.g. with the rasterizer's), its kernel compiled.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let ctx = ctx.clone();
-        let kernel = Kernel::new(&ctx, "ncc_patch", &[&declarations(), include_str!("ncc.wgsl")], &BINDINGS).map_err(gpu_error)?;
+        let kernel = Kernel::new(&ctx, "ncc_patch", &[&declarations(), include_str!("sampling.wgsl"), include_str!("ncc.wgsl")], &BINDINGS).map_err(gpu_error)?;
+        let selection = select::SelectionKernels::new(&ctx)?;
         let sum_decls = gs_gpu::declarations(&reduce::generated_structs());
         let sums = reduce::PASSES
             .iter()
@@ -197,10 +261,16 @@ impl PhotometricGpu {
             scales: pool.add_storage("ncc scales"),
             grads: pool.add_storage("ncc gradient"),
             staging: pool.add_staging("ncc readback"),
+            vis_pairs: pool.add_storage("ncc visibility pairs"),
+            vis: pool.add_storage("ncc visibility"),
+            vis_rows: pool.add_storage("ncc visibility rows"),
+            cand_starts: pool.add_storage("ncc candidate starts"),
+            masks: pool.add_storage("ncc drawn candidates"),
+            vis_staging: pool.add_staging("ncc candidate counts"),
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<NccFrame>() as u64);
         let greys = Arena::new(&ctx, "ncc greys", ARENA_BYTES);
-        Ok(Self { ctx, pool, disp, kernel, sums, bufs, greys })
+        Ok(Self { ctx, pool, disp, kernel, sums, selection, bufs, greys })
     }
 
     /// The adapter, in words.
@@ -246,26 +316,43 @@ impl PhotometricGpu {
         keys: Option<&[u64]>,
         config: &PhotometricConfig,
     ) -> Result<PendingPhotometric> {
-        self.start_keeping(RefView::of_host(reference), sources, keys, config, false)
+        if keys.is_some_and(|k| k.len() != sources.len() + 1) {
+            return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.map_or(0, <[u64]>::len), sources.len())));
+        }
+        self.start_on_host(RefView::of_host(reference), sources, keys, config, false)
     }
 
     /// [`PhotometricGpu::start`] of a reference whose rendered plane is on the device (the
     /// rasterizer's surface image) and whose gradient image stays there (a `DeviceImage` of
     /// gs-gpu `PlaneGrad`s, for the rasterizer's backward there): neither crosses to the host,
-    /// only each (source, row)'s sums come back. [`PhotometricGpu::finish_on_device`] reads it.
+    /// nor do υ/ω and the selected patches, which are made on the device from the surface's
+    /// plane depth and the sources' (`keys` holds the sources' depths by version). Only each
+    /// (source, row)'s sums come back, and, when a source may exceed the sampling cap, its
+    /// candidate counts first (one more wait). [`PhotometricGpu::finish_on_device`] reads it.
     pub fn start_on_device(
         &mut self,
         reference: &SurfaceReference<'_>,
         sources: &[PhotometricSource<'_, f32>],
-        keys: Option<&[u64]>,
+        keys: Option<ViewKeys<'_>>,
         config: &PhotometricConfig,
     ) -> Result<PendingPhotometric> {
+        if let Some(k) = keys
+            && (k.views.len() != sources.len() + 1 || k.depth_versions.len() != sources.len())
+        {
+            let (v, d) = (k.views.len(), k.depth_versions.len());
+            return Err(MvsError::InvalidInput(format!("{v} view keys and {d} depth versions for a reference and {} sources", sources.len())));
+        }
         let view = RefView::of_device(reference, &self.ctx)?;
-        self.start_keeping(view, sources, keys, config, true)
+        view.check(sources, config)?;
+        if let Some(pending) = self.start_selecting(&view, reference.surface, sources, keys, config)? {
+            return Ok(pending);
+        }
+        self.start_on_host(view, sources, keys.map(|k| k.views), config, true)
     }
 
-    /// An evaluation of `reference` started, the gradient image kept on the device when `keep`.
-    fn start_keeping(
+    /// An evaluation of `reference` whose υ/ω and selection run on the host, the gradient image
+    /// kept on the device when `keep`.
+    fn start_on_host(
         &mut self,
         reference: RefView<'_>,
         sources: &[PhotometricSource<'_, f32>],
@@ -273,13 +360,9 @@ impl PhotometricGpu {
         config: &PhotometricConfig,
         keep: bool,
     ) -> Result<PendingPhotometric> {
-        if keys.is_some_and(|k| k.len() != sources.len() + 1) {
-            return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.map_or(0, <[u64]>::len), sources.len())));
-        }
         let host = |r| Ok(PendingPhotometric(Pending::Ready(r)));
         reference.check(sources, config)?;
-        let grey_values = reference.grey.data.len() + sources.iter().map(|s| s.grey.data.len()).sum::<usize>();
-        if 4 * grey_values as u64 > self.ctx.max_storage_binding() {
+        if !self.greys_fit(&reference, sources) {
             return host(reference.host_loss(&self.ctx, sources, config)?);
         }
         let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
@@ -303,34 +386,14 @@ impl PhotometricGpu {
         let Some(offsets) = self.greys.place(&self.ctx, &items, |i| Cow::Borrowed(greys[i])) else {
             return host(reference.host_loss(&self.ctx, sources, config)?);
         };
-        let mut frame = NccFrame {
-            width: w as u32,
-            height: h as u32,
-            sources: sources.len() as u32,
-            pixels: (w * h) as u32,
-            grey_width: reference.grey.width as u32,
-            side: config.patch_size as u32,
-            ref_offset: offsets[0],
-            ..Default::default()
-        };
-        frame.mode = match config.ncc {
-            NccMode::Pgsr => 0,
-            NccMode::Plain => 1,
-        };
-        let mut rays = Vec::new();
-        if let Some(first) = prepared.first() {
-            let (xs, ys) = first.g.ref_ray_tables(reference.grey.width, reference.grey.height);
-            rays = [xs, ys].concat();
-            frame.grey_scale = first.scale as u32;
-        }
-        let mut pairs = Vec::with_capacity(sources.len());
+        let geometry: Vec<_> = prepared.iter().map(|p| (&p.g, p.scale)).collect();
+        let (frame, rays, pairs) = patch_inputs(&reference, sources, &geometry, &offsets, config);
         let picked = prepared.iter().map(|p| p.picked.len()).sum();
         let mut entries: Vec<Entry> = Vec::with_capacity(picked);
         let mut weights: Vec<f32> = Vec::with_capacity(picked);
         let mut ranges = Vec::with_capacity(sources.len());
-        for ((p, source), &offset) in prepared.iter().zip(sources).zip(&offsets[1..]) {
-            pairs.push(pair_record(&p.g, offset, source));
-            ranges.push(entries.len()..entries.len() + p.picked.len());
+        for p in &prepared {
+            ranges.push((entries.len() as u32, p.picked.len() as u32));
             entries.extend_from_slice(&p.picked);
             weights.extend(p.picked.iter().map(|&e| p.vis.weight(e as usize)));
         }
@@ -347,34 +410,46 @@ impl PhotometricGpu {
                 ..Default::default()
             })
             .collect();
-        let done = Done { counted, width: w, height: h };
+        let done = Done { counted: Some(counted), config: config.clone(), width: w, height: h };
         if entries.is_empty() {
-            return host(done.output(&vec![reduce::NccRowSums::default(); sources.len() * h], &[]));
+            return host(done.output(&vec![reduce::NccRowSums::default(); sources.len() * h], &[], &[]));
         }
-        let inputs = Inputs { frame: &frame, pairs: &pairs, entries: &entries, weights: &weights, rays: &rays };
-        let kept = match keep {
-            true => Some(DeviceImage::new(&self.ctx, "L_p gradient", w, h, gs_gpu::PLANE_GRAD_CHANNELS).map_err(gpu_error)?),
-            false => None,
-        };
-        let (read, row_bytes) = self.submit(&inputs, reference.plane, &ranges, &reduce::row_starts(&entries, &ranges, w, h), kept.as_ref())?;
-        Ok(PendingPhotometric(Pending::Device { read, row_bytes, done, kept }))
+        let ranges_of: Vec<std::ops::Range<usize>> = ranges.iter().map(|&(b, n)| b as usize..(b + n) as usize).collect();
+        let row_starts = reduce::row_starts(&entries, &ranges_of, w, h);
+        let kept = self.kept_gradient(keep, w, h)?;
+        let inputs = Inputs { frame: &frame, pairs: &pairs, rays: &rays };
+        self.stage(&inputs, reference.plane, &Entries::Host { entries: &entries, weights: &weights, row_starts: &row_starts }, kept.is_some(), false);
+        let mut enc = self.disp.encoder();
+        self.ctx.push_error_scopes();
+        self.encode_patches(&mut enc, &frame, reference.plane, &ranges)?;
+        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), false);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        Ok(PendingPhotometric(Pending::Device { read, layout, done, kept }))
+    }
+
+    /// Whether the reference's and the sources' grey images fit one storage binding.
+    fn greys_fit(&self, reference: &RefView<'_>, sources: &[PhotometricSource<'_, f32>]) -> bool {
+        let grey_values = reference.grey.data.len() + sources.iter().map(|s| s.grey.data.len()).sum::<usize>();
+        4 * grey_values as u64 <= self.ctx.max_storage_binding()
+    }
+
+    /// The device image the gradient is kept in, when `keep`.
+    fn kept_gradient(&self, keep: bool, w: usize, h: usize) -> Result<Option<DeviceImage>> {
+        match keep {
+            true => Ok(Some(DeviceImage::new(&self.ctx, "L_p gradient", w, h, gs_gpu::PLANE_GRAD_CHANNELS).map_err(gpu_error)?)),
+            false => Ok(None),
+        }
     }
 
     /// The result of a started evaluation (waiting for the device if it has not answered).
     pub fn finish(&mut self, pending: PendingPhotometric) -> Result<PhotometricOutput<f32>> {
-        let (read, row_bytes, done) = match pending.0 {
+        let (read, layout, done) = match pending.0 {
             Pending::Ready(out) => return Ok(out),
             Pending::Device { kept: Some(_), .. } => return Err(MvsError::InvalidInput("an evaluation whose gradient stays on the device, finished for the host".into())),
-            Pending::Device { read, row_bytes, done, kept: None } => (read, row_bytes, done),
+            Pending::Device { read, layout, done, kept: None } => (read, layout, done),
         };
-        let (rows, grads): (Vec<reduce::NccRowSums>, Vec<reduce::PlaneGrad>) = self
-            .ctx
-            .finish_read(read, |m| {
-                let (rows, grads) = m.split_at(row_bytes as usize);
-                (bytemuck::pod_collect_to_vec(rows), bytemuck::pod_collect_to_vec(grads))
-            })
-            .map_err(gpu_error)?;
-        Ok(done.output(&rows, &grads))
+        let (rows, vis, grads) = self.ctx.finish_read(read, |m| layout.split(m)).map_err(gpu_error)?;
+        Ok(done.output(&rows, &vis, &grads))
     }
 
     /// The result of an evaluation started by [`PhotometricGpu::start_on_device`]: the values
@@ -382,142 +457,120 @@ impl PhotometricGpu {
     /// or the whole output on the host where the evaluation was made there (grey images too
     /// large for the device, or no patch to evaluate).
     pub fn finish_on_device(&mut self, pending: PendingPhotometric) -> Result<PhotometricOnDevice> {
-        let (read, done, gradient) = match pending.0 {
+        let (read, layout, done, gradient) = match pending.0 {
             Pending::Ready(out) => return Ok(PhotometricOnDevice::Host(out)),
             Pending::Device { kept: None, .. } => return Err(MvsError::InvalidInput("an evaluation for the host, finished on the device".into())),
-            Pending::Device { read, done, kept: Some(gradient), .. } => (read, done, gradient),
+            Pending::Device { read, layout, done, kept: Some(gradient) } => (read, layout, done, gradient),
         };
-        let rows: Vec<reduce::NccRowSums> = self.ctx.finish_read(read, bytemuck::pod_collect_to_vec).map_err(gpu_error)?;
-        let (loss, per_source) = done.stats(&rows);
+        let (rows, vis, _) = self.ctx.finish_read(read, |m| layout.split(m)).map_err(gpu_error)?;
+        let (loss, per_source) = done.stats(&rows, &vis);
         Ok(PhotometricOnDevice::Device { loss, per_source, gradient })
     }
 
-    /// Uploads the inputs, runs the patch kernel over every entry and the reduction, and
-    /// requests the readback of each (source, row)'s sums and the gradient image (one round
-    /// trip; the gradient copied into `kept` instead when given); returns it with the bytes of
-    /// the sums.
-    fn submit(
-        &mut self,
-        inputs: &Inputs<'_>,
-        plane: Plane<'_>,
-        ranges: &[std::ops::Range<usize>],
-        row_starts: &[u32],
-        kept: Option<&DeviceImage>,
-    ) -> Result<(PendingRead, u64)> {
-        let (b, frame) = (&self.bufs, inputs.frame);
-        let result_bytes = std::mem::size_of::<NccResult>() as u64;
-        let row_bytes = gs_gpu::bytes_of::<reduce::NccRowSums>((frame.sources * frame.height) as usize);
-        let grad_bytes = gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize);
-        let grad_back = if kept.is_some() { 0 } else { grad_bytes };
+    /// Uploads an evaluation's inputs (the plane only when it is on the host; the entries only
+    /// when the host selected them) and sizes its buffers; `vis_back`: the readback carries the
+    /// device selection's row counts.
+    fn stage(&mut self, inputs: &Inputs<'_>, plane: Plane<'_>, entries: &Entries<'_>, keep: bool, vis_back: bool) {
         self.pool.begin_frame();
-        // The reference's plane goes up only when it is on the host.
+        let (b, frame) = (&self.bufs, inputs.frame);
         let texels = match plane {
             Plane::Host { normal, distance } => reference::plane_texels(&normal, &distance),
             Plane::Device(_) => Vec::new(),
         };
-        let uploads: [(BufId, &[u8]); 6] = [
+        let mut uploads: Vec<(BufId, &[u8])> = vec![
             (b.pairs, bytemuck::cast_slice(inputs.pairs)),
-            (b.entries, bytemuck::cast_slice(inputs.entries)),
             (b.surface, bytemuck::cast_slice(&texels)),
             (b.rays, bytemuck::cast_slice(inputs.rays)),
-            (b.weights, bytemuck::cast_slice(inputs.weights)),
-            (b.row_starts, bytemuck::cast_slice(row_starts)),
         ];
+        if let Entries::Host { entries, weights, row_starts } = entries {
+            uploads.extend([(b.entries, bytemuck::cast_slice(entries)), (b.weights, bytemuck::cast_slice(weights)), (b.row_starts, bytemuck::cast_slice(row_starts))]);
+        }
         for (id, bytes) in uploads {
             self.pool.ensure(id, bytes.len() as u64);
             self.ctx.write_buffer(self.pool.buffer(id), 0, bytes);
         }
+        let count = entries.count(frame.sources as usize) as u64;
+        let layout = Readback::of(frame, keep, vis_back);
         let outputs = [
-            (b.results, result_bytes * inputs.entries.len() as u64),
-            (b.row_sums, row_bytes),
+            (b.entries, 4 * count),
+            (b.weights, 4 * count),
+            (b.row_starts, gs_gpu::bytes_of::<u32>((frame.sources * (frame.height + 1)) as usize)),
+            (b.results, std::mem::size_of::<NccResult>() as u64 * count),
+            (b.row_sums, layout.rows),
             (b.scales, gs_gpu::bytes_of::<f32>(frame.sources as usize)),
-            (b.grads, grad_bytes),
-            (b.staging, row_bytes + grad_back),
+            (b.grads, gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize)),
+            (b.staging, layout.total()),
         ];
         for (id, bytes) in outputs {
-            self.pool.ensure(id, bytes);
+            self.pool.ensure(id, bytes.max(4));
         }
         self.disp.write_frame(frame);
-        let p = &self.pool;
-        let [pairs, entries, mut surface, rays, results] = [b.pairs, b.entries, b.surface, b.rays, b.results].map(|id| p.whole(id));
+    }
+
+    /// Records the patch kernel over each source's entries (`ranges`: its first entry and at
+    /// most how many) and the reduction.
+    fn encode_patches(&self, enc: &mut gs_gpu::Encoder, frame: &NccFrame, plane: Plane<'_>, ranges: &[(u32, u32)]) -> Result<()> {
+        let (b, p) = (&self.bufs, &self.pool);
+        let [pairs, entries, mut surface, row_starts, rays, results] = [b.pairs, b.entries, b.surface, b.row_starts, b.rays, b.results].map(|id| p.whole(id));
         if let Plane::Device(image) = plane {
             surface = gs_gpu::Bind::whole(image.buffer());
         }
-        let patch_binds = [pairs, entries, surface, self.greys.bind(), rays, results];
+        let patch_binds = [pairs, entries, surface, row_starts, self.greys.bind(), rays, results];
         let sum_binds = [b.entries, b.results, b.weights, b.row_starts, b.row_sums, b.scales, b.grads].map(|id| p.whole(id));
-        let mut enc = self.disp.encoder();
-        self.ctx.push_error_scopes();
-        let threads = [frame.sources * frame.height, frame.sources, frame.pixels];
-        let pass = |n: u32| PassUniform { n, ..Default::default() };
         // One dispatch per source over its entries: `base` its first entry, `p1` its pair.
-        for (k, range) in ranges.iter().enumerate() {
-            self.disp.make_room(&mut enc, 1);
-            let per_source = PassUniform { n: range.len() as u32, base: range.start as u32, p1: k as u32, ..Default::default() };
-            self.disp.dispatch_1d(&mut enc, &self.kernel, &patch_binds, per_source).map_err(gpu_error)?;
+        for (k, &(base, n)) in ranges.iter().enumerate() {
+            self.disp.make_room(enc, 1);
+            let per_source = PassUniform { n, base, p1: k as u32, ..Default::default() };
+            self.disp.dispatch_1d(enc, &self.kernel, &patch_binds, per_source).map_err(gpu_error)?;
         }
-        self.disp.make_room(&mut enc, self.sums.len());
+        let threads = [frame.sources * frame.height, frame.sources, frame.pixels];
+        self.disp.make_room(enc, self.sums.len());
         for (kernel, n) in self.sums.iter().zip(threads) {
-            self.disp.dispatch_1d(&mut enc, kernel, &sum_binds, pass(n)).map_err(gpu_error)?;
+            self.disp.dispatch_1d(enc, kernel, &sum_binds, PassUniform { n, ..Default::default() }).map_err(gpu_error)?;
         }
+        Ok(())
+    }
+
+    /// Copies what the host reads (the row sums, the selection's row counts when `vis_back`,
+    /// the gradient unless it is copied into `kept`) into the staging buffer, submits, and
+    /// requests the readback (one round trip).
+    fn read_sums(&self, mut enc: gs_gpu::Encoder, frame: &NccFrame, kept: Option<&DeviceImage>, vis_back: bool) -> (PendingRead, Readback) {
+        let (b, p) = (&self.bufs, &self.pool);
+        let layout = Readback::of(frame, kept.is_some(), vis_back);
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, row_bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, layout.rows);
+        if vis_back {
+            enc.encoder.copy_buffer_to_buffer(p.buffer(b.vis_rows), 0, staging, layout.rows, layout.vis);
+        }
+        let grad_bytes = gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize);
         match kept {
             Some(image) => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, image.buffer(), 0, grad_bytes),
-            None => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes),
+            None => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, layout.rows + layout.vis, grad_bytes),
         }
         self.disp.submit(enc);
-        self.ctx.pop_error_scopes().map_err(gpu_error)?;
-        Ok((self.ctx.request_read(staging, row_bytes + grad_back), row_bytes))
+        (self.ctx.request_read(staging, layout.total()), layout)
     }
 }
 
-/// L_p started by [`PhotometricGpu::start`]: on the device, or already made (on the host, or
-/// without a patch to evaluate).
-pub struct PendingPhotometric(Pending);
-
-/// What [`PhotometricGpu::finish_on_device`] gives: L_p made on the host (its gradient there),
-/// or its values with the gradient image on the device.
-pub enum PhotometricOnDevice {
-    /// Made on the host (grey images too large for the device, or no patch to evaluate).
-    Host(PhotometricOutput<f32>),
-    /// Made on the device.
-    Device {
-        /// L_p, summed over sources.
-        loss: f64,
-        /// Each source's statistics.
-        per_source: Vec<SourceStats>,
-        /// ∂L_p/∂(Ñ, D) of each reference pixel: `[H][W]` gs-gpu `PlaneGrad`s (4 channels).
-        gradient: DeviceImage,
-    },
-}
-
-enum Pending {
-    /// `kept`: the gradient image, when it stays on the device.
-    Device { read: PendingRead, row_bytes: u64, done: Done, kept: Option<DeviceImage> },
-    Ready(PhotometricOutput<f32>),
-}
-
-/// What the output needs besides the device's sums: the host's counts per source and the size.
-struct Done {
-    counted: Vec<SourceStats>,
-    width: usize,
-    height: usize,
-}
-
-impl Done {
-    /// The output from each (source, row)'s sums and the gradient image.
-    fn output(self, rows: &[reduce::NccRowSums], grads: &[reduce::PlaneGrad]) -> PhotometricOutput<f32> {
-        let (w, h) = (self.width, self.height);
-        let (loss, per_source) = self.stats(rows);
-        let mut out = PhotometricOutput { loss, per_source, grad_normal: vec![0.0; w * h * 3], grad_distance: vec![0.0; w * h], width: w, height: h };
-        reduce::unpack_gradient(&mut out, grads);
-        out
+impl Readback {
+    fn of(frame: &NccFrame, keep: bool, vis_back: bool) -> Self {
+        let rows = (frame.sources * frame.height) as usize;
+        Self {
+            rows: gs_gpu::bytes_of::<reduce::NccRowSums>(rows),
+            vis: if vis_back { gs_gpu::bytes_of::<select::VisRow>(rows) } else { 0 },
+            grads: if keep { 0 } else { gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize) },
+        }
     }
 
-    /// L_p and each source's statistics from each (source, row)'s sums.
-    fn stats(self, rows: &[reduce::NccRowSums]) -> (f64, Vec<SourceStats>) {
-        let per_source: Vec<SourceStats> = self.counted.into_iter().zip(rows.chunks_exact(self.height.max(1))).map(|(counted, rows)| reduce::source_stats(counted, rows)).collect();
-        (per_source.iter().fold(0.0, |sum, s| sum + s.loss), per_source)
+    fn total(&self) -> u64 {
+        self.rows + self.vis + self.grads
+    }
+
+    /// The readback's parts.
+    fn split(&self, m: &[u8]) -> (Vec<reduce::NccRowSums>, Vec<select::VisRow>, Vec<reduce::PlaneGrad>) {
+        let (rows, rest) = m.split_at(self.rows as usize);
+        let (vis, grads) = rest.split_at(self.vis as usize);
+        (bytemuck::pod_collect_to_vec(rows), bytemuck::pod_collect_to_vec(vis), bytemuck::pod_collect_to_vec(grads))
     }
 }
 
@@ -525,9 +578,42 @@ impl Done {
 struct Inputs<'a> {
     frame: &'a NccFrame,
     pairs: &'a [NccPair],
-    entries: &'a [Entry],
-    weights: &'a [f32],
     rays: &'a [f32],
+}
+
+/// The frame, the reference's ray tables and the pair records of an evaluation whose grey
+/// images lie at `offsets` in the arena (the reference's first), each source's geometry and
+/// grey scale in `geometry`.
+fn patch_inputs(
+    reference: &RefView<'_>,
+    sources: &[PhotometricSource<'_, f32>],
+    geometry: &[(&PairGeometry<f32>, usize)],
+    offsets: &[u32],
+    config: &PhotometricConfig,
+) -> (NccFrame, Vec<f32>, Vec<NccPair>) {
+    let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
+    let mut frame = NccFrame {
+        width: w as u32,
+        height: h as u32,
+        sources: sources.len() as u32,
+        pixels: (w * h) as u32,
+        grey_width: reference.grey.width as u32,
+        side: config.patch_size as u32,
+        ref_offset: offsets[0],
+        ..Default::default()
+    };
+    frame.mode = match config.ncc {
+        NccMode::Pgsr => 0,
+        NccMode::Plain => 1,
+    };
+    let mut rays = Vec::new();
+    if let Some((g, scale)) = geometry.first() {
+        let (xs, ys) = g.ref_ray_tables(reference.grey.width, reference.grey.height);
+        rays = [xs, ys].concat();
+        frame.grey_scale = *scale as u32;
+    }
+    let pairs = geometry.iter().zip(sources).zip(&offsets[1..]).map(|((&(g, _), source), &offset)| pair_record(g, offset, source)).collect();
+    (frame, rays, pairs)
 }
 
 /// The pair record of `g` with the source grey image at `offset` in `greys` (the arena).

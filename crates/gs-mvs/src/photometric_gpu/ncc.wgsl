@@ -7,9 +7,10 @@
 // Generated before this file: `struct NccFrame` (binding 0), `struct NccPair`,
 // `struct NccResult`, `struct SurfaceTexel`, and the storage bindings `pairs`, `entries`, `surface`
 // (the reference's rendered Ñ and D per pixel, from the rasterizer's surface image or the host),
-// `greys` (the reference grey image at 0, then each source's at its pair's offset), `rays`
+// `row_starts` (per source, the first entry of each row and one past its last), `greys` (the
+// reference grey image at 0, then each source's at its pair's offset), `rays`
 // (the x ray table of the reference grey image's columns, then the y table of its rows) and
-// `results`.
+// `results`, and `sampling.wgsl` (`finite`, `arena_sample`).
 
 @group(0) @binding(0) var<uniform> frame: NccFrame;
 
@@ -18,11 +19,6 @@ const MASK_THRESHOLD: f32 = 0.9;
 const OUTSIDE: u32 = 0u;
 const MASKED: u32 = 1u;
 const VALID: u32 = 2u;
-
-// Finite without relying on NaN comparisons (which a driver may fold away).
-fn finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
-}
 
 // The homogeneous warp of reference ray q by the plane (n, 1/D): w = A q − (K_s t)·m with
 // m = n·q / D (`PairGeometry::warp`). Returns (w, m).
@@ -34,33 +30,9 @@ fn warp(pr: NccPair, q: vec3<f32>, n: vec3<f32>, inv_d: f32) -> vec4<f32> {
     return vec4<f32>(a0 - pr.kt.x * m, a1 - pr.kt.y * m, a2 - pr.kt.z * m, m);
 }
 
-// Bilinear sample of the source grey image with (value, ∂/∂u, ∂/∂v), the convention of
-// `geometry::sample_bilinear_grad`: taps floor(c − ½) and +1, clamped to the edge.
+// Bilinear sample of the source grey image with (value, ∂/∂u, ∂/∂v) (`arena_sample`).
 fn sample(pr: NccPair, u: f32, v: f32) -> vec3<f32> {
-    let w = i32(pr.grey_width);
-    let h = i32(pr.grey_height);
-    let x = min(max(u - 0.5, -1.0), f32(w));
-    let y = min(max(v - 0.5, -1.0), f32(h));
-    let x0 = i32(floor(x));
-    let y0 = i32(floor(y));
-    let fx = x - f32(x0);
-    let fy = y - f32(y0);
-    let xa = u32(clamp(x0, 0, w - 1));
-    let xb = u32(clamp(x0 + 1, 0, w - 1));
-    let ya = u32(clamp(y0, 0, h - 1));
-    let yb = u32(clamp(y0 + 1, 0, h - 1));
-    let o = pr.grey_offset;
-    let gw = pr.grey_width;
-    let i00 = greys[o + ya * gw + xa];
-    let i10 = greys[o + ya * gw + xb];
-    let i01 = greys[o + yb * gw + xa];
-    let i11 = greys[o + yb * gw + xb];
-    let top = i00 + (i10 - i00) * fx;
-    let bottom = i01 + (i11 - i01) * fx;
-    let value = top + (bottom - top) * fy;
-    let du = (i10 - i00) * (1.0 - fy) + (i11 - i01) * fy;
-    let dv = bottom - top;
-    return vec3<f32>(value, du, dv);
+    return arena_sample(pr.grey_offset, pr.grey_width, pr.grey_height, u, v);
 }
 
 // Sample k of the patch around reference grey pixel (ci, cj): its reference ray q = (x, y, 1)
@@ -92,8 +64,12 @@ fn ncc_patch(ids: Ids) {
     if (t >= pass_.n) {
         return;
     }
-    // One dispatch per source: `base` its first entry, `p1` its pair.
+    // One dispatch per source: `base` its first entry, `p1` its pair; its entries end where
+    // its last row's do (fewer than `n` when the device selected them).
     let e = pass_.base + t;
+    if (e >= row_starts[pass_.p1 * (frame.height + 1u) + frame.height]) {
+        return;
+    }
     let pr = pairs[pass_.p1];
     let p = entries[e];
     let st = surface[p];

@@ -1,0 +1,348 @@
+//! L_p's visibility υ/ω and pixel selection on the device (`visibility.wgsl`, `select.wgsl`),
+//! the twins of [`crate::visibility`] and `photometric::select_pixels`, for a reference whose
+//! plane is on the device ([`super::PhotometricGpu::start_on_device`]): the reference's plane
+//! depth is the surface's z, each source's plane depth goes into the arena once a version, and
+//! the selected entries and their υω are written on the device, so neither the depths' υω nor
+//! the entries cross. When no source can exceed the sampling cap every candidate is evaluated and
+//! the whole evaluation is one submission; otherwise the host reads each (source, row)'s
+//! candidate count (one more wait) and draws the patches with the seed, exactly as the host's
+//! selection draws them (docs/architecture.md §GPU).
+
+use super::outcome::{Done, Pending, PendingPhotometric};
+use super::reference::RefView;
+use super::{DEPTH_PART, Entries, Inputs, NccFrame, NccResult, PhotometricGpu, ViewKeys, gpu_error, patch_inputs};
+use crate::error::Result;
+use crate::geometry::PairGeometry;
+use crate::photometric::{PhotometricConfig, PhotometricSource, SourceStats, drawn_candidates, patch_geometry};
+use crate::visibility::VisibilityStats;
+use gs_gpu::{Binding, DeviceImage, GeneratedStruct, GpuContext, Kernel, PassUniform, bytes_of};
+use std::borrow::Cow;
+
+gs_gpu::wgsl_struct! {
+    /// One reference/source pair's visibility constants (WGSL `struct VisPair`): the rows of
+    /// R_rs, t_rs, both cameras' (fx, fy, cx, cy), the source size, where its plane depth lies
+    /// in the arena and where its bitmask of drawn candidates starts.
+    pub(crate) struct VisPair as "VisPair" {
+        r0: [f32; 4],
+        r1: [f32; 4],
+        r2: [f32; 4],
+        t: [f32; 4],
+        ref_k: [f32; 4],
+        src_k: [f32; 4],
+        src_w: f32,
+        src_h: f32,
+        depth_offset: u32,
+        depth_width: u32,
+        depth_height: u32,
+        mask_offset: u32,
+        pad0: u32,
+        pad1: u32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One (source, reference pixel)'s υω and flags (WGSL `struct VisTexel`: 1 υ, 2 ω > 0,
+    /// 4 candidate).
+    pub(crate) struct VisTexel as "VisTexel" {
+        weight: f32,
+        flags: u32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One (source, row)'s visibility counts and its sum of ω over υ (WGSL `struct VisRow`).
+    pub(crate) struct VisRow as "VisRow" {
+        upsilon: u32,
+        omega_positive: u32,
+        candidates: u32,
+        omega_sum: f32,
+    }
+}
+
+/// The visibility kernels' storage bindings, by name (slot order).
+const VIS_BINDINGS: [Binding<'static>; 5] = [
+    Binding::read("vis_pairs", "array<VisPair>"),
+    Binding::read("surface", "array<SurfaceTexel>"),
+    Binding::read("greys", "array<f32>"),
+    Binding::write("vis", "array<VisTexel>"),
+    Binding::write("vis_rows", "array<VisRow>"),
+];
+
+/// The selection kernels' storage bindings, by name (slot order).
+const SELECT_BINDINGS: [Binding<'static>; 8] = [
+    Binding::read("vis_pairs", "array<VisPair>"),
+    Binding::read("vis", "array<VisTexel>"),
+    Binding::read("vis_rows", "array<VisRow>"),
+    Binding::write("row_starts", "array<u32>"),
+    Binding::read("cand_starts", "array<u32>"),
+    Binding::read("masks", "array<u32>"),
+    Binding::write("entries", "array<u32>"),
+    Binding::write("weights", "array<f32>"),
+];
+
+fn vis_structs() -> [GeneratedStruct; 5] {
+    use gs_gpu::GeneratedStruct as G;
+    [G::of::<NccFrame>(), G::of::<VisPair>(), G::of::<gs_gpu::SurfaceTexel>(), G::of::<VisTexel>(), G::of::<VisRow>()]
+}
+
+fn select_structs() -> [GeneratedStruct; 4] {
+    use gs_gpu::GeneratedStruct as G;
+    [G::of::<NccFrame>(), G::of::<VisPair>(), G::of::<VisTexel>(), G::of::<VisRow>()]
+}
+
+fn vis_parts() -> [String; 3] {
+    [gs_gpu::declarations(&vis_structs()), include_str!("sampling.wgsl").into(), include_str!("visibility.wgsl").into()]
+}
+
+/// The visibility kernels' whole WGSL source.
+pub fn visibility_kernel_source() -> String {
+    let parts = vis_parts();
+    gs_gpu::kernel_source(&parts.each_ref().map(String::as_str), &VIS_BINDINGS)
+}
+
+/// The selection kernels' whole WGSL source.
+pub fn selection_kernel_source() -> String {
+    gs_gpu::kernel_source(&[&gs_gpu::declarations(&select_structs()), include_str!("select.wgsl")], &SELECT_BINDINGS)
+}
+
+/// The four passes, compiled once per executor.
+pub(super) struct SelectionKernels {
+    pub pixels: Kernel,
+    pub rows: Kernel,
+    pub starts: Kernel,
+    pub select: Kernel,
+}
+
+impl SelectionKernels {
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let parts = vis_parts();
+        let vis = parts.each_ref().map(String::as_str);
+        let select_decls = gs_gpu::declarations(&select_structs());
+        let select = [select_decls.as_str(), include_str!("select.wgsl")];
+        let make = |entry, sources: &[&str], bindings: &[Binding<'_>]| Kernel::new(ctx, entry, sources, bindings).map_err(gpu_error);
+        Ok(Self {
+            pixels: make("visibility_pixels", &vis, &VIS_BINDINGS)?,
+            rows: make("visibility_rows", &vis, &VIS_BINDINGS)?,
+            starts: make("select_starts", &select, &SELECT_BINDINGS)?,
+            select: make("select_rows", &select, &SELECT_BINDINGS)?,
+        })
+    }
+}
+
+impl PhotometricGpu {
+    /// An evaluation of `reference` (its plane the device's `surface`) whose υ/ω and selection
+    /// run on the device; `None` where that does not apply (no source, an image smaller than a
+    /// patch, arrays larger than one binding or the arena): the caller selects on the host.
+    pub(super) fn start_selecting(
+        &mut self,
+        reference: &RefView<'_>,
+        surface: &DeviceImage,
+        sources: &[PhotometricSource<'_, f32>],
+        keys: Option<ViewKeys<'_>>,
+        config: &PhotometricConfig,
+    ) -> Result<Option<PendingPhotometric>> {
+        let (w, h, n) = (reference.camera.width as usize, reference.camera.height as usize, sources.len());
+        let half = config.patch_size / 2;
+        let inner = if w > 2 * half && h > 2 * half { (w - 2 * half) * (h - 2 * half) } else { 0 };
+        // Each source's entries: every candidate, or at most the cap's number.
+        let slot = config.max_pixels_per_source.map_or(inner, |cap| cap.min(inner));
+        let capped = slot < inner;
+        let max = self.ctx.max_storage_binding();
+        if n == 0 || slot == 0 || !self.greys_fit(reference, sources) || bytes_of::<NccResult>(n * slot) > max || bytes_of::<VisTexel>(n * w * h) > max {
+            return Ok(None);
+        }
+        let geometry = sources.iter().map(|s| patch_geometry((reference.camera, &reference.grey), s)).collect::<Result<Vec<_>>>()?;
+        // The grey images (the reference's first), then the sources' plane depths, each under
+        // its view's key (a depth by its version).
+        let arrays: Vec<&[f32]> = std::iter::once(reference.grey.data).chain(sources.iter().map(|s| s.grey.data)).chain(sources.iter().map(|s| s.plane_depth.data)).collect();
+        let key = |i: usize| keys.map(|k| if i <= n { (k.views[i], 0) } else { (k.views[i - n], DEPTH_PART) });
+        let items: Vec<_> = arrays.iter().enumerate().map(|(i, a)| (key(i), a.len())).collect();
+        let versions: Vec<u64> = (0..arrays.len()).map(|i| keys.filter(|_| i > n).map_or(0, |k| k.depth_versions[i - n - 1])).collect();
+        let Some(offsets) = self.greys.place_versions(&self.ctx, &items, &versions, |i| Cow::Borrowed(arrays[i])) else {
+            return Ok(None);
+        };
+        let by_ref: Vec<_> = geometry.iter().map(|(g, s)| (g, *s)).collect();
+        let (mut frame, rays, pairs) = patch_inputs(reference, sources, &by_ref, &offsets[..=n], config);
+        (frame.slot, frame.capped) = (slot as u32, capped as u32);
+        let words = inner.div_ceil(32);
+        let vis_pairs: Vec<VisPair> = geometry
+            .iter()
+            .zip(sources)
+            .zip(&offsets[n + 1..])
+            .enumerate()
+            .map(|(k, ((_, s), &at))| {
+                // At the cameras' sizes (the patch geometry is at the grey images').
+                let g = PairGeometry::new(reference.camera, s.camera);
+                vis_pair(&g, at, (s.plane_depth.width, s.plane_depth.height), (k * words) as u32)
+            })
+            .collect();
+        let kept = self.kept_gradient(true, w, h)?;
+        self.stage(&Inputs { frame: &frame, pairs: &pairs, rays: &rays }, reference.plane, &Entries::Device { slot }, true, !capped);
+        let b = &self.bufs;
+        self.pool.ensure(b.vis_pairs, bytes_of::<VisPair>(n));
+        self.ctx.write_buffer(self.pool.buffer(b.vis_pairs), 0, bytemuck::cast_slice(&vis_pairs));
+        let row_bytes = bytes_of::<VisRow>(n * h);
+        let sizes = [(b.vis, bytes_of::<VisTexel>(n * w * h)), (b.vis_rows, row_bytes), (b.cand_starts, 4 * (n * h) as u64), (b.masks, 4 * (n * words) as u64), (b.vis_staging, row_bytes)];
+        for (id, bytes) in sizes {
+            self.pool.ensure(id, bytes.max(4));
+        }
+        let threads = |t: usize| PassUniform { n: t as u32, ..Default::default() };
+        let mut enc = self.disp.encoder();
+        self.ctx.push_error_scopes();
+        {
+            let p = &self.pool;
+            let binds = [p.whole(b.vis_pairs), gs_gpu::Bind::whole(surface.buffer()), self.greys.bind(), p.whole(b.vis), p.whole(b.vis_rows)];
+            self.disp.make_room(&mut enc, 2);
+            self.disp.dispatch_1d(&mut enc, &self.selection.pixels, &binds, threads(n * w * h)).map_err(gpu_error)?;
+            self.disp.dispatch_1d(&mut enc, &self.selection.rows, &binds, threads(n * h)).map_err(gpu_error)?;
+        }
+        let mut counted = None;
+        if capped {
+            // The candidate counts come back; the host draws as its own selection draws.
+            let staging = self.pool.buffer(b.vis_staging);
+            enc.encoder.copy_buffer_to_buffer(self.pool.buffer(b.vis_rows), 0, staging, 0, row_bytes);
+            self.disp.submit(enc);
+            let read = self.ctx.request_read(staging, row_bytes);
+            self.ctx.pop_error_scopes().map_err(gpu_error)?;
+            let rows: Vec<VisRow> = self.ctx.finish_read(read, bytemuck::pod_collect_to_vec).map_err(gpu_error)?;
+            let drawn = draw(&rows, h, (slot, words), config);
+            for (id, values) in [(b.row_starts, &drawn.row_starts), (b.cand_starts, &drawn.cand_starts), (b.masks, &drawn.masks)] {
+                self.ctx.write_buffer(self.pool.buffer(id), 0, bytemuck::cast_slice(values));
+            }
+            counted = Some(rows.chunks_exact(h).map(|r| self::counted(r, config)).collect());
+            enc = self.disp.encoder();
+            self.ctx.push_error_scopes();
+        }
+        {
+            let p = &self.pool;
+            let binds = [b.vis_pairs, b.vis, b.vis_rows, b.row_starts, b.cand_starts, b.masks, b.entries, b.weights].map(|id| p.whole(id));
+            self.disp.make_room(&mut enc, 2);
+            if !capped {
+                self.disp.dispatch_1d(&mut enc, &self.selection.starts, &binds, threads(n)).map_err(gpu_error)?;
+            }
+            self.disp.dispatch_1d(&mut enc, &self.selection.select, &binds, threads(n * h)).map_err(gpu_error)?;
+        }
+        let ranges: Vec<(u32, u32)> = (0..n).map(|k| ((k * slot) as u32, slot as u32)).collect();
+        self.encode_patches(&mut enc, &frame, reference.plane, &ranges)?;
+        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), !capped);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        let done = Done { counted, config: config.clone(), width: w, height: h };
+        Ok(Some(PendingPhotometric(Pending::Device { read, layout, done, kept })))
+    }
+}
+
+/// The visibility record of pair `g` with the source's plane depth (`width × height`) at
+/// `depth_offset` in the arena and its bitmask at word `mask_offset`.
+pub(super) fn vis_pair(g: &PairGeometry<f32>, depth_offset: u32, (width, height): (usize, usize), mask_offset: u32) -> VisPair {
+    let row = |r: usize| [g.rot[3 * r], g.rot[3 * r + 1], g.rot[3 * r + 2], 0.0];
+    VisPair {
+        r0: row(0),
+        r1: row(1),
+        r2: row(2),
+        t: [g.t[0], g.t[1], g.t[2], 0.0],
+        ref_k: [g.r_fx, g.r_fy, g.r_cx, g.r_cy],
+        src_k: [g.s_fx, g.s_fy, g.s_cx, g.s_cy],
+        src_w: g.src_w,
+        src_h: g.src_h,
+        depth_offset,
+        depth_width: width as u32,
+        depth_height: height as u32,
+        mask_offset,
+        ..Default::default()
+    }
+}
+
+/// What the host counts of a source from its rows (the patches' sums come later): the
+/// visibility statistics (the rows' ω sums added in order in f64), its candidates and how many
+/// the cap lets through.
+pub(super) fn counted(rows: &[VisRow], config: &PhotometricConfig) -> SourceStats {
+    let mut v = VisibilityStats::default();
+    let (mut omega, mut candidates) = (0.0f64, 0usize);
+    for r in rows {
+        v.n_upsilon += r.upsilon as usize;
+        v.n_omega_positive += r.omega_positive as usize;
+        omega += r.omega_sum as f64;
+        candidates += r.candidates as usize;
+    }
+    if v.n_upsilon > 0 {
+        v.mean_omega_over_upsilon = omega / v.n_upsilon as f64;
+    }
+    let sampled = match config.max_pixels_per_source {
+        Some(cap) => candidates.min(cap),
+        _ => candidates,
+    };
+    SourceStats { visibility: v, n_candidates: candidates, n_sampled: sampled, ..Default::default() }
+}
+
+/// The host's share of a capped selection, from each source's rows (`rows`: source-major, `h`
+/// a source): each row's first entry (source k's from `k · slot`), each row's first candidate
+/// rank, and a bitmask of the drawn ranks (`words` a source).
+pub(super) struct Drawn {
+    pub row_starts: Vec<u32>,
+    pub cand_starts: Vec<u32>,
+    pub masks: Vec<u32>,
+}
+
+pub(super) fn draw(rows: &[VisRow], h: usize, (slot, words): (usize, usize), config: &PhotometricConfig) -> Drawn {
+    let sources = rows.len() / h.max(1);
+    let mut d = Drawn { row_starts: Vec::with_capacity(sources * (h + 1)), cand_starts: Vec::with_capacity(rows.len()), masks: vec![0; sources * words] };
+    for (k, rows) in rows.chunks_exact(h.max(1)).enumerate() {
+        let mut first = 0u32;
+        for r in rows {
+            d.cand_starts.push(first);
+            first += r.candidates;
+        }
+        let cand = &d.cand_starts[k * h..];
+        let mask = &mut d.masks[k * words..(k + 1) * words];
+        let mut taken: Vec<u32> = rows.iter().map(|r| r.candidates).collect();
+        match drawn_candidates(first as usize, config, k) {
+            Some(drawn) => {
+                taken.fill(0);
+                for c in drawn {
+                    mask[c / 32] |= 1 << (c % 32);
+                    // The row holding rank c: the last whose first rank is ≤ c.
+                    taken[cand.partition_point(|&s| s as usize <= c) - 1] += 1;
+                }
+            }
+            None => (0..first as usize).for_each(|c| mask[c / 32] |= 1 << (c % 32)),
+        }
+        let mut at = (k * slot) as u32;
+        for t in taken {
+            d.row_starts.push(at);
+            at += t;
+        }
+        d.row_starts.push(at);
+    }
+    d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_match_their_wgsl_layout() {
+        for (structs, src) in [(&vis_structs()[..], visibility_kernel_source()), (&select_structs()[..], selection_kernel_source())] {
+            gs_gpu::check_layouts(structs, &src).unwrap();
+            gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
+        }
+        assert_eq!([gs_gpu::bytes_of::<VisPair>(1), gs_gpu::bytes_of::<VisTexel>(1), gs_gpu::bytes_of::<VisRow>(1)], [128, 8, 16]);
+    }
+
+    #[test]
+    fn a_capped_draw_is_the_hosts_draw() {
+        // Two sources of three rows: 5 and 2 candidates; a cap of 3 draws source 0 only.
+        let row = |candidates| VisRow { candidates, ..Default::default() };
+        let rows = [row(2), row(0), row(3), row(1), row(1), row(0)];
+        let config = PhotometricConfig { max_pixels_per_source: Some(3), seed: 7, ..Default::default() };
+        let d = draw(&rows, 3, (3, 1), &config);
+        assert_eq!(d.cand_starts, vec![0, 2, 2, 0, 1, 2]);
+        let drawn = drawn_candidates(5, &config, 0).unwrap();
+        let want: u32 = drawn.iter().map(|c| 1u32 << c).sum();
+        assert_eq!(d.masks, vec![want, 0b11]);
+        let in_first = drawn.iter().filter(|&&c| c < 2).count() as u32;
+        assert_eq!(d.row_starts, vec![0, in_first, in_first, 3, 3, 4, 5, 5]);
+        assert_eq!(counted(&rows[..3], &config).n_sampled, 3);
+        assert_eq!(counted(&rows[3..], &config).n_sampled, 2);
+    }
+}
