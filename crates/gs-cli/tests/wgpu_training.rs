@@ -64,7 +64,7 @@ fn two_wgpu_runs_with_one_seed_write_the_same_model() {
     assert!(on.starts_with("L_p, L_I and L_nc/L_ns on wgpu"), "{on}");
     let parts = report["parts_on"].as_array().unwrap();
     let on_device: Vec<&str> = parts.iter().filter(|p| p["on"].as_str().unwrap().starts_with("wgpu on ")).map(|p| p["part"].as_str().unwrap()).collect();
-    assert_eq!(on_device, ["render and backward", "L_I (L1, D-SSIM, edge term)", "L_nc and L_ns", "L_p: NCC of the patches", "Adam", "densification statistics"], "{parts:?}");
+    assert_eq!(on_device, ["render and backward", "L_I (L1, D-SSIM, edge term)", "L_nc and L_ns", "L_p: NCC of the patches", "L_p: pixel selection, visibility υ and weight ω", "Adam", "densification statistics"], "{parts:?}");
     let lp_phase = &report["time_by_part"]["photometric"]["ms_per_iteration"];
     assert!(lp_phase["photometric"].as_f64().unwrap() > 0.0, "{report}");
     assert!(lp_phase["normal_losses"].as_f64().unwrap() > 0.0, "{report}");

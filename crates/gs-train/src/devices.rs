@@ -205,13 +205,15 @@ impl LossDevices {
     }
 
     /// [`LossDevices::start_photometric_loss`] of a reference whose rendered plane is on the
-    /// device (the rasterizer's surface image), the gradient image kept there.
+    /// device (the rasterizer's surface image), the gradient image kept there, υ/ω and the
+    /// selection made there; each source's depth is kept there under its slot and `versions`
+    /// (the iteration that rendered it).
     #[cfg(feature = "wgpu")]
     pub fn start_photometric_loss_on_device<'d>(
         &'d self,
         reference: &gs_mvs::SurfaceReference<'_>,
         sources: &[gs_mvs::PhotometricSource<'_, f32>],
-        slots: &[usize],
+        (slots, versions): (&[usize], &[u64]),
         config: &gs_mvs::PhotometricConfig,
     ) -> gs_mvs::Result<Deferred<'d, gs_mvs::PhotometricOnDevice, gs_mvs::MvsError>> {
         let Some(d) = &self.photometric else {
@@ -219,7 +221,8 @@ impl LossDevices {
         };
         let greys = std::iter::once(&reference.grey).chain(sources.iter().map(|s| &s.grey));
         let keys: Vec<u64> = slots.iter().zip(greys).map(|(&slot, g)| view_key(slot, g.width, g.height)).collect();
-        let pending = d.borrow_mut().start_on_device(reference, sources, Some(&keys), config)?;
+        let keys = gs_mvs::ViewKeys { views: &keys, depth_versions: versions };
+        let pending = d.borrow_mut().start_on_device(reference, sources, Some(keys), config)?;
         Ok(Deferred::later(move || d.borrow_mut().finish_on_device(pending)))
     }
 
@@ -266,7 +269,7 @@ impl LossDevices {
             ("L_I (L1, D-SSIM, edge term)", image),
             ("L_nc and L_ns", normal),
             ("L_p: NCC of the patches", photometric),
-            ("L_p: pixel selection, visibility υ and weight ω", false),
+            ("L_p: pixel selection, visibility υ and weight ω", photometric && normal),
             ("L_f: feature alignment", features),
             ("L_f: VGG16 features of each view (once a view)", vgg),
             ("exposure compensation", false),

@@ -323,8 +323,8 @@ impl StepExecutor for ReferenceExecutor {
         // the host) reads it: only L_I's row sums come back (docs/architecture.md §GPU).
         let color_on_device = self.devices.image_on_device() && state.exposure.is_none();
         // The surface (z, Ñ, D, A) stays there for L_nc/L_ns and L_p when they run on the
-        // device; Ñ and D then need not come back at all (the plane depth still does, for L_p's
-        // selection and visibility on the host).
+        // device; Ñ and D then need not come back at all (the plane depth still does: it is
+        // this view's source depth for later steps, and L_f's visibility reads it).
         let r = &plan.render;
         let surface_on_device = self.devices.normal_on_device() && (r.normal || r.distance || r.plane_depth);
         let plane_stays = surface_on_device && (plan.photometric.is_none() || self.devices.photometric_on_device());
@@ -359,19 +359,21 @@ impl StepExecutor for ReferenceExecutor {
             self.rasterizer.read_resident(&mut state.gaussians, None)?;
             self.behind.parameters = false;
         }
+        // Each depth with the iteration that rendered it (its version on a device).
         let memo = &state.source_depths;
-        let depths: Vec<&Image> = match max_age {
-            0 => rendered_depths.iter().collect(),
-            _ => plan.sources.iter().map(|&s| memo.fresh(s, it, max_age).expect("stored above")).collect(),
+        let depths: Vec<(&Image, u64)> = match max_age {
+            0 => rendered_depths.iter().map(|d| (d, it)).collect(),
+            _ => plan.sources.iter().map(|&s| (memo.fresh(s, it, max_age).expect("stored above"), memo.rendered_at(s).unwrap_or(it))).collect(),
         };
         let sources: Vec<SourceInputs> = plan
             .sources
             .iter()
             .zip(depths)
-            .map(|(&s, d)| SourceInputs {
+            .map(|(&s, (d, version))| SourceInputs {
                 slot: s,
                 camera: &run.scene.views[run.train_views[s]].camera,
                 plane_depth: d,
+                depth_version: version,
                 grey: self.caches.grey(s),
                 features: self.caches.features(s),
             })

@@ -84,6 +84,12 @@ impl SourceDepths {
         }
     }
 
+    /// The iteration that rendered the depth stored for `slot` (the version under which a
+    /// device keeps it).
+    pub fn rendered_at(&self, slot: usize) -> Option<u64> {
+        self.entries.get(slot)?.as_ref().map(|(at, _)| *at)
+    }
+
     /// Records `depth` as rendered for `slot` at `iteration` (ignored for a slot out of range).
     pub fn store(&mut self, slot: usize, iteration: u64, depth: Image) {
         if let Some(e) = self.entries.get_mut(slot) {
@@ -137,6 +143,7 @@ mod tests {
         assert!(m.fresh(1, 10, 50).is_none(), "nothing stored yet");
         m.store(1, 10, Image::filled(2, 2, 1, 3.0).unwrap());
         assert_eq!(m.fresh(1, 60, 50).map(|d| d.get(0, 0, 0)), Some(3.0));
+        assert_eq!((m.rendered_at(1), m.rendered_at(0), m.rendered_at(9)), (Some(10), None, None));
         assert!(m.fresh(1, 61, 50).is_none(), "51 iterations old");
         assert!(m.fresh(1, 10, 0).is_none(), "max age 0 renders every time");
         assert!(m.fresh(0, 10, 50).is_none() && m.fresh(7, 10, 50).is_none());

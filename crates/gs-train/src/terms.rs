@@ -178,6 +178,8 @@ pub struct SourceInputs<'a> {
     pub camera: &'a Camera,
     /// Its rendered plane depth (no gradient flows into sources).
     pub plane_depth: &'a Image,
+    /// The iteration that rendered it: a device keeps the depth under this version.
+    pub depth_version: u64,
     /// Its grey image (L_p).
     pub grey: Option<&'a Image>,
     /// Its feature map (L_f).
@@ -422,7 +424,8 @@ impl PhotometricTerm {
             grey: needed(x.grey, "the reference grey image")?.into(),
         };
         let slots: Vec<usize> = std::iter::once(x.slot).chain(x.sources.iter().map(|s| s.slot)).collect();
-        let started = x.devices.start_photometric_loss_on_device(&reference, &Self::sources(x)?, &slots, &self.config)?;
+        let versions: Vec<u64> = x.sources.iter().map(|s| s.depth_version).collect();
+        let started = x.devices.start_photometric_loss_on_device(&reference, &Self::sources(x)?, (&slots, &versions), &self.config)?;
         Ok(Fold::new(move |grads, values| {
             match started.wait()? {
                 gs_mvs::PhotometricOnDevice::Device { loss, gradient, .. } => {
