@@ -1,6 +1,8 @@
 //! L_p forward + backward at 800×600 with 3 source views (textured ground plane seen from 4
 //! cameras, analytic depth), with the default 102,400-pixel cap and uncapped; L_f with a
-//! synthetic 64-channel stride-2 feature grid.
+//! synthetic 64-channel stride-2 feature grid. With the `wgpu` feature and an adapter, L_p on
+//! the device with υ/ω and the selection made on the host and made on the device (on
+//! lavapipe these measure the kernels' work on this CPU, not GPU speed).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use gs_core::glam::DVec3;
@@ -101,6 +103,46 @@ fn bench(c: &mut Criterion) {
     g.bench_function("L_f fwd+bwd, 64 ch stride 2", |b| {
         b.iter(|| feature_loss(&fr, &fs).unwrap())
     });
+    g.finish();
+    #[cfg(feature = "wgpu")]
+    device(c, &reference, &sources);
+}
+
+/// L_p on the device, when there is a wgpu adapter: υ/ω and the selection on the host (`loss`,
+/// the plane uploaded) and on the device (`start_on_device`, the plane and the depths held
+/// there), at the default cap (the device draws from the candidate counts: two waits) and
+/// under a cap no source reaches (one wait).
+#[cfg(feature = "wgpu")]
+fn device(c: &mut Criterion, reference: &PhotometricReference<'_, f32>, sources: &[PhotometricSource<'_, f32>]) {
+    let ctx = match gs_gpu::GpuContext::new(&gs_gpu::GpuOptions::default()) {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("SKIPPED: the device rows: {e}");
+            return;
+        }
+    };
+    let mut gpu = gs_mvs::PhotometricGpu::new(&ctx).unwrap();
+    let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
+    let surface = gs_mvs::upload_surface(&ctx, reference).unwrap();
+    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &surface, plane_depth: reference.plane_depth, grey: reference.grey };
+    let views: Vec<u64> = (0..=sources.len() as u64).collect();
+    let versions = vec![0; sources.len()];
+    let keys = gs_mvs::ViewKeys { views: &views, depth_versions: &versions };
+    let mut g = c.benchmark_group("photometric_800x600_3src_device");
+    eprintln!("device: {}", ctx.description());
+    g.sample_size(10);
+    for (label, cap) in [("cap 102400", Some(102_400)), ("no source capped", Some(w * h))] {
+        let config = PhotometricConfig { max_pixels_per_source: cap, ..Default::default() };
+        g.bench_function(format!("L_p, selection on the host, {label}"), |b| {
+            b.iter(|| gpu.loss_of_views(reference, sources, &views, &config).unwrap())
+        });
+        g.bench_function(format!("L_p, selection on the device, {label}"), |b| {
+            b.iter(|| {
+                let started = gpu.start_on_device(&on_device, sources, Some(keys), &config).unwrap();
+                gpu.finish_on_device(started).unwrap()
+            })
+        });
+    }
     g.finish();
 }
 

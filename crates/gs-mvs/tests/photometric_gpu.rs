@@ -166,26 +166,13 @@ fn keyed_grey_images_are_uploaded_once() {
     assert!(g.loss_of_views(&swapped, &others, &[2, 0], &config).is_err(), "a key for each view");
 }
 
-/// The reference's rendered surface on the device, as the rasterizer's surface image holds it
-/// (plane depth z, Ñ, D, A).
-fn surface_of(ctx: &GpuContext, reference: &PhotometricReference<'_, f32>) -> gs_gpu::DeviceImage {
-    let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
-    let texels: Vec<f32> = (0..w * h)
-        .flat_map(|p| {
-            let n = &reference.normal.data[3 * p..3 * p + 3];
-            [reference.plane_depth.data[p], n[0], n[1], n[2], reference.distance.data[p], 0.0]
-        })
-        .collect();
-    gs_gpu::DeviceImage::upload(ctx, "surface", (w, h, gs_gpu::SURFACE_CHANNELS), &texels).unwrap()
-}
-
 /// `start_on_device` (υ/ω and the selection on the device) against the CPU reference: the same
 /// candidates and drawn patches, the visibility counts, ω's mean within 1e-5 relative, and the
 /// patch tolerances of `compare`. Returns the call's traffic.
 fn compare_on_device(label: &str, v: &Views, config: &PhotometricConfig, g: &mut PhotometricGpu, ctx: &GpuContext) -> gs_gpu::Transfers {
     let (reference, sources) = inputs(v);
     let cpu = photometric_loss(&reference, &sources, config).unwrap();
-    let image = surface_of(ctx, &reference);
+    let image = gs_mvs::upload_surface(ctx, &reference).unwrap();
     let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: reference.plane_depth, grey: reference.grey };
     let before = ctx.transfers();
     let started = g.start_on_device(&on_device, &sources, None, config).unwrap();
@@ -243,7 +230,7 @@ fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     let v = views(64, 48, 3, 1);
     let (reference, sources) = inputs(&v);
     let config = PhotometricConfig::default();
-    let image = surface_of(&ctx, &reference);
+    let image = gs_mvs::upload_surface(&ctx, &reference).unwrap();
     let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: reference.plane_depth, grey: reference.grey };
     let views: Vec<u64> = (0..=sources.len() as u64).collect();
     let mut call = |versions: &[u64]| {

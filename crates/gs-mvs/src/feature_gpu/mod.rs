@@ -250,12 +250,12 @@ impl FeatureGpu {
 
 /// The pair record of `source` with the pair geometry `g`, its map at `offset` in the arena.
 fn pair_record(g: &PairGeometry<f32>, source: &AlignView<'_>, offset: u32) -> AlignPair {
-    let row = |r: usize| [g.rot[3 * r], g.rot[3 * r + 1], g.rot[3 * r + 2], 0.0];
+    let [r0, r1, r2] = crate::geometry::padded_rows(&g.rot);
     AlignPair {
-        r0: row(0),
-        r1: row(1),
-        r2: row(2),
-        t: [g.t[0], g.t[1], g.t[2], 0.0],
+        r0,
+        r1,
+        r2,
+        t: crate::geometry::padded(&g.t),
         s_fx: g.s_fx,
         s_fy: g.s_fy,
         s_cx: g.s_cx,

@@ -21,7 +21,7 @@ mod submit;
 
 pub use outcome::{PendingPhotometric, PhotometricOnDevice};
 pub use reduce::reduce_kernel_source;
-pub use reference::SurfaceReference;
+pub use reference::{SurfaceReference, upload_surface};
 pub use select::{selection_kernel_source, visibility_kernel_source};
 use outcome::{Done, Pending};
 use submit::{Inputs, Readback, patch_inputs};

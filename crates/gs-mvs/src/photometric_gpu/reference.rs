@@ -97,6 +97,19 @@ impl<'a> RefView<'a> {
     }
 }
 
+/// A host reference's rendered surface as a device image of `SurfaceTexel`s (plane depth z,
+/// Ñ, D; A 0), the record the rasterizer keeps it in: what [`SurfaceReference::surface`] binds,
+/// for a caller whose planes are on the host (tests, benches).
+pub fn upload_surface(ctx: &GpuContext, reference: &PhotometricReference<'_, f32>) -> Result<DeviceImage> {
+    let mut texels = plane_texels(&reference.normal, &reference.distance);
+    if reference.plane_depth.data.len() != texels.len() {
+        return Err(MvsError::InvalidInput(format!("a plane depth of {} values for {} pixels", reference.plane_depth.data.len(), texels.len())));
+    }
+    texels.iter_mut().zip(reference.plane_depth.data).for_each(|(t, &z)| t.z = z);
+    let (w, h) = (reference.normal.width, reference.normal.height);
+    DeviceImage::upload(ctx, "L_p reference surface", (w, h, SURFACE_CHANNELS), bytemuck::cast_slice(&texels)).map_err(gpu_error)
+}
+
 /// The surface records of a host plane (Ñ and D; the plane depth and A, which L_p does not
 /// read, 0).
 pub(super) fn plane_texels(normal: &MapView<'_, f32>, distance: &MapView<'_, f32>) -> Vec<SurfaceTexel> {

@@ -12,7 +12,7 @@ use super::outcome::{Done, Pending, PendingPhotometric};
 use super::reference::RefView;
 use super::{DEPTH_PART, Entries, Inputs, NccFrame, NccResult, PhotometricGpu, ViewKeys, gpu_error, patch_inputs};
 use crate::error::Result;
-use crate::geometry::PairGeometry;
+use crate::geometry::{PairGeometry, padded, padded_rows};
 use crate::photometric::{PhotometricConfig, PhotometricSource, SourceStats, drawn_candidates, patch_geometry};
 use crate::visibility::VisibilityStats;
 use gs_gpu::{Binding, DeviceImage, GeneratedStruct, GpuContext, Kernel, PassUniform, bytes_of};
@@ -234,12 +234,12 @@ impl PhotometricGpu {
 /// The visibility record of pair `g` with the source's plane depth (`width × height`) at
 /// `depth_offset` in the arena and its bitmask at word `mask_offset`.
 pub(super) fn vis_pair(g: &PairGeometry<f32>, depth_offset: u32, (width, height): (usize, usize), mask_offset: u32) -> VisPair {
-    let row = |r: usize| [g.rot[3 * r], g.rot[3 * r + 1], g.rot[3 * r + 2], 0.0];
+    let [r0, r1, r2] = padded_rows(&g.rot);
     VisPair {
-        r0: row(0),
-        r1: row(1),
-        r2: row(2),
-        t: [g.t[0], g.t[1], g.t[2], 0.0],
+        r0,
+        r1,
+        r2,
+        t: padded(&g.t),
         ref_k: [g.r_fx, g.r_fy, g.r_cx, g.r_cy],
         src_k: [g.s_fx, g.s_fy, g.s_cx, g.s_cy],
         src_w: g.src_w,

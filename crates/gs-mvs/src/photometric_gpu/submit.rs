@@ -4,7 +4,7 @@
 use super::reference::{Plane, RefView};
 use super::{Entries, NccFrame, NccPair, NccResult, PhotometricGpu, gpu_error, reduce, reference, select};
 use crate::error::Result;
-use crate::geometry::PairGeometry;
+use crate::geometry::{PairGeometry, padded, padded_rows};
 use crate::photometric::{NccMode, PhotometricConfig, PhotometricSource};
 use gs_gpu::{BufId, DeviceImage, PassUniform, PendingRead};
 
@@ -170,12 +170,12 @@ pub(super) fn patch_inputs(
 
 /// The pair record of `g` with the source grey image at `offset` in `greys` (the arena).
 fn pair_record(g: &PairGeometry<f32>, offset: u32, source: &PhotometricSource<'_, f32>) -> NccPair {
-    let row = |r: usize| [g.a[3 * r], g.a[3 * r + 1], g.a[3 * r + 2], 0.0];
+    let [a0, a1, a2] = padded_rows(&g.a);
     NccPair {
-        a0: row(0),
-        a1: row(1),
-        a2: row(2),
-        kt: [g.kt[0], g.kt[1], g.kt[2], 0.0],
+        a0,
+        a1,
+        a2,
+        kt: padded(&g.kt),
         src_w: g.src_w,
         src_h: g.src_h,
         grey_offset: offset,
