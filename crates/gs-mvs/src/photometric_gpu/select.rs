@@ -152,13 +152,7 @@ impl PhotometricGpu {
             return Ok(None);
         }
         let geometry = sources.iter().map(|s| patch_geometry((reference.camera, &reference.grey), s)).collect::<Result<Vec<_>>>()?;
-        // The grey images (the reference's first), then the sources' plane depths, each under
-        // its view's key (a depth by its version).
-        let arrays: Vec<&[f32]> = std::iter::once(reference.grey.data).chain(sources.iter().map(|s| s.grey.data)).chain(sources.iter().map(|s| s.plane_depth.data)).collect();
-        let key = |i: usize| keys.map(|k| if i <= n { (k.views[i], 0) } else { (k.views[i - n], DEPTH_PART) });
-        let items: Vec<_> = arrays.iter().enumerate().map(|(i, a)| (key(i), a.len())).collect();
-        let versions: Vec<u64> = (0..arrays.len()).map(|i| keys.filter(|_| i > n).map_or(0, |k| k.depth_versions[i - n - 1])).collect();
-        let Some(offsets) = self.greys.place_versions(&self.ctx, &items, &versions, |i| Cow::Borrowed(arrays[i])) else {
+        let Some(offsets) = self.place_views(reference, sources, keys) else {
             return Ok(None);
         };
         let by_ref: Vec<_> = geometry.iter().map(|(g, s)| (g, *s)).collect();
@@ -198,18 +192,7 @@ impl PhotometricGpu {
         }
         let mut counted = None;
         if capped {
-            // The candidate counts come back; the host draws as its own selection draws.
-            let staging = self.pool.buffer(b.vis_staging);
-            enc.encoder.copy_buffer_to_buffer(self.pool.buffer(b.vis_rows), 0, staging, 0, row_bytes);
-            self.disp.submit(enc);
-            let read = self.ctx.request_read(staging, row_bytes);
-            self.ctx.pop_error_scopes().map_err(gpu_error)?;
-            let rows: Vec<VisRow> = self.ctx.finish_read(read, bytemuck::pod_collect_to_vec).map_err(gpu_error)?;
-            let drawn = draw(&rows, h, (slot, words), config);
-            for (id, values) in [(b.row_starts, &drawn.row_starts), (b.cand_starts, &drawn.cand_starts), (b.masks, &drawn.masks)] {
-                self.ctx.write_buffer(self.pool.buffer(id), 0, bytemuck::cast_slice(values));
-            }
-            counted = Some(rows.chunks_exact(h).map(|r| self::counted(r, config)).collect());
+            counted = Some(self.draw_from_counts(enc, (n, h), (slot, words), config)?);
             enc = self.disp.encoder();
             self.ctx.push_error_scopes();
         }
@@ -228,6 +211,39 @@ impl PhotometricGpu {
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
         let done = Done { counted, config: config.clone(), width: w, height: h };
         Ok(Some(PendingPhotometric(Pending::Device { read, layout, done, kept })))
+    }
+
+    /// The grey images (the reference's first) and then the sources' plane depths in the
+    /// arena, each under its view's key (a depth by its version): their offsets, or `None`
+    /// when they do not fit.
+    fn place_views(&mut self, reference: &RefView<'_>, sources: &[PhotometricSource<'_, f32>], keys: Option<ViewKeys<'_>>) -> Option<Vec<u32>> {
+        let n = sources.len();
+        let greys = std::iter::once(reference.grey.data).chain(sources.iter().map(|s| s.grey.data));
+        let arrays: Vec<&[f32]> = greys.chain(sources.iter().map(|s| s.plane_depth.data)).collect();
+        let key = |i: usize| keys.map(|k| if i <= n { (k.views[i], 0) } else { (k.views[i - n], DEPTH_PART) });
+        let items: Vec<_> = arrays.iter().enumerate().map(|(i, a)| (key(i), a.len())).collect();
+        let versions: Vec<u64> = (0..arrays.len()).map(|i| keys.filter(|_| i > n).map_or(0, |k| k.depth_versions[i - n - 1])).collect();
+        self.greys.place_versions(&self.ctx, &items, &versions, |i| Cow::Borrowed(arrays[i]))
+    }
+
+    /// A capped selection's host share (`n` sources of `h` rows): submits the visibility passes
+    /// in `enc` with the rows' candidate counts copied out, waits for them, draws as the host's own selection draws
+    /// and uploads each row's first entry and candidate rank and the drawn bitmask; returns
+    /// what it counted of each source.
+    fn draw_from_counts(&self, mut enc: gs_gpu::Encoder, (n, h): (usize, usize), (slot, words): (usize, usize), config: &PhotometricConfig) -> Result<Vec<SourceStats>> {
+        let b = &self.bufs;
+        let row_bytes = bytes_of::<VisRow>(n * h);
+        let staging = self.pool.buffer(b.vis_staging);
+        enc.encoder.copy_buffer_to_buffer(self.pool.buffer(b.vis_rows), 0, staging, 0, row_bytes);
+        self.disp.submit(enc);
+        let read = self.ctx.request_read(staging, row_bytes);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        let rows: Vec<VisRow> = self.ctx.finish_read(read, bytemuck::pod_collect_to_vec).map_err(gpu_error)?;
+        let drawn = draw(&rows, h, (slot, words), config);
+        for (id, values) in [(b.row_starts, &drawn.row_starts), (b.cand_starts, &drawn.cand_starts), (b.masks, &drawn.masks)] {
+            self.ctx.write_buffer(self.pool.buffer(id), 0, bytemuck::cast_slice(values));
+        }
+        Ok(rows.chunks_exact(h).map(|r| counted(r, config)).collect())
     }
 }
 
