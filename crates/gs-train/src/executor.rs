@@ -363,7 +363,7 @@ impl StepExecutor for ReferenceExecutor {
         let memo = &state.source_depths;
         let depths: Vec<(&Image, u64)> = match max_age {
             0 => rendered_depths.iter().map(|d| (d, it)).collect(),
-            _ => plan.sources.iter().map(|&s| (memo.fresh(s, it, max_age).expect("stored above"), memo.rendered_at(s).unwrap_or(it))).collect(),
+            _ => plan.sources.iter().map(|&s| memo.fresh(s, it, max_age).expect("stored above")).collect(),
         };
         let sources: Vec<SourceInputs> = plan
             .sources

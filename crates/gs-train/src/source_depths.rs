@@ -75,19 +75,14 @@ impl SourceDepths {
         self.entries.is_empty()
     }
 
-    /// The depth of `slot` if it was rendered at most `max_age` iterations before `iteration`
-    /// (never with `max_age` 0).
-    pub fn fresh(&self, slot: usize, iteration: u64, max_age: u64) -> Option<&Image> {
+    /// The depth of `slot` and the iteration that rendered it (the version under which a device
+    /// keeps it), if that was at most `max_age` iterations before `iteration` (never with
+    /// `max_age` 0).
+    pub fn fresh(&self, slot: usize, iteration: u64, max_age: u64) -> Option<(&Image, u64)> {
         match self.entries.get(slot)? {
-            Some((at, depth)) if max_age > 0 && iteration.saturating_sub(*at) <= max_age => Some(depth),
+            Some((at, depth)) if max_age > 0 && iteration.saturating_sub(*at) <= max_age => Some((depth, *at)),
             _ => None,
         }
-    }
-
-    /// The iteration that rendered the depth stored for `slot` (the version under which a
-    /// device keeps it).
-    pub fn rendered_at(&self, slot: usize) -> Option<u64> {
-        self.entries.get(slot)?.as_ref().map(|(at, _)| *at)
     }
 
     /// Records `depth` as rendered for `slot` at `iteration` (ignored for a slot out of range).
@@ -142,8 +137,7 @@ mod tests {
         let mut m = SourceDepths::new(3);
         assert!(m.fresh(1, 10, 50).is_none(), "nothing stored yet");
         m.store(1, 10, Image::filled(2, 2, 1, 3.0).unwrap());
-        assert_eq!(m.fresh(1, 60, 50).map(|d| d.get(0, 0, 0)), Some(3.0));
-        assert_eq!((m.rendered_at(1), m.rendered_at(0), m.rendered_at(9)), (Some(10), None, None));
+        assert_eq!(m.fresh(1, 60, 50).map(|(d, at)| (d.get(0, 0, 0), at)), Some((3.0, 10)));
         assert!(m.fresh(1, 61, 50).is_none(), "51 iterations old");
         assert!(m.fresh(1, 10, 0).is_none(), "max age 0 renders every time");
         assert!(m.fresh(0, 10, 50).is_none() && m.fresh(7, 10, 50).is_none());

@@ -311,7 +311,9 @@ impl PhotometricGpu {
         if keys.is_some_and(|k| k.len() != sources.len() + 1) {
             return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.map_or(0, <[u64]>::len), sources.len())));
         }
-        self.start_on_host(RefView::of_host(reference), sources, keys, config, false)
+        let view = RefView::of_host(reference);
+        view.check(sources, config)?;
+        self.start_on_host(view, sources, keys, config, false)
     }
 
     /// [`PhotometricGpu::start`] of a reference whose rendered plane is on the device (the
@@ -336,14 +338,14 @@ impl PhotometricGpu {
         }
         let view = RefView::of_device(reference, &self.ctx)?;
         view.check(sources, config)?;
-        if let Some(pending) = self.start_selecting(&view, reference.surface, sources, keys, config)? {
+        if let Some(pending) = self.start_selecting(&view, sources, keys, config)? {
             return Ok(pending);
         }
         self.start_on_host(view, sources, keys.map(|k| k.views), config, true)
     }
 
-    /// An evaluation of `reference` whose υ/ω and selection run on the host, the gradient image
-    /// kept on the device when `keep`.
+    /// An evaluation of `reference` (its inputs checked by the caller) whose υ/ω and selection
+    /// run on the host, the gradient image kept on the device when `keep`.
     fn start_on_host(
         &mut self,
         reference: RefView<'_>,
@@ -353,7 +355,6 @@ impl PhotometricGpu {
         keep: bool,
     ) -> Result<PendingPhotometric> {
         let host = |r| Ok(PendingPhotometric(Pending::Ready(r)));
-        reference.check(sources, config)?;
         if !self.greys_fit(&reference, sources) {
             return host(reference.host_loss(&self.ctx, sources, config)?);
         }

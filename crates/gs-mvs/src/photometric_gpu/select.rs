@@ -9,13 +9,13 @@
 //! selection draws them (docs/architecture.md §GPU).
 
 use super::outcome::{Done, Pending, PendingPhotometric};
-use super::reference::RefView;
+use super::reference::{Plane, RefView};
 use super::{DEPTH_PART, Entries, Inputs, NccFrame, NccResult, PhotometricGpu, ViewKeys, gpu_error, patch_inputs};
 use crate::error::Result;
 use crate::geometry::{PairGeometry, padded, padded_rows};
 use crate::photometric::{PhotometricConfig, PhotometricSource, SourceStats, drawn_candidates, patch_geometry};
 use crate::visibility::VisibilityStats;
-use gs_gpu::{Binding, DeviceImage, GeneratedStruct, GpuContext, Kernel, PassUniform, bytes_of};
+use gs_gpu::{Binding, GeneratedStruct, GpuContext, Kernel, PassUniform, bytes_of};
 use std::borrow::Cow;
 
 gs_gpu::wgsl_struct! {
@@ -130,17 +130,20 @@ impl SelectionKernels {
 }
 
 impl PhotometricGpu {
-    /// An evaluation of `reference` (its plane the device's `surface`) whose υ/ω and selection
-    /// run on the device; `None` where that does not apply (no source, an image smaller than a
-    /// patch, arrays larger than one binding or the arena): the caller selects on the host.
+    /// An evaluation of `reference` (its plane on the device) whose υ/ω and selection run on
+    /// the device; `None` where that does not apply (a plane on the host, no source, an image
+    /// smaller than a patch, arrays larger than one binding or the arena): the caller selects
+    /// on the host.
     pub(super) fn start_selecting(
         &mut self,
         reference: &RefView<'_>,
-        surface: &DeviceImage,
         sources: &[PhotometricSource<'_, f32>],
         keys: Option<ViewKeys<'_>>,
         config: &PhotometricConfig,
     ) -> Result<Option<PendingPhotometric>> {
+        let Plane::Device(surface) = reference.plane else {
+            return Ok(None);
+        };
         let (w, h, n) = (reference.camera.width as usize, reference.camera.height as usize, sources.len());
         let half = config.patch_size / 2;
         let inner = if w > 2 * half && h > 2 * half { (w - 2 * half) * (h - 2 * half) } else { 0 };
@@ -159,12 +162,11 @@ impl PhotometricGpu {
         let (mut frame, rays, pairs) = patch_inputs(reference, sources, &by_ref, &offsets[..=n], config);
         (frame.slot, frame.capped) = (slot as u32, capped as u32);
         let words = inner.div_ceil(32);
-        let vis_pairs: Vec<VisPair> = geometry
+        let vis_pairs: Vec<VisPair> = sources
             .iter()
-            .zip(sources)
             .zip(&offsets[n + 1..])
             .enumerate()
-            .map(|(k, ((_, s), &at))| {
+            .map(|(k, (s, &at))| {
                 // At the cameras' sizes (the patch geometry is at the grey images').
                 let g = PairGeometry::new(reference.camera, s.camera);
                 vis_pair(&g, at, (s.plane_depth.width, s.plane_depth.height), (k * words) as u32)
