@@ -1,11 +1,16 @@
-// Backward blend: one workgroup of 128 threads per 16x16 tile, each thread owning pixels
-// (x, y) and (x, y + 8). The tile list is walked back to front from the largest last
-// contributor (3DGS reverse traversal from T_final); per Gaussian the 16 gradient components
-// of the tile's pixels are reduced in workgroup memory (in a fixed order) and written as the
-// `ScreenGrad` partial of that intersection, at its tile-list position; `grad_reduce` then
-// sums each Gaussian's partials in a fixed order. No float atomics: the result repeats bit
-// for bit. List positions at or beyond a tile's largest last contributor are never visited:
-// their partials stay as cleared (zeros).
+// Backward blend: one workgroup of BWD_THREADS threads per 16x16 tile; thread li owns the
+// PIXELS pixels of column li % 16 in rows li / 16 + (BWD_THREADS / 16) q. The tile list is
+// walked back to front from the largest last contributor (3DGS reverse traversal from
+// T_final), GROUP Gaussians per round: each thread sums a Gaussian's 16 gradient components
+// over its own pixels (in row order), the round's GROUP x 16 x BWD_THREADS values meet in
+// workgroup memory, each of them is summed over the threads in thread order, and the sums
+// are written as the `ScreenGrad` partials of those intersections at their tile-list
+// positions; `grad_reduce` then sums each Gaussian's partials in a fixed order. No float
+// atomics: the result repeats bit for bit. Two barriers per round of GROUP Gaussians (the
+// first version reduced over 128 threads with three barriers per Gaussian; barriers are what
+// software Vulkan emulates slowest, and what a long list pays for on any GPU). List
+// positions at or beyond a tile's largest last contributor are never visited: their
+// partials stay as cleared (zeros).
 // Components: xy (0, 1), conic (2..5), opacity (5), features (6..14), |xy| (14, 15).
 //
 // Like the forward, the traversal runs in windows of list positions [pass_.shift, pass_.nb),
@@ -15,11 +20,18 @@
 // Bands of tile rows as in the forward (pass_.base = first tile row; per-pixel buffers bound
 // from the band's first pixel).
 
-var<workgroup> red: array<f32, 2048>;
+const BWD_THREADS: u32 = 32u;
+const PIXELS: u32 = 8u;
+const GROUP: u32 = 4u;
+const COMPONENTS: u32 = 16u;
+
+// The round's values, [GROUP][COMPONENTS][BWD_THREADS], and their sums over the threads.
+var<workgroup> red: array<f32, GROUP * COMPONENTS * BWD_THREADS>;
+var<workgroup> sums: array<f32, GROUP * COMPONENTS>;
 var<workgroup> ml_atomic: atomic<u32>;
 var<workgroup> ml_plain: u32;
 
-@compute @workgroup_size(128)
+@compute @workgroup_size(BWD_THREADS)
 fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let tile_y = wid.y + pass_.base;
     let tile = tile_y * cam.tiles_x + wid.x;
@@ -32,22 +44,25 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     let color = (cam.flags & 1u) != 0u;
     let geo = (cam.flags & 2u) != 0u;
     let depth = (cam.flags & 4u) != 0u;
-    var lxs: array<u32, 2>;
-    var lys: array<u32, 2>;
-    var valid: array<bool, 2>;
-    var tr: array<f32, 2>;
-    var tf: array<f32, 2>;
-    var lastq: array<u32, 2>;
-    var gfin: array<f32, 2>;
-    var behind = array<f32, 16>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    var gch: array<f32, 16>;
+    let lx = li % TILE;
+    var lys: array<u32, PIXELS>;
+    var valid: array<bool, PIXELS>;
+    var tr: array<f32, PIXELS>;
+    var tf: array<f32, PIXELS>;
+    var lastq: array<u32, PIXELS>;
+    var gfin: array<f32, PIXELS>;
+    var behind: array<f32, PIXELS * 8u>;
+    var gch: array<f32, PIXELS * 8u>;
     var my_max = 0u;
-    for (var q = 0u; q < 2u; q++) {
-        lxs[q] = li % 16u;
-        lys[q] = li / 16u + 8u * q;
-        valid[q] = lxs[q] < tw && lys[q] < th;
+    for (var q = 0u; q < PIXELS; q++) {
+        lys[q] = li / TILE + (BWD_THREADS / TILE) * q;
+        valid[q] = lx < tw && lys[q] < th;
+        for (var c = 0u; c < 8u; c++) {
+            behind[q * 8u + c] = 0.0;
+            gch[q * 8u + c] = 0.0;
+        }
         if (valid[q]) {
-            let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
+            let p = (y0 - yb + lys[q]) * cam.width + x0 + lx;
             tr[q] = final_t[p];
             tf[q] = final_t[p];
             lastq[q] = last[p];
@@ -71,9 +86,9 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     }
     let hi = min(pass_.nb, ml);
     if (pass_.nb < ml) {
-        for (var q = 0u; q < 2u; q++) {
+        for (var q = 0u; q < PIXELS; q++) {
             if (valid[q]) {
-                let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
+                let p = (y0 - yb + lys[q]) * cam.width + x0 + lx;
                 let bs = bstate[p];
                 tr[q] = bs.t;
                 for (var c = 0u; c < 8u; c++) {
@@ -82,115 +97,111 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             }
         }
     }
-    for (var kk = lo; kk < hi; kk++) {
-        let k = hi - 1u - (kk - lo);
-        let gid = gids[start + k];
-        let s = splat[gid];
-        let sx = s.x;
-        let sy = s.y;
-        let ca = s.conic_a;
-        let cb = s.conic_b;
-        let cc = s.conic_c;
-        let op = s.opacity;
-        let smax = s.sigma_max;
-        let ex = s.ext_x;
-        let ey = s.ext_y;
-        var f = s.channels;
-        var g: array<f32, 16>;
-        for (var c = 0u; c < 16u; c++) {
-            g[c] = 0.0;
+    var top = hi;
+    while (top > lo) {
+        let n_round = min(GROUP, top - lo);
+        var g: array<f32, GROUP * COMPONENTS>;
+        for (var i = 0u; i < GROUP * COMPONENTS; i++) {
+            g[i] = 0.0;
         }
-        for (var q = 0u; q < 2u; q++) {
-            if (!valid[q] || k >= lastq[q]) {
-                continue;
-            }
-            if (!in_box(sx, ex, x0, tw, lxs[q]) || !in_box(sy, ey, y0, th, lys[q])) {
-                continue;
-            }
-            let dx = f32(x0 + lxs[q]) + 0.5 - sx;
-            let dy = f32(y0 + lys[q]) + 0.5 - sy;
-            let sigma = 0.5 * (ca * dx * dx + cc * dy * dy) + cb * dx * dy;
-            if (!(sigma >= 0.0 && sigma <= smax)) {
-                continue;
-            }
-            var alpha = op * exp_neg(sigma);
-            if (alpha < cam.threshold) {
-                continue;
-            }
-            let capped = alpha > MAX_ALPHA;
-            alpha = min(alpha, MAX_ALPHA);
-            let one_minus = 1.0 - alpha;
-            let t = tr[q] / one_minus;
-            tr[q] = t;
-            let wgt = alpha * t;
-            var dl_da = 0.0;
-            for (var c = 0u; c < 8u; c++) {
-                let on = (c < 3u && color) || (c >= 3u && c < 7u && geo) || (c == 7u && depth);
-                if (on) {
-                    let bi = q * 8u + c;
-                    let gc = gch[bi];
-                    dl_da += (f[c] - behind[bi]) * gc;
-                    behind[bi] = alpha * f[c] + one_minus * behind[bi];
-                    g[6u + c] += wgt * gc;
+        for (var b = 0u; b < n_round; b++) {
+            let k = top - 1u - b;
+            let s = splat[gids[start + k]];
+            let sx = s.x;
+            let sy = s.y;
+            let ca = s.conic_a;
+            let cb = s.conic_b;
+            let cc = s.conic_c;
+            let op = s.opacity;
+            let smax = s.sigma_max;
+            let ex = s.ext_x;
+            let ey = s.ext_y;
+            let f = s.channels;
+            let o = b * COMPONENTS;
+            for (var q = 0u; q < PIXELS; q++) {
+                if (!valid[q] || k >= lastq[q]) {
+                    continue;
+                }
+                if (!in_box(sx, ex, x0, tw, lx) || !in_box(sy, ey, y0, th, lys[q])) {
+                    continue;
+                }
+                let dx = f32(x0 + lx) + 0.5 - sx;
+                let dy = f32(y0 + lys[q]) + 0.5 - sy;
+                let sigma = 0.5 * (ca * dx * dx + cc * dy * dy) + cb * dx * dy;
+                if (!(sigma >= 0.0 && sigma <= smax)) {
+                    continue;
+                }
+                var alpha = op * exp_neg(sigma);
+                if (alpha < cam.threshold) {
+                    continue;
+                }
+                let capped = alpha > MAX_ALPHA;
+                alpha = min(alpha, MAX_ALPHA);
+                let one_minus = 1.0 - alpha;
+                let t = tr[q] / one_minus;
+                tr[q] = t;
+                let wgt = alpha * t;
+                var dl_da = 0.0;
+                for (var c = 0u; c < 8u; c++) {
+                    let on = (c < 3u && color) || (c >= 3u && c < 7u && geo) || (c == 7u && depth);
+                    if (on) {
+                        let bi = q * 8u + c;
+                        let gc = gch[bi];
+                        dl_da += (f[c] - behind[bi]) * gc;
+                        behind[bi] = alpha * f[c] + one_minus * behind[bi];
+                        g[o + 6u + c] += wgt * gc;
+                    }
+                }
+                dl_da = dl_da * t + tf[q] / one_minus * gfin[q];
+                if (!capped) {
+                    let gexp = alpha / op;
+                    g[o + 5u] += gexp * dl_da;
+                    let dl_dsigma = -alpha * dl_da;
+                    g[o + 2u] += dl_dsigma * 0.5 * dx * dx;
+                    g[o + 3u] += dl_dsigma * dx * dy;
+                    g[o + 4u] += dl_dsigma * 0.5 * dy * dy;
+                    let gx = -dl_dsigma * (ca * dx + cb * dy);
+                    let gy = -dl_dsigma * (cb * dx + cc * dy);
+                    g[o] += gx;
+                    g[o + 1u] += gy;
+                    g[o + 14u] += abs(gx);
+                    g[o + 15u] += abs(gy);
                 }
             }
-            dl_da = dl_da * t + tf[q] / one_minus * gfin[q];
-            if (!capped) {
-                let gexp = alpha / op;
-                g[5] += gexp * dl_da;
-                let dl_dsigma = -alpha * dl_da;
-                g[2] += dl_dsigma * 0.5 * dx * dx;
-                g[3] += dl_dsigma * dx * dy;
-                g[4] += dl_dsigma * 0.5 * dy * dy;
-                let gx = -dl_dsigma * (ca * dx + cb * dy);
-                let gy = -dl_dsigma * (cb * dx + cc * dy);
-                g[0] += gx;
-                g[1] += gy;
-                g[14] += abs(gx);
-                g[15] += abs(gy);
-            }
         }
-        for (var c = 0u; c < 16u; c++) {
-            red[c * 128u + li] = g[c];
+        for (var i = 0u; i < GROUP * COMPONENTS; i++) {
+            red[i * BWD_THREADS + li] = g[i];
         }
         workgroupBarrier();
-        // Two-level reduction: 128 threads sum 16 values each (component li / 8, segment
-        // li % 8), then 16 threads sum the 8 segment sums of their component.
-        {
-            let base = (li / 8u) * 128u + (li % 8u) * 16u;
-            var s = 0.0;
-            for (var j = 0u; j < 16u; j++) {
-                s += red[base + j];
+        // Each (Gaussian, component) of the round summed over the threads in thread order.
+        for (var i = li; i < GROUP * COMPONENTS; i += BWD_THREADS) {
+            var sum = 0.0;
+            for (var j = 0u; j < BWD_THREADS; j++) {
+                sum += red[i * BWD_THREADS + j];
             }
-            red[base] = s;
+            sums[i] = sum;
         }
         workgroupBarrier();
-        if (li < 16u) {
-            var s = 0.0;
-            for (var j = 0u; j < 8u; j++) {
-                s += red[li * 128u + j * 16u];
-            }
-            red[li * 128u] = s;
-        }
-        workgroupBarrier();
-        // Only thread 0 writes red[c * 128] in the next iteration, so it may read the sums
-        // after the barrier without another one.
-        if (li == 0u) {
-            partials[start + k] = ScreenGrad(
-                vec2<f32>(red[0], red[128]),
-                vec2<f32>(red[14u * 128u], red[15u * 128u]),
-                red[2u * 128u],
-                red[3u * 128u],
-                red[4u * 128u],
-                red[5u * 128u],
-                vec4<f32>(red[6u * 128u], red[7u * 128u], red[8u * 128u], red[9u * 128u]),
-                vec4<f32>(red[10u * 128u], red[11u * 128u], red[12u * 128u], red[13u * 128u]),
+        // The next round writes `sums` only after its first barrier, which every thread
+        // reaches after these reads.
+        if (li < n_round) {
+            let o = li * COMPONENTS;
+            partials[start + top - 1u - li] = ScreenGrad(
+                vec2<f32>(sums[o], sums[o + 1u]),
+                vec2<f32>(sums[o + 14u], sums[o + 15u]),
+                sums[o + 2u],
+                sums[o + 3u],
+                sums[o + 4u],
+                sums[o + 5u],
+                vec4<f32>(sums[o + 6u], sums[o + 7u], sums[o + 8u], sums[o + 9u]),
+                vec4<f32>(sums[o + 10u], sums[o + 11u], sums[o + 12u], sums[o + 13u]),
             );
         }
+        top -= n_round;
     }
-    for (var q = 0u; q < 2u; q++) {
+    for (var q = 0u; q < PIXELS; q++) {
         if (valid[q]) {
-            let p = (y0 - yb + lys[q]) * cam.width + x0 + lxs[q];
+            let p = (y0 - yb + lys[q]) * cam.width + x0 + lx;
             var bs: BlendState;
             bs.t = tr[q];
             for (var c = 0u; c < 8u; c++) {
