@@ -83,7 +83,7 @@ pub use cpu::project::{JACOBIAN_CLAMP, LOW_PASS, MIN_COMPENSATION};
 pub use cpu::{backward, render, render_naive};
 #[cfg(feature = "wgpu")]
 pub use gpu::{
-    CallTimings, GpuTimings, PendingStep, WgpuOptions, WgpuRasterizer,
+    CallTimings, GpuTimings, PendingStep, TileSplit, WgpuOptions, WgpuRasterizer,
     hardware_adapter_available, probe_adapter,
 };
 pub use types::{

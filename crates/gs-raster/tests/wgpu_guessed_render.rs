@@ -85,7 +85,7 @@ fn cluster(g: &mut Gaussians, cam: &Camera, (u, v): (f64, f64), depth: f64, n: u
 }
 
 /// A tile list longer than the windows the guess allows: the render notices and blends again.
-/// The back of the list (list positions beyond one window of 32768) alone colours the pixels
+/// The back of the list (list positions beyond the guessed windows) alone colours the pixels
 /// around (29, 29), so a render that stopped at the guessed window would leave them empty.
 #[test]
 fn a_tile_list_longer_than_the_guessed_windows_is_blended_whole() {
@@ -106,6 +106,13 @@ fn a_tile_list_longer_than_the_guessed_windows_is_blended_whole() {
     assert_eq!(syncs, 3, "a guess of too few windows, then the counted render");
     let want = reference(&one_tile, &cam);
     assert_same("one long tile list", (&out, &back), (&want.0, &want.1));
+    // And both are the CPU's render: a window whose walk llvmpipe cut short (it ends an
+    // invocation after 65,535 loop iterations in all) would leave pixels unwritten.
+    let req = RenderRequest { traversal: true, plane_depth: true, ..RenderRequest::default() };
+    let cpu = gs_raster::render(&one_tile, &cam, &req, &RasterConfig::default()).unwrap();
+    let alpha = |o: &RenderOutput| o.alpha.as_ref().unwrap().data().to_vec();
+    let worst = alpha(&out).iter().zip(alpha(&cpu)).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "alpha differs from the CPU's by {worst}");
     let color = out.color.as_ref().unwrap();
     let at = |x: usize, y: usize| color.data()[(y * 48 + x) * 3];
     assert_ne!(at(28, 28), at(2, 2), "the back of the list colours its pixels");

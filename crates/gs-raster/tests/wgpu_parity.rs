@@ -14,7 +14,7 @@ mod parity;
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Gaussians, Image};
 use gs_raster::{
-    Backend, GaussianGradients, OutputGradients, RasterConfig, RasterError, Rasterizer, RenderRequest, WgpuOptions,
+    Backend, GaussianGradients, OutputGradients, RasterConfig, RasterError, Rasterizer, RenderRequest, TileSplit, WgpuOptions,
     WgpuRasterizer,
 };
 use parity::compare::*;
@@ -78,6 +78,38 @@ fn parity_20k_gaussians() {
     };
     let g0 = random_scene(20_000, 0, 4, 1.5, (-4.5, -3.0));
     parity(&mut r, "20k deg0 aa", &g0, &cameras(320, 240)[0], &cfg);
+}
+
+/// Both tile splits (docs/architecture.md §GPU): the other tests run the adapter's own (on
+/// lavapipe, 16 threads of 16 pixels); a GPU's (a thread per pixel forward, 32 threads of 8
+/// pixels backward) is checked here too, on partial tiles (97×61) and a list long enough for
+/// several backward windows, and repeats bit for bit.
+#[test]
+fn parity_with_each_tile_split() {
+    for split in [TileSplit::HARDWARE, TileSplit::SOFTWARE] {
+        let Some(mut r) = gpu(WgpuOptions { tile_split: Some(split), ..Default::default() }) else { return };
+        let g = random_scene(600, 3, 21, 1.0, (-3.5, -2.0));
+        let cfg = RasterConfig::default();
+        for (c, cam) in cameras(97, 61).iter().enumerate() {
+            parity(&mut r, &format!("{split:?} cam={c}"), &g, cam, &cfg);
+        }
+        let mut g = random_scene(3_000, 0, 22, 0.25, (-5.5, -5.0));
+        for o in g.opacity_logits.iter_mut() {
+            *o = gs_core::gaussians::inverse_sigmoid(0.01);
+        }
+        let cam = camera(32, 16, 40.0, DVec3::new(0.0, 0.0, -4.0));
+        parity(&mut r, &format!("{split:?} long list"), &g, &cam, &cfg);
+        let grads = Grads::new(cam.width, cam.height, 7);
+        let runs: Vec<GaussianGradients> = (0..2)
+            .map(|_| {
+                let out = r.render(&g, &cam, &RenderRequest::all(), &cfg).unwrap();
+                r.backward(&g, &cam, &cfg, &out, &grads.all()).unwrap()
+            })
+            .collect();
+        assert_same_bits(&format!("{split:?} repeat"), &runs[0], &runs[1]);
+    }
+    let bad = WgpuRasterizer::with_options(WgpuOptions { tile_split: Some(TileSplit { forward_threads: 24, backward_threads: 32 }), ..Default::default() });
+    assert!(matches!(bad, Err(RasterError::InvalidConfig(_))), "{bad:?}");
 }
 
 /// A hardware GPU runs many workgroups at once where lavapipe runs few: the forward and the
@@ -331,7 +363,8 @@ fn parity_across_projection_chunks_and_long_tile_lists() {
     let cam = camera(96, 64, 90.0, DVec3::new(0.4, -0.3, -4.0));
     parity(&mut r, "chunks", &g, &cam, &cfg);
     // One 16x16 tile with a 40k-entry list of faint, tiny Gaussians: pixels stay unsaturated
-    // past the forward window (32768 entries) and the backward runs ~160 windows.
+    // past a forward window (2,048 to 16,384 entries by tile split) and the backward runs ~160
+    // windows.
     let mut g = random_scene(40_000, 0, 61, 0.25, (-5.5, -5.0));
     for o in g.opacity_logits.iter_mut() {
         *o = gs_core::gaussians::inverse_sigmoid(0.006);

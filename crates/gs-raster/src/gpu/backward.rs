@@ -6,7 +6,8 @@
 
 use super::kernels::{BlendState, ColourGrad, ParamGrad, ParamRecord, PixelGrad, ScreenGrad, ShCoeff, TileRect};
 use gs_gpu::bytes_of;
-use super::{BWD_WINDOW, CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks, pod_vec};
+use super::split::BWD_WINDOW;
+use super::{CamUniform, ENTRY_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks, pod_vec};
 use crate::cpu::project::CamParams;
 use crate::validate::{check_all_grads, check_forward_matches, check_inputs};
 use crate::{
@@ -341,7 +342,7 @@ impl WgpuRasterizer {
     fn reduce_partials(&self, enc: &mut Encoder, cam: &CamParams, n: u32) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         let n_tiles = cam.tiles_x * cam.tiles_y;
-        for wi in 0..n_tiles.div_ceil(FWD_WINDOW) {
+        for wi in 0..n_tiles.div_ceil(ENTRY_WINDOW) {
             d.make_room(enc, 1);
             let binds = [
                 p.whole(b.vals_a),
@@ -352,8 +353,8 @@ impl WgpuRasterizer {
             ];
             let pass = PassUniform {
                 n,
-                shift: wi * FWD_WINDOW,
-                nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                shift: wi * ENTRY_WINDOW,
+                nb: (wi + 1).saturating_mul(ENTRY_WINDOW),
                 ..Default::default()
             };
             d.dispatch_1d(enc, &k.grad_reduce, &binds, pass)?;

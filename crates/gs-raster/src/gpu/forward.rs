@@ -8,7 +8,7 @@
 use super::kernels::{ParamRecord, ShCoeff, Splat, TileRect};
 use gs_gpu::{BufId, bytes_of};
 use super::kernels::{COUNTER_LONGEST_BLEND, COUNTER_LONGEST_TILE_LIST};
-use super::{CamUniform, FWD_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
+use super::{CamUniform, ENTRY_WINDOW, Frame, GpuState, GpuTimings, WgpuRasterizer, chunks};
 use crate::cpu::project::CamParams;
 use crate::{
     ForwardState, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats, Result,
@@ -215,7 +215,7 @@ impl WgpuRasterizer {
         }
         self.check_binding("the tile intersections", total * 4)?;
         // No tile list is longer than the visible Gaussians or the intersections.
-        let windows = (total as u32).min(visible as u32).max(1).div_ceil(FWD_WINDOW);
+        let windows = (total as u32).min(visible as u32).max(1).div_ceil(self.split.forward_window());
         self.reserve_blend(total, rb);
         let mut enc = self.disp.encoder();
         self.blend(&mut enc, cam, request, bands, g.len() as u32, (total as u32, windows), rb)?;
@@ -393,7 +393,7 @@ impl WgpuRasterizer {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
         let n_tiles = (cam.tiles_x * cam.tiles_y) as u64;
         // No rectangle has more entries than there are tiles.
-        for wi in 0..(n_tiles as u32).div_ceil(FWD_WINDOW) {
+        for wi in 0..(n_tiles as u32).div_ceil(ENTRY_WINDOW) {
             let binds = [
                 p.whole(b.keys_a),
                 p.whole(b.vals_a),
@@ -405,8 +405,8 @@ impl WgpuRasterizer {
             ];
             let pass = PassUniform {
                 n: n32,
-                shift: wi * FWD_WINDOW,
-                nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                shift: wi * ENTRY_WINDOW,
+                nb: (wi + 1).saturating_mul(ENTRY_WINDOW),
                 ..Default::default()
             };
             d.dispatch_1d(enc, &k.isect_emit, &binds, pass)?;
@@ -438,6 +438,7 @@ impl WgpuRasterizer {
         windows: u32,
     ) -> Result<()> {
         let (d, p, b, k) = (&self.disp, &self.pool, &self.bufs, &self.kernels);
+        let window = self.split.forward_window();
         for &(r0, rows, p0, bp) in bands {
             for wi in 0..windows {
                 d.make_room(enc, 1);
@@ -453,8 +454,8 @@ impl WgpuRasterizer {
                 ];
                 let pass = PassUniform {
                     n: bp as u32,
-                    shift: wi * FWD_WINDOW,
-                    nb: (wi + 1).saturating_mul(FWD_WINDOW),
+                    shift: wi * window,
+                    nb: (wi + 1).saturating_mul(window),
                     base: r0,
                     mode: (wi == 0) as u32 | ((wi + 1 == windows) as u32) << 1,
                     ..Default::default()

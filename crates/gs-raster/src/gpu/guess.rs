@@ -7,7 +7,7 @@
 
 use super::forward::{Readback, counters_of};
 use super::kernels::COUNTER_LONGEST_TILE_LIST;
-use super::{FWD_WINDOW, Frame, GpuTimings, WgpuRasterizer};
+use super::{Frame, GpuTimings, WgpuRasterizer};
 use crate::cpu::project::CamParams;
 use crate::{RasterConfig, RenderOutput, RenderRequest, Result};
 use gs_core::{Camera, Gaussians};
@@ -39,7 +39,7 @@ impl WgpuRasterizer {
         let limit = (config.max_intersections as u64).min(u32::MAX as u64).min(self.ctx.max_storage_binding() / 4);
         let cap = grow(last.intersections).min(limit);
         let longest = grow(last.longest_list as u64).min(cap).min(n).max(1);
-        Some((cap as u32, (longest as u32).div_ceil(FWD_WINDOW)))
+        Some((cap as u32, (longest as u32).div_ceil(self.split.forward_window())))
     }
 
     /// Remembers what a render of `cam`'s size found (the latest [`GUESSED_SIZES`] sizes).
@@ -115,7 +115,7 @@ impl WgpuRasterizer {
         let c = counters_of(bytes, rb);
         let total = c[2] as u64 | (c[3] as u64) << 32;
         let longest = c[COUNTER_LONGEST_TILE_LIST];
-        if total > cap as u64 || longest > windows.saturating_mul(FWD_WINDOW) {
+        if total > cap as u64 || longest > windows.saturating_mul(self.split.forward_window()) {
             return None;
         }
         let out = self.forward_output(g, cam, config, request, rb, bytes, c[0] as usize, total as u32);

@@ -5,6 +5,7 @@ use crate::RasterConfig;
 use crate::cpu::project::CamParams;
 use gs_core::Gaussians;
 use gs_core::sh::coeffs_for_degree;
+use super::split::TileSplit;
 use gs_gpu::{Binding, GeneratedStruct, GpuContext, Kernel};
 
 gs_gpu::wgsl_struct! {
@@ -494,18 +495,19 @@ fn generated_structs() -> [GeneratedStruct; 12] {
 }
 
 /// The generated WGSL declarations every kernel starts with, and the host's constants they
-/// share.
-fn decls() -> String {
+/// share (with the blend kernels' tile split).
+fn decls(split: TileSplit) -> String {
     let mut d = gs_gpu::declarations(&generated_structs());
+    d.push_str(&split.wgsl());
     d.push_str(&format!("const PLANE_DEPTH_EPS: f32 = {:?};\n", crate::PLANE_DEPTH_EPS));
     d.push_str(&format!("const LONGEST_BLEND: u32 = {}u;\nconst LONGEST_TILE_LIST: u32 = {}u;\n", COUNTER_LONGEST_BLEND, COUNTER_LONGEST_TILE_LIST));
     d
 }
 
 impl Kernels {
-    /// Compiles every kernel.
-    pub fn new(ctx: &GpuContext) -> gs_gpu::Result<Self> {
-        let decls = decls();
+    /// Compiles every kernel, the blends for `split`.
+    pub fn new(ctx: &GpuContext, split: TileSplit) -> gs_gpu::Result<Self> {
+        let decls = decls(split);
         let mut k = specs()
             .into_iter()
             .map(|s| Kernel::new(ctx, s.entry, &sources(&decls, &s), &s.bindings));
@@ -543,13 +545,15 @@ mod tests {
     /// `offset_of!` / `size_of`).
     #[test]
     fn host_and_wgsl_struct_layouts_agree_in_every_kernel() {
-        let decls = decls();
-        for s in specs() {
-            let src = kernel_source(&sources(&decls, &s), &s.bindings);
-            // gs-gpu's prelude declares `Pass`; the rest come from this crate's list.
-            check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            gs_gpu::check_layouts(&generated_structs(), &src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
-            gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+        for split in [TileSplit::HARDWARE, TileSplit::SOFTWARE] {
+            let decls = decls(split);
+            for s in specs() {
+                let src = kernel_source(&sources(&decls, &s), &s.bindings);
+                // gs-gpu's prelude declares `Pass`; the rest come from this crate's list.
+                check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+                gs_gpu::check_layouts(&generated_structs(), &src).unwrap_or_else(|e| panic!("{}: {e}", s.entry));
+                gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{} ({split:?}): {e}", s.entry));
+            }
         }
         assert_eq!(std::mem::size_of::<CamUniform>(), 160);
         assert_eq!(std::mem::size_of::<ScreenGrad>(), 64);

@@ -18,7 +18,8 @@
 //!    Gaussian, a stable radix sort on the tile key (⌈log₂ tiles / 4⌉ passes) groups them per
 //!    tile, `tile_ranges` finds each tile's list (and `raster_fwd` the longest), `isect_link`
 //!    turns the sorted emission indices into Gaussian ids (what the blends read) and records each emission index's list position.
-//! 5. `raster_fwd`: one workgroup per 16×16 tile, one thread per pixel, front to back; writes
+//! 5. `raster_fwd`: one workgroup per 16×16 tile, each thread owning one or more of its pixels
+//!    ([`TileSplit`]: a pixel each on a GPU, 16 on software Vulkan), front to back; writes
 //!    the eight accumulators channel-planar, T_final, last contributor, observed counts and
 //!    the pair counters (with the longest list position blended, an integer maximum: the
 //!    backward's window count). Only what the request needs is read back: its planes, T_final
@@ -26,9 +27,9 @@
 //!    `RenderRequest::traversal`; the backward reads the device's copies.
 //!
 //! [`WgpuRasterizer::backward`] uploads the per-pixel channel gradients (folded on the host
-//! with the CPU code), runs `raster_bwd` (one workgroup of 128 threads per tile, reverse
-//! traversal, per-Gaussian workgroup reduction written as that intersection's `ScreenGrad`
-//! partial), `grad_reduce` (per Gaussian, its partials summed in emission order) and
+//! with the CPU code), runs `raster_bwd` (one workgroup per tile of 32 threads on a GPU, 16 on
+//! software Vulkan, each owning 8 or 16 pixels; reverse traversal; a workgroup reduction per
+//! round of 4 or 8 Gaussians, each written as that intersection's `ScreenGrad` partial), `grad_reduce` (per Gaussian, its partials summed in emission order) and
 //! `project_bwd` (chunked like `project`), and reads back only the parameter gradients (SH
 //! only up to the active degree). No float atomics anywhere: every sum has a fixed order, so
 //! the same inputs give the same bits on every run.
@@ -46,7 +47,9 @@ mod guess;
 mod kernels;
 mod resident;
 mod resident_rows;
+mod split;
 pub use resident::PendingStep;
+pub use split::TileSplit;
 
 use crate::cpu::project::CamParams;
 use crate::{RasterError, RenderRequest, Result};
@@ -63,11 +66,11 @@ pub use gs_gpu::{hardware_adapter_available, probe_adapter};
 const CHUNK: u32 = 1 << 18;
 /// Pixel rows per tile row.
 const TILE_ROWS_PX: u64 = crate::TILE_SIZE as u64;
-/// Tile-list positions per forward dispatch and per backward dispatch. Software Vulkan
-/// (llvmpipe) stops any invocation after 65535 loop iterations in total, so long tile lists
-/// are walked in windows with the per-pixel state kept in buffers between dispatches.
-const FWD_WINDOW: u32 = 32768;
-const BWD_WINDOW: u32 = 256;
+/// Entries per dispatch of the kernels that walk a Gaussian's tile rectangle (`isect_emit`,
+/// `grad_reduce`): software Vulkan (llvmpipe) stops any invocation after 65535 loop
+/// iterations in all. The blends' windows: [`TileSplit::forward_window`] and
+/// `split::BWD_WINDOW`.
+const ENTRY_WINDOW: u32 = 32768;
 /// Largest per-pixel record bound to one kernel (`pixgrad` / `bstate`; the eight accumulator
 /// planes take 32 bytes a pixel).
 const MAX_PIXEL_BYTES: u64 = max_u64(bytes_of::<PixelGrad>(1), bytes_of::<BlendState>(1));
@@ -88,6 +91,9 @@ pub struct WgpuOptions {
     /// adapter's). Large images are then processed in more bands of tile rows — tests use it
     /// to exercise the banded path on small images.
     pub max_storage_binding: Option<u64>,
+    /// The blend kernels' threads per tile (`None`: [`TileSplit::for_adapter`]); tests use it
+    /// to check the other adapter kind's split on lavapipe.
+    pub tile_split: Option<TileSplit>,
 }
 
 /// The wgpu backend's forward state: a handle to the rasterizer's device-resident buffers
@@ -198,6 +204,8 @@ pub struct WgpuRasterizer {
     pool: BufferPool,
     bufs: Buffers,
     kernels: Kernels,
+    /// How the blend kernels share a tile's pixels among threads (and their windows).
+    split: TileSplit,
     sort: RadixSort,
     id: u64,
     generation: u64,
@@ -270,13 +278,17 @@ impl WgpuRasterizer {
 
     /// Creates the rasterizer with explicit options.
     pub fn with_options(opts: WgpuOptions) -> Result<Self> {
+        if let Some(split) = opts.tile_split {
+            split.check()?;
+        }
         let ctx = GpuContext::new(&GpuOptions {
             require_hardware: opts.require_hardware,
             // No kernel uses float atomics (sums have a fixed order).
             disable_f32_atomics: true,
             max_storage_binding: opts.max_storage_binding,
         })?;
-        let kernels = Kernels::new(&ctx)?;
+        let split = opts.tile_split.unwrap_or_else(|| TileSplit::for_adapter(ctx.is_software()));
+        let kernels = Kernels::new(&ctx, split)?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let sort = RadixSort::new(&ctx, &mut pool)?;
         let bufs = Buffers::new(&mut pool);
@@ -288,6 +300,7 @@ impl WgpuRasterizer {
             pool,
             bufs,
             kernels,
+            split,
             sort,
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             generation: 0,

@@ -20,9 +20,7 @@
 // Bands of tile rows as in the forward (pass_.base = first tile row; per-pixel buffers bound
 // from the band's first pixel).
 
-const BWD_THREADS: u32 = 32u;
-const PIXELS: u32 = 8u;
-const GROUP: u32 = 4u;
+// BWD_THREADS, PIXELS (= 256 / BWD_THREADS) and GROUP come from the host (gpu/split.rs).
 const COMPONENTS: u32 = 16u;
 
 // The round's values, [GROUP][COMPONENTS][BWD_THREADS], and their sums over the threads.

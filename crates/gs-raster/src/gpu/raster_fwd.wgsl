@@ -1,6 +1,8 @@
-// Forward blend: one workgroup per 16x16 tile, one thread per pixel, front to back over the
-// tile's list (the CPU backend's rule: pixel box, alpha = min(0.99, o G), skip alpha below
-// the threshold, stop when T (1 - alpha) < 1e-4 without blending). The accumulators are
+// Forward blend: one workgroup of FWD_THREADS threads per 16x16 tile, thread li owning the
+// FWD_PIXELS pixels of column li % 16 in rows li / 16 + (FWD_THREADS / 16) q (both constants
+// from the host's tile split, gpu/split.rs; each Gaussian is read once for all of them),
+// front to back over the tile's list (the CPU backend's rule: pixel box, alpha = min(0.99,
+// o G), skip alpha below the threshold, stop when T (1 - alpha) < 1e-4 without blending). The accumulators are
 // written channel-planar (plane c at c * npix): colour 0..3, normal 3..6, distance 6, depth 7.
 // A geometry cut (cam.geometry_cut > 0) blends normal and distance only while T exceeds it.
 //
@@ -21,12 +23,13 @@ fn add64(i: u32, v: u32) {
     }
 }
 
-@compute @workgroup_size(16, 16)
-fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
-    let px = wid.x * TILE + lid.x;
+
+@compute @workgroup_size(FWD_THREADS)
+fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    let lx = li % TILE;
+    let px = wid.x * TILE + lx;
     let tile_y = wid.y + pass_.base;
-    let py = tile_y * TILE + lid.y;
-    if (px >= cam.width || py >= cam.height) {
+    if (px >= cam.width) {
         return;
     }
     let tile = tile_y * cam.tiles_x + wid.x;
@@ -37,13 +40,11 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     let start = ranges[2u * tile];
     let len = ranges[2u * tile + 1u] - start;
     // The longest tile list (a render that guessed its window count checks it at readback).
-    if ((pass_.mode & 1u) != 0u && lid.x == 0u && lid.y == 0u) {
+    if ((pass_.mode & 1u) != 0u && li == 0u) {
         atomicMax(&counters[LONGEST_TILE_LIST], len);
     }
     let npix = pass_.n;
-    let p = (py - pass_.base * TILE) * cam.width + px;
     let fx = f32(px) + 0.5;
-    let fy = f32(py) + 0.5;
     let color = (cam.flags & 1u) != 0u;
     let geo = (cam.flags & 2u) != 0u;
     let depth = (cam.flags & 4u) != 0u;
@@ -52,89 +53,120 @@ fn raster_fwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     let hi = min(pass_.nb, len);
     let first = (pass_.mode & 1u) != 0u;
     let final_window = (pass_.mode & 2u) != 0u;
-    var a = array<f32, 8>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    var t = 1.0;
-    var last_k = 0u;
-    var done = false;
-    if (!first) {
+    var ly: array<u32, FWD_PIXELS>;
+    var pix: array<u32, FWD_PIXELS>;
+    var a: array<f32, FWD_PIXELS * 8u>;
+    var t: array<f32, FWD_PIXELS>;
+    var last_k: array<u32, FWD_PIXELS>;
+    var done: array<bool, FWD_PIXELS>;
+    // Entries of this window each pixel went through (the forward pair count).
+    var traversed: array<u32, FWD_PIXELS>;
+    var open = 0u;
+    for (var q = 0u; q < FWD_PIXELS; q++) {
+        ly[q] = li / TILE + (FWD_THREADS / TILE) * q;
+        pix[q] = (tile_y * TILE + ly[q] - pass_.base * TILE) * cam.width + px;
+        t[q] = 1.0;
+        last_k[q] = 0u;
+        done[q] = ly[q] >= th;
         for (var c = 0u; c < 8u; c++) {
-            a[c] = acc[c * npix + p];
+            a[q * 8u + c] = 0.0;
         }
-        t = final_t[p];
-        done = t < 0.0;
-        t = abs(t);
-        last_k = last[p];
+        if (!done[q] && !first) {
+            let p = pix[q];
+            for (var c = 0u; c < 8u; c++) {
+                a[q * 8u + c] = acc[c * npix + p];
+            }
+            t[q] = abs(final_t[p]);
+            done[q] = final_t[p] < 0.0;
+            last_k[q] = last[p];
+        }
+        traversed[q] = 0u;
+        if (!done[q]) {
+            open += 1u;
+            if (hi > lo) {
+                traversed[q] = hi - lo;
+            }
+        }
     }
-    // Entries of this window the pixel went through (the forward pair count).
-    var traversed = 0u;
-    if (!done && hi > lo) {
-        traversed = hi - lo;
-    }
-    for (var k = lo; k < hi && !done; k++) {
+    for (var k = lo; k < hi && open > 0u; k++) {
         let gid = gids[start + k];
         let s = splat[gid];
         let sx = s.x;
         let sy = s.y;
-        if (!in_box(sx, s.ext_x, x0, tw, lid.x) || !in_box(sy, s.ext_y, y0, th, lid.y)) {
+        if (!in_box(sx, s.ext_x, x0, tw, lx)) {
             continue;
         }
         let dx = fx - sx;
-        let dy = fy - sy;
-        let sigma = 0.5 * (s.conic_a * dx * dx + s.conic_c * dy * dy) + s.conic_b * dx * dy;
-        if (!(sigma >= 0.0 && sigma <= s.sigma_max)) {
-            continue;
-        }
-        var alpha = s.opacity * exp_neg(sigma);
-        if (alpha < cam.threshold) {
-            continue;
-        }
-        alpha = min(alpha, MAX_ALPHA);
-        let next_t = t * (1.0 - alpha);
-        if (next_t < T_STOP) {
-            traversed = k + 1u - lo;
-            done = true;
-            break;
-        }
-        let w = alpha * t;
-        if (color) {
-            a[0] += w * s.channels[0];
-            a[1] += w * s.channels[1];
-            a[2] += w * s.channels[2];
-        }
-        if (geo) {
-            // The geometry cut (RenderRequest::geometry_cut): blend only while T > cut.
-            var wg = w;
-            if (cam.geometry_cut > 0.0) {
-                wg = max(t - max(next_t, cam.geometry_cut), 0.0);
+        for (var q = 0u; q < FWD_PIXELS; q++) {
+            if (done[q] || !in_box(sy, s.ext_y, y0, th, ly[q])) {
+                continue;
             }
-            a[3] += wg * s.channels[3];
-            a[4] += wg * s.channels[4];
-            a[5] += wg * s.channels[5];
-            a[6] += wg * s.channels[6];
+            let dy = f32(y0 + ly[q]) + 0.5 - sy;
+            let sigma = 0.5 * (s.conic_a * dx * dx + s.conic_c * dy * dy) + s.conic_b * dx * dy;
+            if (!(sigma >= 0.0 && sigma <= s.sigma_max)) {
+                continue;
+            }
+            var alpha = s.opacity * exp_neg(sigma);
+            if (alpha < cam.threshold) {
+                continue;
+            }
+            alpha = min(alpha, MAX_ALPHA);
+            let tq = t[q];
+            let next_t = tq * (1.0 - alpha);
+            if (next_t < T_STOP) {
+                traversed[q] = k + 1u - lo;
+                done[q] = true;
+                open -= 1u;
+                continue;
+            }
+            let w = alpha * tq;
+            let o = q * 8u;
+            if (color) {
+                a[o] += w * s.channels[0];
+                a[o + 1u] += w * s.channels[1];
+                a[o + 2u] += w * s.channels[2];
+            }
+            if (geo) {
+                // The geometry cut (RenderRequest::geometry_cut): blend only while T > cut.
+                var wg = w;
+                if (cam.geometry_cut > 0.0) {
+                    wg = max(tq - max(next_t, cam.geometry_cut), 0.0);
+                }
+                a[o + 3u] += wg * s.channels[3];
+                a[o + 4u] += wg * s.channels[4];
+                a[o + 5u] += wg * s.channels[5];
+                a[o + 6u] += wg * s.channels[6];
+            }
+            if (depth) {
+                a[o + 7u] += w * s.channels[7];
+            }
+            if (obs && tq > 0.5) {
+                atomicAdd(&observed[gid], 1u);
+            }
+            t[q] = next_t;
+            last_k[q] = k + 1u;
         }
-        if (depth) {
-            a[7] += w * s.channels[7];
+    }
+    for (var q = 0u; q < FWD_PIXELS; q++) {
+        if (ly[q] >= th) {
+            continue;
         }
-        if (obs && t > 0.5) {
-            atomicAdd(&observed[gid], 1u);
+        let p = pix[q];
+        for (var c = 0u; c < 8u; c++) {
+            acc[c * npix + p] = a[q * 8u + c];
         }
-        t = next_t;
-        last_k = k + 1u;
-    }
-    for (var c = 0u; c < 8u; c++) {
-        acc[c * npix + p] = a[c];
-    }
-    if (done && !final_window) {
-        final_t[p] = -t;
-    } else {
-        final_t[p] = t;
-    }
-    last[p] = last_k;
-    add64(4u, traversed);
-    if (final_window) {
-        add64(6u, last_k);
-        // The longest list position blended (the backward's window count): an integer
-        // maximum, the same in any order.
-        atomicMax(&counters[LONGEST_BLEND], last_k);
+        if (done[q] && !final_window) {
+            final_t[p] = -t[q];
+        } else {
+            final_t[p] = t[q];
+        }
+        last[p] = last_k[q];
+        add64(4u, traversed[q]);
+        if (final_window) {
+            add64(6u, last_k[q]);
+            // The longest list position blended (the backward's window count): an integer
+            // maximum, the same in any order.
+            atomicMax(&counters[LONGEST_BLEND], last_k[q]);
+        }
     }
 }
