@@ -11,7 +11,8 @@
 #   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
 #      on the CPU, with per-phase times, held-out PSNR and veils;
 #   5. synth-bunny, default settings, full resolution, on wgpu and on the CPU: training time,
-#      per-phase times, held-out PSNR, mesh Chamfer / F1 (object protocol).
+#      per-phase times, held-out PSNR, mesh Chamfer / F1 (object protocol);
+#   6. with the time left, the rasterizer at 100k with the blends' other tile splits.
 # Each step is skipped (and says so) when the time budget left cannot hold it, so the call ends
 # in time and the steps done still come back. Results: $OUT/gpu-check.md (one table per step)
 # and a log per step.
@@ -137,6 +138,18 @@ if [ -f "$W/readme_wgpu_1/point_cloud.ply" ] && [ -f "$W/readme_wgpu_2/point_clo
 fi
 
 [ -d "$bunny" ] && GT_MESH="$bunny/gt_mesh.ply" step bunny_cpu "$bunny_need" train_job bunny_cpu cpu "$B/vagsl" "$bunny"
+
+# 6. The blends' other tile splits on this GPU, with what time is left: forward 64 threads of 4
+# pixels and backward 64 of 4, then software Vulkan's 16 of 16 in both, at 100k Gaussians,
+# to choose the GPU's split on a measurement (docs/architecture.md §GPU).
+split_counts=100000; [ "$smoke" = 1 ] && split_counts=2000
+for split in 64,64 16,16; do
+  if step "raster_split_${split/,/_}" 40 env GS_RASTER_WGPU_REPORT=1 GS_RASTER_TILE_SPLIT=$split \
+      GS_RASTER_BENCH_SIZE=$size GS_RASTER_BENCH_COUNTS=$split_counts "$B/raster-bench" --bench raster_wgpu; then
+    note ""; note "## Rasterizer, $size, tile split $split (forward, backward threads per tile)"
+    grep -E "^(wgpu adapter|wgpu n=)" "$OUT/raster_split_${split/,/_}.log" | sed 's/^/    /' >> "$summary"
+  fi
+done
 
 # The training table: one row per run that finished.
 python3 - "$W" >> "$summary" <<'EOF'

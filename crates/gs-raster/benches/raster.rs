@@ -129,6 +129,17 @@ fn bench_size() -> (u32, u32) {
     }
 }
 
+/// The blends' tile split: `GS_RASTER_TILE_SPLIT=F,B` (forward and backward threads per tile,
+/// as `scripts/gpu-check.sh` compares them), else the adapter's own.
+fn tile_split() -> Option<gs_raster::TileSplit> {
+    let v = std::env::var("GS_RASTER_TILE_SPLIT").ok()?;
+    let parsed = v.split_once(',').and_then(|(f, b)| Some((f.trim().parse().ok()?, b.trim().parse().ok()?)));
+    let Some((forward_threads, backward_threads)) = parsed else {
+        panic!("GS_RASTER_TILE_SPLIT must be F,B (threads per tile of the forward and the backward blend)")
+    };
+    Some(gs_raster::TileSplit { forward_threads, backward_threads })
+}
+
 /// Process CPU time (user + system) in seconds, from /proc/self/stat (Linux; 0 elsewhere).
 /// The bench machine is shared, so wall time overstates the cost; CPU time does not.
 fn cpu_seconds() -> f64 {
@@ -308,7 +319,8 @@ fn bench_wgpu(
     req_color: &RenderRequest,
     cfg: &RasterConfig,
 ) {
-    let mut r = match gs_raster::WgpuRasterizer::new() {
+    let opts = gs_raster::WgpuOptions { tile_split: tile_split(), ..Default::default() };
+    let mut r = match gs_raster::WgpuRasterizer::with_options(opts) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("wgpu benches skipped: {e}");
@@ -320,7 +332,7 @@ fn bench_wgpu(
     } else {
         ""
     };
-    eprintln!("wgpu adapter: {}{software}", r.adapter_description());
+    eprintln!("wgpu adapter: {}{software}; tile split {:?}", r.adapter_description(), r.tile_split());
     let (w, h) = (cam.width as usize, cam.height as usize);
     let gc = Image::filled(w, h, 3, 0.01).unwrap();
     let g1 = Image::filled(w, h, 1, 0.01).unwrap();

@@ -317,6 +317,11 @@ impl WgpuRasterizer {
         self.ctx.description()
     }
 
+    /// How the blend kernels share a tile's pixels among threads.
+    pub fn tile_split(&self) -> TileSplit {
+        self.split
+    }
+
     /// Whether the adapter is a CPU (software) implementation such as lavapipe.
     pub fn is_software(&self) -> bool {
         self.ctx.is_software()
