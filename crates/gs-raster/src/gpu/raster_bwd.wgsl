@@ -116,14 +116,15 @@ fn raster_bwd(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             let ey = s.ext_y;
             let f = s.channels;
             let o = b * COMPONENTS;
+            // The thread's pixels share a column: outside its box in x, none is touched.
+            if (!in_box(sx, ex, x0, tw, lx)) {
+                continue;
+            }
+            let dx = f32(x0 + lx) + 0.5 - sx;
             for (var q = 0u; q < PIXELS; q++) {
-                if (!valid[q] || k >= lastq[q]) {
+                if (!valid[q] || k >= lastq[q] || !in_box(sy, ey, y0, th, lys[q])) {
                     continue;
                 }
-                if (!in_box(sx, ex, x0, tw, lx) || !in_box(sy, ey, y0, th, lys[q])) {
-                    continue;
-                }
-                let dx = f32(x0 + lx) + 0.5 - sx;
                 let dy = f32(y0 + lys[q]) + 0.5 - sy;
                 let sigma = 0.5 * (ca * dx * dx + cc * dy * dy) + cb * dx * dy;
                 if (!(sigma >= 0.0 && sigma <= smax)) {
