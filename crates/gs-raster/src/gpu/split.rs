@@ -40,7 +40,7 @@ impl TileSplit {
     /// 32-lane warp per tile in the backward (8 pixels per thread, 4 Gaussians per round).
     pub const HARDWARE: Self = Self { forward_threads: 256, backward_threads: 32 };
     /// For software Vulkan (lavapipe): 16 threads of 16 pixels in both blends. Measured on the
-    /// 2-core VM (200×150, 30k Gaussians): forward 960 → 300 ms, backward 2,600 → 900 ms
+    /// 2-core VM (200×150, 30k Gaussians): forward 960 → 320 ms, backward 2,600 → 760 ms
     /// against a thread per pixel and 128 threads (BENCHMARKS.md, stop 64).
     pub const SOFTWARE: Self = Self { forward_threads: 16, backward_threads: 16 };
 
