@@ -5,8 +5,8 @@
 #   2. wgpu parity against the CPU reference on this GPU (gs-raster's wgpu_parity tests, the
 #      loss kernels' tests: gs-mvs photometric_gpu (L_p) and feature_gpu (L_f), gs-losses image_gpu (L_I) and
 #      normal_gpu (L_nc / L_ns), the resident model's Adam: gs-raster wgpu_resident, renders
-#      that guess their buffers: gs-raster wgpu_guessed_render, and L_f's VGG16 maps: gs-features
-#      vgg_gpu);
+#      that guess their buffers: gs-raster wgpu_guessed_render, L_f's VGG16 maps: gs-features
+#      vgg_gpu, and both blend tile splits: gs-raster wgpu_tile_split);
 #   3. the rasterizer bench at 1920×1080 with 100k and 1M Gaussians, wgpu and 16 CPU threads;
 #   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
 #      on the CPU, with per-phase times, held-out PSNR and veils;
@@ -74,9 +74,9 @@ fi
 
 # The loss kernels and the resident model's Adam against their CPU twins (gs-mvs
 # photometric_gpu and feature_gpu, gs-losses image_gpu and normal_gpu, gs-raster wgpu_resident,
-# gs-features vgg_gpu), and renders that guess their buffers against counted ones (gs-raster
-# wgpu_guessed_render).
-for t in lp lf image normal resident guess vgg; do
+# gs-features vgg_gpu), renders that guess their buffers against counted ones (gs-raster
+# wgpu_guessed_render), and both blend tile splits against the CPU (gs-raster wgpu_tile_split).
+for t in lp lf image normal resident guess vgg split; do
   step ${t}_parity 30 env CI=true "$B/$t-parity" --test-threads 1 --nocapture; r=$?
   if [ -f "$OUT/${t}_parity.log" ]; then
     if [ $r = 0 ]; then r=passed; else r=FAILED; fi

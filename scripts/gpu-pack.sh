@@ -43,6 +43,7 @@ normal_parity=$(exe test --release --test normal_gpu --no-run)
 resident_parity=$(exe test --release --test wgpu_resident --no-run)
 guess_parity=$(exe test --release --test wgpu_guessed_render --no-run)
 vgg_parity=$(exe test --release --test vgg_gpu --no-run)
+split_parity=$(exe test --release --test wgpu_tile_split --no-run)
 strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
@@ -53,6 +54,7 @@ strip -o .gpu/bin/normal-parity "$normal_parity"
 strip -o .gpu/bin/resident-parity "$resident_parity"
 strip -o .gpu/bin/guess-parity "$guess_parity"
 strip -o .gpu/bin/vgg-parity "$vgg_parity"
+strip -o .gpu/bin/split-parity "$split_parity"
 [ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
 if [ -n "$bench_base" ]; then
   case "$bench_base" in *.gz) gunzip -c "$bench_base" > .gpu/bin/raster-bench-baseline ;; *) strip -o .gpu/bin/raster-bench-baseline "$bench_base" ;; esac

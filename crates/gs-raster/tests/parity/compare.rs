@@ -31,7 +31,8 @@
 
 use gs_core::glam::DVec3;
 use gs_core::{Camera, Gaussians, Image};
-use gs_raster::{GaussianGradients, RenderOutput};
+use super::scenes::Grads;
+use gs_raster::{GaussianGradients, RasterConfig, RenderOutput, RenderRequest, WgpuRasterizer};
 
 pub const IMG_ABS: f32 = 1e-4;
 pub const MAX_FLIP_FRACTION: f64 = 2e-3;
@@ -289,4 +290,35 @@ pub fn compare_grads(label: &str, cpu: &GaussianGradients, gpu: &GaussianGradien
     compare_group(label, "sh", &sh(cpu), &sh(gpu), t);
     compare_group(label, "mean2d", &flat(&cpu.mean2d), &flat(&gpu.mean2d), t);
     compare_group(label, "mean2d_abs", &flat(&cpu.mean2d_abs), &flat(&gpu.mean2d_abs), t);
+}
+
+/// Forward (all channels) and backward (all gradients) parity of one scene and camera.
+pub fn parity(r: &mut WgpuRasterizer, label: &str, g: &Gaussians, cam: &Camera, cfg: &RasterConfig) {
+    let req = RenderRequest::all();
+    let cpu = gs_raster::render(g, cam, &req, cfg).unwrap();
+    let gpu = r.render(g, cam, &req, cfg).unwrap();
+    let flipped = compare_outputs(label, &cpu, &gpu);
+    let touched = touched_by(g, cam, &cpu.radii, &flipped);
+    let grads = Grads::new(cam.width, cam.height, 7);
+    let gc = gs_raster::backward(g, cam, cfg, &cpu, &grads.all()).unwrap();
+    let gg = r.backward(g, cam, cfg, &gpu, &grads.all()).unwrap();
+    compare_grads(label, &gc, &gg, &touched);
+}
+
+/// Every gradient array of `a` and `b` has the same bits (and is not all zero).
+pub fn assert_same_bits(label: &str, a: &GaussianGradients, b: &GaussianGradients) {
+    let bits = |v: Vec<f32>| v.into_iter().map(f32::to_bits).collect::<Vec<_>>();
+    let sh = |g: &GaussianGradients| g.sh.iter().flatten().flatten().copied().collect();
+    for (name, x, y) in [
+        ("means", flat(&a.means), flat(&b.means)),
+        ("log_scales", flat(&a.log_scales), flat(&b.log_scales)),
+        ("rotations", flat(&a.rotations), flat(&b.rotations)),
+        ("opacity", a.opacity_logits.clone(), b.opacity_logits.clone()),
+        ("mean2d", flat(&a.mean2d), flat(&b.mean2d)),
+        ("mean2d_abs", flat(&a.mean2d_abs), flat(&b.mean2d_abs)),
+        ("sh", sh(a), sh(b)),
+    ] {
+        assert!(x.iter().any(|v| *v != 0.0), "{label} {name}: all zero");
+        assert!(bits(x) == bits(y), "{label} {name}: runs differ");
+    }
 }
