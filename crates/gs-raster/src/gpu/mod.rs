@@ -29,9 +29,10 @@
 //! [`WgpuRasterizer::backward`] uploads the per-pixel channel gradients (folded on the host
 //! with the CPU code), runs `raster_bwd` (one workgroup per tile of 32 threads on a GPU, 16 on
 //! software Vulkan, each owning 8 or 16 pixels; reverse traversal; a workgroup reduction per
-//! round of 4 or 8 Gaussians, each written as that intersection's `ScreenGrad` partial), `grad_reduce` (per Gaussian, its partials summed in emission order) and
-//! `project_bwd` (chunked like `project`), and reads back only the parameter gradients (SH
-//! only up to the active degree). No float atomics anywhere: every sum has a fixed order, so
+//! round of 4 or 8 Gaussians, each written as that intersection's `ScreenGrad` partial),
+//! `grad_reduce` (per Gaussian, its partials summed in emission order) and `project_bwd`
+//! (chunked like `project`), and reads back only the parameter gradients (SH only up to the
+//! active degree). No float atomics anywhere: every sum has a fixed order, so
 //! the same inputs give the same bits on every run.
 //!
 //! The device context, buffer pool, dispatch, readback, prefix scan and radix sort come from

@@ -22,8 +22,8 @@ const COMPONENTS: u32 = 16;
 /// over every loop it runs: the blends walk long tile lists in windows (a dispatch each, with
 /// the per-pixel state kept in buffers between them) sized to stay below it.
 const LOOP_LIMIT: u32 = 65_535;
-/// Tile-list positions per backward dispatch ([`TileSplit::backward_loop_iterations`] keeps
-/// each split's walk of one window below [`LOOP_LIMIT`]).
+/// Tile-list positions per backward dispatch (the unit test `windows_stay_below_the_loop_limit`
+/// keeps each split's walk of one window below [`LOOP_LIMIT`]).
 pub(crate) const BWD_WINDOW: u32 = 256;
 
 /// Threads per tile of the forward and the backward blend (powers of two).
