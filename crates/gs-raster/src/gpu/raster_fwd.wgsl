@@ -2,8 +2,9 @@
 // FWD_PIXELS pixels of column li % 16 in rows li / 16 + (FWD_THREADS / 16) q (both constants
 // from the host's tile split, gpu/split.rs; each Gaussian is read once for all of them),
 // front to back over the tile's list (the CPU backend's rule: pixel box, alpha = min(0.99,
-// o G), skip alpha below the threshold, stop when T (1 - alpha) < 1e-4 without blending). The accumulators are
-// written channel-planar (plane c at c * npix): colour 0..3, normal 3..6, distance 6, depth 7.
+// o G), skip alpha below the threshold, stop when T (1 - alpha) < 1e-4 without blending).
+// The accumulators are written channel-planar (plane c at c * npix): colour 0..3, normal
+// 3..6, distance 6, depth 7.
 // A geometry cut (cam.geometry_cut > 0) blends normal and distance only while T exceeds it.
 //
 // The list is walked in windows of list positions [pass_.shift, pass_.nb), one dispatch per
