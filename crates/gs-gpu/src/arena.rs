@@ -7,8 +7,10 @@
 //!
 //! The caller's contract: one key names one content for the arena's life (e.g. a view's photo
 //! at one resolution), or, placed with [`Arena::place_versions`], one content per version (e.g. a
-//! view's depth rendered at one iteration): a new version replaces the old one in its slot. The
-//! arena checks the length and the version, not the values.
+//! view's depth rendered at one iteration): a new version replaces the old one in its slot. A
+//! slot placed with [`Arena::place_filled`] is written by the caller on the device (a kernel's
+//! output) and then held like an uploaded version; [`Arena::read_held`] brings such arrays back.
+//! The arena checks the length and the version, not the values.
 
 use crate::{Bind, GpuContext};
 use std::borrow::Cow;
@@ -45,6 +47,16 @@ impl std::fmt::Debug for Arena {
     }
 }
 
+/// What goes into an item's slot when the arena does not hold it.
+enum Fill<'d> {
+    /// These values, uploaded; held under the item's key.
+    Values(Cow<'d, [f32]>),
+    /// The caller's on the device, for one call: not held under the key.
+    OneCall,
+    /// The caller's on the device, held under the key at the item's version.
+    Held,
+}
+
 /// Slots an arena starts with (it doubles when full, up to its budget).
 const FIRST_SLOTS: usize = 8;
 
@@ -66,7 +78,7 @@ impl Arena {
     /// on the device (a copy from a [`crate::DeviceImage`]) before its passes read it. Such an
     /// item is never held under a key: it is placed like an item of one call.
     pub fn place_with<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], upload: impl Fn(usize) -> Option<Cow<'d, [f32]>>) -> Option<Vec<u32>> {
-        self.place_inner(ctx, items, &vec![0; items.len()], upload)
+        self.place_inner(ctx, items, &vec![0; items.len()], |i| upload(i).map_or(Fill::OneCall, Fill::Values))
     }
 
     /// [`Arena::place`] of arrays whose content changes under one key: item i is held as
@@ -75,10 +87,69 @@ impl Arena {
         if versions.len() != items.len() {
             return None;
         }
-        self.place_inner(ctx, items, versions, |i| Some(upload(i)))
+        self.place_inner(ctx, items, versions, |i| Fill::Values(upload(i)))
     }
 
-    fn place_inner<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], versions: &[u64], upload: impl Fn(usize) -> Option<Cow<'d, [f32]>>) -> Option<Vec<u32>> {
+    /// The offset of a slot held under `key` at `version` whose `floats` values the caller
+    /// writes on the device before anything reads them (e.g. a kernel copying a rendered
+    /// depth in): from then on it is held like an uploaded array of that version. `None` as
+    /// [`Arena::place`].
+    pub fn place_filled(&mut self, ctx: &GpuContext, key: ArenaKey, floats: usize, version: u64) -> Option<u32> {
+        Some(self.place_inner(ctx, &[(Some(key), floats)], &[version], |_| Fill::Held)?[0])
+    }
+
+    /// Whether the arena holds `floats` values under `key` at `version`.
+    pub fn holds(&self, key: ArenaKey, floats: usize, version: u64) -> bool {
+        self.holding(Some(key), floats, version).is_some()
+    }
+
+    /// How many arrays of `floats` values the arena can hold at once, within its budget and
+    /// one binding: a caller that never names more keys than that is never evicted.
+    pub fn capacity(&self, ctx: &GpuContext, floats: usize) -> usize {
+        let slot_bytes = 4 * floats.max(1) as u64;
+        usize::try_from(ctx.max_storage_binding().min(self.bytes) / slot_bytes).unwrap_or(usize::MAX)
+    }
+
+    /// The values held under each `(key, floats, version)` of `items` (`None` where the arena
+    /// does not hold it), copied out of their slots together: one submission, one wait.
+    pub fn read_held(&self, ctx: &GpuContext, items: &[(ArenaKey, usize, u64)]) -> crate::Result<Vec<Option<Vec<f32>>>> {
+        let slots: Vec<Option<usize>> = items.iter().map(|&(key, floats, version)| self.holding(Some(key), floats, version)).collect();
+        let total: u64 = items.iter().zip(&slots).filter(|(_, s)| s.is_some()).map(|(&(_, floats, _), _)| 4 * floats as u64).sum();
+        if total == 0 {
+            return Ok(vec![None; items.len()]);
+        }
+        let staging = ctx.device().create_buffer(&wgpu::BufferDescriptor {
+            label: Some(self.label),
+            size: total,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(self.label) });
+        let mut at = 0u64;
+        for (&(_, floats, _), slot) in items.iter().zip(&slots) {
+            if let Some(i) = slot {
+                enc.copy_buffer_to_buffer(&self.data, 4 * (i * self.slot_floats) as u64, &staging, at, 4 * floats as u64);
+                at += 4 * floats as u64;
+            }
+        }
+        ctx.ledger().submitted();
+        ctx.queue().submit(Some(enc.finish()));
+        let bytes = ctx.read_buffer(&staging, total)?;
+        let values: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
+        let mut at = 0usize;
+        Ok(items
+            .iter()
+            .zip(slots)
+            .map(|(&(_, floats, _), slot)| {
+                slot.map(|_| {
+                    at += floats;
+                    values[at - floats..at].to_vec()
+                })
+            })
+            .collect())
+    }
+
+    fn place_inner<'d>(&mut self, ctx: &GpuContext, items: &[(Option<ArenaKey>, usize)], versions: &[u64], upload: impl Fn(usize) -> Fill<'d>) -> Option<Vec<u32>> {
         let largest = items.iter().map(|&(_, floats)| floats).max()?;
         let mut keyed: Vec<ArenaKey> = items.iter().filter_map(|&(k, _)| k).collect();
         keyed.sort_unstable();
@@ -151,7 +222,7 @@ impl Arena {
     /// The slot holding `key` at `version`, else the slot `values` is uploaded into: the one
     /// holding `key` at another version or length, a free one, else one that this call has not
     /// used, an earlier call's unkeyed array first, then the least recently used.
-    fn slot_of<'d>(&mut self, ctx: &GpuContext, (key, floats, version): (Option<ArenaKey>, usize, u64), values: impl FnOnce() -> Option<Cow<'d, [f32]>>) -> usize {
+    fn slot_of<'d>(&mut self, ctx: &GpuContext, (key, floats, version): (Option<ArenaKey>, usize, u64), values: impl FnOnce() -> Fill<'d>) -> usize {
         let clock = self.clock;
         if let Some(i) = self.holding(key, floats, version) {
             self.slots[i] = Some(Slot { key, floats, version, used: clock });
@@ -163,12 +234,13 @@ impl Arena {
         });
         let offset = 4 * (i * self.slot_floats) as u64;
         let key = match values() {
-            Some(v) => {
+            Fill::Values(v) => {
                 ctx.write_buffer(&self.data, offset, bytemuck::cast_slice(&v));
                 key
             }
+            Fill::Held => key,
             // Filled by the caller: not held under the key, whose content it may not be.
-            None => None,
+            Fill::OneCall => None,
         };
         self.slots[i] = Some(Slot { key, floats, version, used: clock });
         i

@@ -388,3 +388,34 @@ fn arena_grows_and_keeps_its_arrays() {
     arena.place(&ctx, &[(Some((2, 0)), 4)], |_| Cow::Owned(data(2))).unwrap();
     assert_eq!(ctx.transfers().bytes_up - before, 16);
 }
+
+/// A slot filled on the device is held under its key and version like an upload: found again
+/// without an upload, replaced by a new version in place, and read back with others at one
+/// wait; what is not held reads back as nothing. The capacity bounds the keys that are never
+/// evicted.
+#[test]
+fn arena_holds_what_the_device_filled() {
+    let Some(ctx) = context() else { return };
+    let mut arena = Arena::new(&ctx, "test arena", 64 * 16);
+    assert_eq!(arena.capacity(&ctx, 4), 64, "a 1 KiB budget holds 64 arrays of 4 floats");
+    let uploaded = arena.place_versions(&ctx, &[(Some((1, 0)), 4)], &[3], |_| Cow::Owned(vec![1.0; 4])).unwrap()[0];
+    let filled = arena.place_filled(&ctx, (2, 1), 4, 7).unwrap();
+    assert_ne!(filled, uploaded);
+    // The caller's fill: a device-side copy from another buffer.
+    let src = ctx.device().create_buffer(&wgpu::BufferDescriptor { label: None, size: 16, usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+    ctx.write_buffer(&src, 0, bytemuck::cast_slice(&[5.0f32, 6.0, 7.0, 8.0]));
+    let mut enc = ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    enc.copy_buffer_to_buffer(&src, 0, arena.buffer(), 4 * filled as u64, 16);
+    ctx.queue().submit(Some(enc.finish()));
+    assert!(arena.holds((2, 1), 4, 7) && !arena.holds((2, 1), 4, 8) && !arena.holds((2, 1), 8, 7));
+    let before = ctx.transfers();
+    let again = arena.place_versions(&ctx, &[(Some((2, 1)), 4)], &[7], |_| panic!("version 7 is held")).unwrap()[0];
+    assert_eq!((again, ctx.transfers().bytes_up - before.bytes_up), (filled, 0));
+    let read = arena.read_held(&ctx, &[((2, 1), 4, 7), ((9, 0), 4, 0), ((1, 0), 4, 3), ((1, 0), 4, 4)]).unwrap();
+    assert_eq!(read, vec![Some(vec![5.0, 6.0, 7.0, 8.0]), None, Some(vec![1.0; 4]), None]);
+    assert_eq!(ctx.transfers().syncs - before.syncs, 1, "one wait for both arrays");
+    // A new version filled again takes the key's own slot.
+    assert_eq!(arena.place_filled(&ctx, (2, 1), 4, 9), Some(filled));
+    assert!(arena.holds((2, 1), 4, 9) && !arena.holds((2, 1), 4, 7));
+    assert_eq!(arena.read_held(&ctx, &[((5, 5), 4, 0)]).unwrap(), vec![None]);
+}
