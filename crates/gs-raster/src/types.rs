@@ -142,6 +142,11 @@ pub struct RenderRequest {
     /// L_p on the same device; the host images come back as asked (none of Ñ and D need to).
     /// The CPU backend ignores it.
     pub surface_on_device: bool,
+    /// With `plane_depth` and `surface_on_device`: the plane depth stays in the surface (its
+    /// z) and does not come back, so [`RenderOutput::plane_depth`] is `None` on the wgpu
+    /// backend (e.g. a depth that L_p keeps on the device for later steps). The CPU backend
+    /// ignores it.
+    pub plane_depth_on_device: bool,
 }
 
 impl Default for RenderRequest {
@@ -160,6 +165,7 @@ impl Default for RenderRequest {
             geometry_cut: 0.0,
             color_on_device: false,
             surface_on_device: false,
+            plane_depth_on_device: false,
         }
     }
 }
@@ -180,12 +186,19 @@ impl RenderRequest {
             geometry_cut: 0.0,
             color_on_device: false,
             surface_on_device: false,
+            plane_depth_on_device: false,
         }
     }
     /// The transmittance cut the geometry accumulators apply ([`Self::geometry_cut`]; 0 when
     /// no geometry is blended).
     pub(crate) fn applied_cut(&self) -> f32 {
         if self.geo() { self.geometry_cut } else { 0.0 }
+    }
+    /// What of this request a device backend brings to the host: all of it but a plane
+    /// depth that stays in the surface ([`Self::plane_depth_on_device`]).
+    pub(crate) fn to_host(&self) -> Self {
+        let kept = self.surface_on_device && self.plane_depth_on_device;
+        Self { plane_depth: self.plane_depth && !kept, ..*self }
     }
     /// Whether the geometry accumulators (Ñ, D) are blended.
     pub(crate) fn geo(&self) -> bool {

@@ -189,6 +189,35 @@ fn a_surface_kept_on_the_device_holds_the_host_images() {
     assert!(empty.device_surface.unwrap().read(r.context()).unwrap().iter().all(|v| *v == 0.0));
 }
 
+/// A plane depth kept in the surface (`RenderRequest::plane_depth_on_device`) does not come
+/// back, and the surface's z is, bit for bit, the plane depth a render of it alone reads back
+/// (both are the device's division): a depth kept on the device is the one the host would
+/// have had.
+#[test]
+fn a_plane_depth_kept_in_the_surface_is_the_one_read_back() {
+    let Some(mut r) = gpu(WgpuOptions::default()) else { return };
+    let cam = &cameras(80, 56)[2];
+    let g = random_scene(400, 2, 34, 1.0, (-3.5, -2.0));
+    let depth = RenderRequest { color: false, alpha: false, plane_depth: true, surface_on_device: true, ..RenderRequest::default() };
+    let read = r.render(&g, cam, &depth, &config()).unwrap();
+    let before = r.context().transfers().bytes_down;
+    let kept = r.render(&g, cam, &RenderRequest { plane_depth_on_device: true, ..depth }, &config()).unwrap();
+    let down = r.context().transfers().bytes_down - before;
+    assert!(kept.plane_depth.is_none(), "kept on the device");
+    assert!(down < 80 * 56 * 4, "{down} bytes came back: not a plane");
+    let texels = kept.device_surface.as_ref().expect("the surface").read(r.context()).unwrap();
+    let z: Vec<f32> = texels.chunks_exact(gs_gpu::SURFACE_CHANNELS).map(|t| t[0]).collect();
+    let want = read.plane_depth.as_ref().unwrap().data();
+    assert!(z.iter().zip(want).all(|(a, b)| a.to_bits() == b.to_bits()), "the same bits");
+    assert!(want.iter().filter(|v| **v > 0.0).count() > 100, "a surface in view");
+    // Without the surface it has nowhere to stay: the plane depth comes back.
+    let host = r.render(&g, cam, &RenderRequest { surface_on_device: false, plane_depth_on_device: true, ..depth }, &config()).unwrap();
+    assert_eq!(host.plane_depth.unwrap().data(), want);
+    // The CPU backend ignores it.
+    let cpu = gs_raster::render(&g, cam, &RenderRequest { plane_depth_on_device: true, ..depth }, &config()).unwrap();
+    assert!(cpu.plane_depth.is_some());
+}
+
 #[test]
 fn geometry_gradients_on_the_device_back_propagate_as_on_the_host() {
     let Some(mut r) = gpu(WgpuOptions::default()) else { return };

@@ -54,6 +54,8 @@ impl Readback {
     /// except the `colour` kept on the device (given when the request keeps it there); the
     /// `surface` goes to the device as well.
     pub(super) fn new(request: &RenderRequest, n: u64, npix: u64, staging: BufId, (colour, surface): (Option<DeviceImage>, Option<DeviceImage>)) -> Self {
+        // A plane depth kept in the surface does not come back.
+        let request = &request.to_host();
         let mut planes = Vec::new();
         let host_colour = request.color && colour.is_none();
         if host_colour {
@@ -574,7 +576,7 @@ impl WgpuRasterizer {
             )
         };
         // A colour kept on the device is not assembled here.
-        let on_host = RenderRequest { color: request.color && rb.colour.is_none(), ..*request };
+        let on_host = RenderRequest { color: request.color && rb.colour.is_none(), ..request.to_host() };
         let mut out = crate::pixel::assemble(cam, config, &on_host, &acc, &final_t)?;
         out.device_color = rb.colour.clone();
         out.device_surface = rb.surface.clone();
@@ -593,7 +595,7 @@ impl WgpuRasterizer {
             backward_pairs: counters[6] as u64 | (counters[7] as u64) << 32,
             box_pairs: 0,
         };
-        let geo = if (request.plane_depth || request.expected_depth) && rb.plane_depth.is_none() {
+        let geo = if (on_host.plane_depth || request.expected_depth) && rb.plane_depth.is_none() {
             acc.par_iter().map(|a| [a[3], a[4], a[5], a[6], a[7]]).collect()
         } else {
             Vec::new()
