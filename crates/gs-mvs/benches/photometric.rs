@@ -124,10 +124,11 @@ fn device(c: &mut Criterion, reference: &PhotometricReference<'_, f32>, sources:
     let mut gpu = gs_mvs::PhotometricGpu::new(&ctx).unwrap();
     let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
     let surface = gs_mvs::upload_surface(&ctx, reference).unwrap();
-    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &surface, plane_depth: reference.plane_depth, grey: reference.grey };
+    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &surface, plane_depth: Some(reference.plane_depth), grey: reference.grey };
     let views: Vec<u64> = (0..=sources.len() as u64).collect();
     let versions = vec![0; sources.len()];
-    let keys = gs_mvs::ViewKeys { views: &views, depth_versions: &versions };
+    let keys = gs_mvs::ViewKeys { views: &views, depth_versions: &versions, keep_reference_depth: None };
+    let held: Vec<gs_mvs::DeviceSource<'_>> = sources.iter().map(|&s| s.into()).collect();
     let mut g = c.benchmark_group("photometric_800x600_3src_device");
     eprintln!("device: {}", ctx.description());
     g.sample_size(10);
@@ -138,7 +139,7 @@ fn device(c: &mut Criterion, reference: &PhotometricReference<'_, f32>, sources:
         });
         g.bench_function(format!("L_p, selection on the device, {label}"), |b| {
             b.iter(|| {
-                let started = gpu.start_on_device(&on_device, sources, Some(keys), &config).unwrap();
+                let started = gpu.start_on_device(&on_device, &held, Some(keys), &config).unwrap();
                 gpu.finish_on_device(started).unwrap()
             })
         });

@@ -63,6 +63,11 @@ fn inputs(v: &Views) -> (PhotometricReference<'_, f32>, Vec<PhotometricSource<'_
     (reference, sources)
 }
 
+/// Sources whose depths are on the host, as `start_on_device` takes them.
+fn on_device_sources<'a>(sources: &[PhotometricSource<'a, f32>]) -> Vec<gs_mvs::DeviceSource<'a>> {
+    sources.iter().map(|&s| s.into()).collect()
+}
+
 fn compare(label: &str, v: &Views, config: &PhotometricConfig, g: &mut PhotometricGpu) {
     let (reference, sources) = inputs(v);
     let cpu = photometric_loss(&reference, &sources, config).unwrap();
@@ -173,9 +178,9 @@ fn compare_on_device(label: &str, v: &Views, config: &PhotometricConfig, g: &mut
     let (reference, sources) = inputs(v);
     let cpu = photometric_loss(&reference, &sources, config).unwrap();
     let image = gs_mvs::upload_surface(ctx, &reference).unwrap();
-    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: reference.plane_depth, grey: reference.grey };
+    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: Some(reference.plane_depth), grey: reference.grey };
     let before = ctx.transfers();
-    let started = g.start_on_device(&on_device, &sources, None, config).unwrap();
+    let started = g.start_on_device(&on_device, &on_device_sources(&sources), None, config).unwrap();
     let gs_mvs::PhotometricOnDevice::Device { loss, per_source, gradient } = g.finish_on_device(started).unwrap() else { panic!("{label}: evaluated on the device") };
     let t = ctx.transfers() - before;
     for (k, (a, b)) in cpu.per_source.iter().zip(&per_source).enumerate() {
@@ -231,12 +236,12 @@ fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     let (reference, sources) = inputs(&v);
     let config = PhotometricConfig::default();
     let image = gs_mvs::upload_surface(&ctx, &reference).unwrap();
-    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: reference.plane_depth, grey: reference.grey };
+    let on_device = gs_mvs::SurfaceReference { camera: reference.camera, surface: &image, plane_depth: Some(reference.plane_depth), grey: reference.grey };
     let views: Vec<u64> = (0..=sources.len() as u64).collect();
     let mut call = |versions: &[u64]| {
         let before = ctx.transfers();
-        let keys = gs_mvs::ViewKeys { views: &views, depth_versions: versions };
-        let started = g.start_on_device(&on_device, &sources, Some(keys), &config).unwrap();
+        let keys = gs_mvs::ViewKeys { views: &views, depth_versions: versions, keep_reference_depth: None };
+        let started = g.start_on_device(&on_device, &on_device_sources(&sources), Some(keys), &config).unwrap();
         let gs_mvs::PhotometricOnDevice::Device { loss, per_source, gradient } = g.finish_on_device(started).unwrap() else { panic!("on the device") };
         (ctx.transfers() - before, loss, per_source, gradient.read(&ctx).unwrap())
     };
@@ -253,14 +258,14 @@ fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     // No source: made on the host, with zero gradients.
     let none = g.start_on_device(&on_device, &[], None, &config).unwrap();
     assert!(matches!(g.finish_on_device(none).unwrap(), gs_mvs::PhotometricOnDevice::Host(out) if out.loss == 0.0));
-    let started = g.start_on_device(&on_device, &sources, None, &config).unwrap();
+    let started = g.start_on_device(&on_device, &on_device_sources(&sources), None, &config).unwrap();
     assert!(g.finish(started).is_err());
     let for_host = g.start(&reference, &sources, None, &config).unwrap();
     assert!(g.finish_on_device(for_host).is_err());
-    let short = gs_mvs::ViewKeys { views: &views, depth_versions: &[1] };
-    assert!(g.start_on_device(&on_device, &sources, Some(short), &config).is_err(), "a version for each source");
+    let short = gs_mvs::ViewKeys { views: &views, depth_versions: &[1], keep_reference_depth: None };
+    assert!(g.start_on_device(&on_device, &on_device_sources(&sources), Some(short), &config).is_err(), "a version for each source");
     // A surface of another size is refused with its name.
     let small = gs_gpu::DeviceImage::new(&ctx, "small", 32, 48, gs_gpu::SURFACE_CHANNELS).unwrap();
-    let err = g.start_on_device(&gs_mvs::SurfaceReference { surface: &small, ..on_device }, &sources, None, &config).err().expect("refused").to_string();
+    let err = g.start_on_device(&gs_mvs::SurfaceReference { surface: &small, ..on_device }, &on_device_sources(&sources), None, &config).err().expect("refused").to_string();
     assert!(err.contains("reference surface"), "{err}");
 }

@@ -199,8 +199,10 @@ pub fn encode(config: &TrainConfig, state: &TrainState, elapsed: &Elapsed) -> Ve
     w.f64s(&elapsed.phase_seconds);
     // Version 4: the source-depth memo (slot count, then per slot a flag, iteration, size, depth).
     w.u32(state.source_depths.len() as u32);
+    // A depth on the device alone is read back before a checkpoint (`Trainer::checkpoint`
+    // pulls); one still there is written as absent (rendered again on resume).
     for entry in state.source_depths.entries() {
-        match entry {
+        match entry.as_ref().and_then(|(at, d)| Some((at, d.host()?))) {
             None => w.u32(0),
             Some((at, d)) => {
                 w.u32(1);

@@ -207,13 +207,14 @@ impl LossDevices {
     /// [`LossDevices::start_photometric_loss`] of a reference whose rendered plane is on the
     /// device (the rasterizer's surface image), the gradient image kept there, υ/ω and the
     /// selection made there; each source's depth is kept there under its slot and `versions`
-    /// (the iteration that rendered it).
+    /// (the iteration that rendered it), and with `keep` the reference's too, under that version
+    /// (`gs_mvs::ViewKeys::keep_reference_depth`).
     #[cfg(feature = "wgpu")]
     pub fn start_photometric_loss_on_device<'d>(
         &'d self,
         reference: &gs_mvs::SurfaceReference<'_>,
-        sources: &[gs_mvs::PhotometricSource<'_, f32>],
-        (slots, versions): (&[usize], &[u64]),
+        sources: &[gs_mvs::DeviceSource<'_>],
+        (slots, versions, keep): (&[usize], &[u64], Option<u64>),
         config: &gs_mvs::PhotometricConfig,
     ) -> gs_mvs::Result<Deferred<'d, gs_mvs::PhotometricOnDevice, gs_mvs::MvsError>> {
         let Some(d) = &self.photometric else {
@@ -221,9 +222,45 @@ impl LossDevices {
         };
         let greys = std::iter::once(&reference.grey).chain(sources.iter().map(|s| &s.grey));
         let keys: Vec<u64> = slots.iter().zip(greys).map(|(&slot, g)| view_key(slot, g.width, g.height)).collect();
-        let keys = gs_mvs::ViewKeys { views: &keys, depth_versions: versions };
+        let keys = gs_mvs::ViewKeys { views: &keys, depth_versions: versions, keep_reference_depth: keep };
         let pending = d.borrow_mut().start_on_device(reference, sources, Some(keys), config)?;
         Ok(Deferred::later(move || d.borrow_mut().finish_on_device(pending)))
+    }
+
+    /// Whether the depth memo may keep depths on the device alone: L_p runs there and its
+    /// arena holds the grey image and the depth of every one of `views` training views (each
+    /// at most `floats` values) at once, so that none is ever evicted.
+    pub fn memo_fits(&self, views: usize, floats: usize) -> bool {
+        #[cfg(feature = "wgpu")]
+        return self.photometric.as_ref().is_some_and(|d| d.borrow().holds_every_view(views, floats));
+        #[cfg(not(feature = "wgpu"))]
+        {
+            let _ = (views, floats);
+            false
+        }
+    }
+
+    /// Whether L_p's arena holds the plane depth of training slot `slot` (`pixels` values; its
+    /// grey image `grey` names its key) at `version`.
+    pub fn holds_depth(&self, slot: usize, grey: &gs_core::Image, pixels: usize, version: u64) -> bool {
+        #[cfg(feature = "wgpu")]
+        return self.photometric.as_ref().is_some_and(|d| d.borrow().holds_depth(view_key(slot, grey.width(), grey.height()), pixels, version));
+        #[cfg(not(feature = "wgpu"))]
+        {
+            let _ = (slot, grey, pixels, version);
+            false
+        }
+    }
+
+    /// The plane depths each `(slot, grey image, pixels, version)` of `items` names in L_p's
+    /// arena ([`LossDevices::holds_depth`]), read back at one wait; `None` where it is not held.
+    pub fn held_depths(&self, items: &[(usize, &gs_core::Image, usize, u64)]) -> gs_mvs::Result<Vec<Option<Vec<f32>>>> {
+        #[cfg(feature = "wgpu")]
+        if let Some(d) = &self.photometric {
+            let keys: Vec<_> = items.iter().map(|&(slot, g, pixels, version)| (view_key(slot, g.width(), g.height()), pixels, version)).collect();
+            return d.borrow().held_depths(&keys);
+        }
+        Ok(vec![None; items.len()])
     }
 
     /// Whether L_p's patches run on the device, so that its gradient image may stay there.

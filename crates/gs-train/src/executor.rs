@@ -20,6 +20,7 @@ use crate::params::{Param, adam_step, set_lr};
 use crate::plan::StepPlan;
 use crate::profile::{Clock, Part, StepProfile};
 use crate::refine::RefineReport;
+use crate::source_depths::StoredDepth;
 use crate::terms::{Colour, GradientBuffers, LossValues, SourceInputs, TermInputs};
 use crate::trainer::TrainState;
 use gs_core::{Image, Scene};
@@ -95,6 +96,9 @@ pub struct ReferenceExecutor {
     /// after the next render, whose wait for the device brings it, or before the host reads
     /// the model.
     step: Option<(gs_raster::StartedStep, u64)>,
+    /// Whether the depth memo keeps depths on the device alone
+    /// ([`crate::source_depths::memo_fits_on_device`]), decided at the first step.
+    memo_on_device: Option<bool>,
 }
 
 /// What of a resident model the host's [`TrainState`] lacks: a device step moves the
@@ -114,12 +118,14 @@ impl ReferenceExecutor {
     pub fn new(rasterizer: Rasterizer, views: usize, uses: TermsUsed, smoothing: bool) -> Self {
         let (devices, devices_error) = devices_of(&rasterizer, uses);
         let adam_on_device = rasterizer.backend() == gs_raster::Backend::Wgpu && !smoothing;
-        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device, behind: Behind::default(), step: None }
+        Self { rasterizer, caches: ViewCaches::new(views), devices, devices_error, adam_on_device, behind: Behind::default(), step: None, memo_on_device: None }
     }
 
     /// Moves to `rasterizer` (and its device's loss kernels), keeping the caches; `state`
     /// first receives what the old rasterizer's device kept ([`StepExecutor::release`]).
     pub fn set_rasterizer(&mut self, rasterizer: Rasterizer, uses: TermsUsed, smoothing: bool, state: &mut TrainState) -> Result<()> {
+        // The old device's depths too.
+        self.pull(state)?;
         self.release(state)?;
         let caches = std::mem::replace(&mut self.caches, ViewCaches::new(0));
         *self = Self { caches, ..Self::new(rasterizer, 0, uses, smoothing) };
@@ -232,7 +238,7 @@ impl ReferenceExecutor {
                 depth = crate::source_depths::upsample_depth(&depth, full.width as usize, full.height as usize)?;
             }
             if max_age > 0 {
-                state.source_depths.store(s, it, depth);
+                state.source_depths.store(s, it, StoredDepth::Host(depth));
             } else {
                 rendered.push(depth);
             }
@@ -289,6 +295,16 @@ impl ReferenceExecutor {
         Ok(())
     }
 
+    /// Brings the resident model (parameters, moments, statistics) into `state`.
+    fn pull_model(&mut self, state: &mut TrainState) -> Result<()> {
+        self.check_step()?;
+        if self.behind != Behind::default() {
+            self.rasterizer.read_resident(&mut state.gaussians, Some((&mut state.adam, &mut state.stats)))?;
+            self.behind = Behind::default();
+        }
+        Ok(())
+    }
+
     /// The error of work after the last device step, unless that step diverged: then the
     /// divergence, which explains the failure better.
     fn instead_of(&mut self, error: TrainError) -> TrainError {
@@ -328,12 +344,23 @@ impl StepExecutor for ReferenceExecutor {
         let r = &plan.render;
         let surface_on_device = self.devices.normal_on_device() && (r.normal || r.distance || r.plane_depth);
         let plane_stays = surface_on_device && (plan.photometric.is_none() || self.devices.photometric_on_device());
+        // The memo's depths may stay on the device where L_p reads them there and L_f (on the
+        // host) reads none: then this view's depth stays there too, kept by L_p under this
+        // iteration ([`crate::source_depths`]); elsewhere they come back first.
+        let depths_stay = plane_stays && plan.photometric.is_some() && plan.weights.lambda_f == 0.0;
+        let memo_on_device = *self.memo_on_device.get_or_insert_with(|| crate::source_depths::memo_fits_on_device(run, &self.devices));
+        let keep_depth = (depths_stay && memo_on_device && max_age > 0 && plan.scale == 1).then_some(it);
+        match depths_stay {
+            true => crate::source_depths::drop_lost(&mut state.source_depths, &self.devices, &self.caches, &plan.sources),
+            false => crate::source_depths::bring_back(&mut state.source_depths, &self.devices, &self.caches, Some(&plan.sources))?,
+        }
         let request = RenderRequest {
             radii: !self.adam_on_device,
             normal: r.normal && !plane_stays,
             distance: r.distance && !plane_stays,
             color_on_device,
             surface_on_device,
+            plane_depth_on_device: keep_depth.is_some(),
             ..plan.render
         };
         let (rendered_depths, out) = self
@@ -361,7 +388,8 @@ impl StepExecutor for ReferenceExecutor {
         }
         // Each depth with the iteration that rendered it (its version on a device).
         let memo = &state.source_depths;
-        let depths: Vec<(&Image, u64)> = match max_age {
+        let rendered_depths: Vec<StoredDepth> = rendered_depths.into_iter().map(StoredDepth::Host).collect();
+        let depths: Vec<(&StoredDepth, u64)> = match max_age {
             0 => rendered_depths.iter().map(|d| (d, it)).collect(),
             _ => plan.sources.iter().map(|&s| memo.fresh(s, it, max_age).expect("stored above")).collect(),
         };
@@ -390,6 +418,7 @@ impl StepExecutor for ReferenceExecutor {
             features: self.caches.features(plan.slot),
             sources: &sources,
             devices: &self.devices,
+            keep_depth,
         };
         let mut values = LossValues::default();
         let mut grads = GradientBuffers::default();
@@ -447,12 +476,19 @@ impl StepExecutor for ReferenceExecutor {
             adam_step(&mut state.adam, &mut state.gaussians, &g, it)?;
             profile.add(phase, Part::Optimizer, clock.lap());
         }
-        // The reference's plane depth serves later iterations as this view's source depth.
-        if max_age > 0
-            && plan.scale == 1
-            && let Some(depth) = out.plane_depth
-        {
-            state.source_depths.store(plan.slot, it, depth);
+        // The reference's plane depth serves later iterations as this view's source depth: from
+        // the host, or kept on the device by L_p (where it did not, it is rendered again).
+        if max_age > 0 && plan.scale == 1 {
+            let (w, h) = (camera.width as usize, camera.height as usize);
+            let kept = |grey: Option<&Image>| grey.is_some_and(|g| self.devices.holds_depth(plan.slot, g, w * h, it));
+            match out.plane_depth {
+                Some(depth) => state.source_depths.store(plan.slot, it, StoredDepth::Host(depth)),
+                None if keep_depth.is_some() && kept(self.caches.grey(plan.slot)) => {
+                    state.source_depths.store(plan.slot, it, StoredDepth::Device { width: w, height: h })
+                }
+                None if keep_depth.is_some() => state.source_depths.forget(plan.slot),
+                None => {}
+            }
         }
         Ok(values)
     }
@@ -466,16 +502,13 @@ impl StepExecutor for ReferenceExecutor {
     }
 
     fn pull(&mut self, state: &mut TrainState) -> Result<()> {
-        self.check_step()?;
-        if self.behind != Behind::default() {
-            self.rasterizer.read_resident(&mut state.gaussians, Some((&mut state.adam, &mut state.stats)))?;
-            self.behind = Behind::default();
-        }
-        Ok(())
+        self.pull_model(state)?;
+        crate::source_depths::bring_back(&mut state.source_depths, &self.devices, &self.caches, None)
     }
 
     fn release(&mut self, state: &mut TrainState) -> Result<()> {
-        self.pull(state)?;
+        // The memo's depths stay on the device: density control does not read them.
+        self.pull_model(state)?;
         self.rasterizer.release_resident();
         Ok(())
     }

@@ -80,6 +80,6 @@ pub use plan::{RefinePlan, StepPlan, plan_step};
 pub use profile::{Part, StepProfile};
 pub use refine::RefineReport;
 pub use sh_policy::ShBandDecision;
-pub use source_depths::SourceDepths;
+pub use source_depths::{SourceDepths, StoredDepth};
 pub use terms::{Fold, GradientBuffers, LossTerm, LossValues, TermInputs};
 pub use trainer::{StepReport, TrainState, Trainer};

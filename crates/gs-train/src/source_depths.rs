@@ -7,7 +7,16 @@
 //! [`crate::TrainConfig::source_depth_max_age`] iterations old; an older or missing one is
 //! rendered. 0 renders every time (the paper). The memo is part of the training state and the
 //! checkpoint, so a resumed run stays bit-identical.
+//!
+//! Where L_p runs on the device and its arena holds every view's grey image and depth at once
+//! ([`memo_fits_on_device`]), a reference's depth stays there ([`StoredDepth::Device`]): it
+//! neither comes back from the render nor goes up again as a source. The host reads such
+//! depths back only where it reads them ([`bring_back`]): a checkpoint, L_f, a term made on the
+//! host. The values are the same bits either way (the surface's z is the plane depth a render
+//! reads back), so the memo's place changes no result.
 
+use crate::caches::ViewCaches;
+use crate::devices::LossDevices;
 use crate::error::{Result, TrainError};
 use gs_core::Image;
 
@@ -43,10 +52,45 @@ pub fn upsample_depth(low: &Image, width: usize, height: usize) -> Result<Image>
     Image::from_vec(width, height, 1, out).map_err(|e| TrainError::InvalidConfig(e.to_string()))
 }
 
+/// Where a memo's depth is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StoredDepth {
+    /// On the host.
+    Host(Image),
+    /// On the device alone, `width × height` values in L_p's arena (kept there by the step that
+    /// rendered the view as its reference: docs/architecture.md §GPU); the host reads it back
+    /// when it needs it ([`crate::executor::StepExecutor::pull`], a step whose terms read it on
+    /// the host).
+    Device {
+        /// Columns.
+        width: usize,
+        /// Rows.
+        height: usize,
+    },
+}
+
+impl StoredDepth {
+    /// The depth's values: `width × height`.
+    pub fn pixels(&self) -> usize {
+        match self {
+            StoredDepth::Host(d) => d.width() * d.height(),
+            StoredDepth::Device { width, height } => width * height,
+        }
+    }
+
+    /// The depth on the host, if it is there.
+    pub fn host(&self) -> Option<&Image> {
+        match self {
+            StoredDepth::Host(d) => Some(d),
+            StoredDepth::Device { .. } => None,
+        }
+    }
+}
+
 /// The last rendered plane depth of each training slot and the iteration that rendered it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SourceDepths {
-    entries: Vec<Option<(u64, Image)>>,
+    entries: Vec<Option<(u64, StoredDepth)>>,
 }
 
 impl SourceDepths {
@@ -55,13 +99,13 @@ impl SourceDepths {
         Self { entries: vec![None; views] }
     }
 
-    /// The memo of stored entries (one per training slot).
+    /// The memo of stored entries on the host (one per training slot).
     pub fn from_entries(entries: Vec<Option<(u64, Image)>>) -> Self {
-        Self { entries }
+        Self { entries: entries.into_iter().map(|e| e.map(|(at, d)| (at, StoredDepth::Host(d)))).collect() }
     }
 
     /// The entries, one per training slot.
-    pub fn entries(&self) -> &[Option<(u64, Image)>] {
+    pub fn entries(&self) -> &[Option<(u64, StoredDepth)>] {
         &self.entries
     }
 
@@ -78,7 +122,7 @@ impl SourceDepths {
     /// The depth of `slot` and the iteration that rendered it (the version under which a device
     /// keeps it), if that was at most `max_age` iterations before `iteration` (never with
     /// `max_age` 0).
-    pub fn fresh(&self, slot: usize, iteration: u64, max_age: u64) -> Option<(&Image, u64)> {
+    pub fn fresh(&self, slot: usize, iteration: u64, max_age: u64) -> Option<(&StoredDepth, u64)> {
         match self.entries.get(slot)? {
             Some((at, depth)) if max_age > 0 && iteration.saturating_sub(*at) <= max_age => Some((depth, *at)),
             _ => None,
@@ -86,16 +130,82 @@ impl SourceDepths {
     }
 
     /// Records `depth` as rendered for `slot` at `iteration` (ignored for a slot out of range).
-    pub fn store(&mut self, slot: usize, iteration: u64, depth: Image) {
+    pub fn store(&mut self, slot: usize, iteration: u64, depth: StoredDepth) {
         if let Some(e) = self.entries.get_mut(slot) {
             *e = Some((iteration, depth));
         }
     }
 
-    /// Bytes held.
-    pub fn bytes(&self) -> usize {
-        self.entries.iter().flatten().map(|(_, d)| d.data().len() * 4).sum()
+    /// Forgets the depth of `slot` (one the device no longer holds: it is rendered again).
+    pub fn forget(&mut self, slot: usize) {
+        if let Some(e) = self.entries.get_mut(slot) {
+            *e = None;
+        }
     }
+
+    /// The slots whose depths are on the device alone, among `slots` (all when `None`).
+    pub fn on_device(&self, slots: Option<&[usize]>) -> Vec<usize> {
+        let held = |s: &usize| matches!(self.entries.get(*s), Some(Some((_, StoredDepth::Device { .. }))));
+        match slots {
+            Some(slots) => slots.iter().copied().filter(held).collect(),
+            None => (0..self.entries.len()).filter(held).collect(),
+        }
+    }
+
+    /// Bytes held on the host.
+    pub fn bytes(&self) -> usize {
+        self.entries.iter().flatten().filter_map(|(_, d)| d.host()).map(|d| d.data().len() * 4).sum()
+    }
+}
+
+/// Whether the memo may keep depths on the device alone for this run: every training view has
+/// one size, and L_p's arena on the device holds every view's grey image (at `ncc_scale`) and
+/// depth at once, so that none is ever evicted.
+pub(crate) fn memo_fits_on_device(run: &crate::executor::RunInputs<'_>, devices: &LossDevices) -> bool {
+    let mut sizes = run.train_views.iter().map(|&v| (run.scene.views[v].camera.width as usize, run.scene.views[v].camera.height as usize));
+    let Some((w, h)) = sizes.next() else { return false };
+    let s = run.config.ncc_scale as usize;
+    sizes.all(|size| size == (w, h)) && devices.memo_fits(run.train_views.len(), w * h * s * s)
+}
+
+/// The key of `slot`'s depth on the device and its version and size, if it is on the device
+/// alone and the slot's grey image (which names the key) is cached.
+fn device_entry<'c>(memo: &SourceDepths, caches: &'c ViewCaches, slot: usize) -> Option<(&'c Image, u64, usize, usize)> {
+    match memo.entries.get(slot)? {
+        Some((at, StoredDepth::Device { width, height })) => Some((caches.grey(slot)?, *at, *width, *height)),
+        _ => None,
+    }
+}
+
+/// Forgets the depths of `slots` on the device alone that the device does not hold (rendered
+/// again when needed): the arena is sized never to evict them, so this only guards.
+pub(crate) fn drop_lost(memo: &mut SourceDepths, devices: &LossDevices, caches: &ViewCaches, slots: &[usize]) {
+    for &s in &memo.on_device(Some(slots)) {
+        let held = device_entry(memo, caches, s).is_some_and(|(grey, at, w, h)| devices.holds_depth(s, grey, w * h, at));
+        if !held {
+            memo.forget(s);
+        }
+    }
+}
+
+/// Reads the depths of `slots` (all when `None`) that are on the device alone back to the host,
+/// at one wait; one the device no longer holds is forgotten (rendered again when needed).
+pub(crate) fn bring_back(memo: &mut SourceDepths, devices: &LossDevices, caches: &ViewCaches, slots: Option<&[usize]>) -> Result<()> {
+    let on_device = memo.on_device(slots);
+    if on_device.is_empty() {
+        return Ok(());
+    }
+    let found: Vec<(usize, Option<(&Image, u64, usize, usize)>)> = on_device.iter().map(|&s| (s, device_entry(memo, caches, s))).collect();
+    let items: Vec<_> = found.iter().filter_map(|&(s, e)| e.map(|(grey, at, w, h)| (s, grey, w * h, at))).collect();
+    let mut read = devices.held_depths(&items)?.into_iter();
+    for (s, entry) in found {
+        let values = entry.and_then(|_| read.next().flatten());
+        match (entry, values) {
+            (Some((_, at, w, h)), Some(v)) => memo.store(s, at, StoredDepth::Host(Image::from_vec(w, h, 1, v)?)),
+            _ => memo.forget(s),
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -136,12 +246,20 @@ mod tests {
     fn a_depth_is_reused_until_it_is_too_old() {
         let mut m = SourceDepths::new(3);
         assert!(m.fresh(1, 10, 50).is_none(), "nothing stored yet");
-        m.store(1, 10, Image::filled(2, 2, 1, 3.0).unwrap());
-        assert_eq!(m.fresh(1, 60, 50).map(|(d, at)| (d.get(0, 0, 0), at)), Some((3.0, 10)));
+        m.store(1, 10, StoredDepth::Host(Image::filled(2, 2, 1, 3.0).unwrap()));
+        assert_eq!(m.fresh(1, 60, 50).map(|(d, at)| (d.host().unwrap().get(0, 0, 0), at)), Some((3.0, 10)));
         assert!(m.fresh(1, 61, 50).is_none(), "51 iterations old");
         assert!(m.fresh(1, 10, 0).is_none(), "max age 0 renders every time");
         assert!(m.fresh(0, 10, 50).is_none() && m.fresh(7, 10, 50).is_none());
-        m.store(9, 10, Image::filled(2, 2, 1, 1.0).unwrap());
+        m.store(9, 10, StoredDepth::Host(Image::filled(2, 2, 1, 1.0).unwrap()));
         assert_eq!(m.bytes(), 16);
+        // A depth on the device is served like one on the host, costs the host nothing, and
+        // is listed for its readback until forgotten.
+        m.store(2, 20, StoredDepth::Device { width: 4, height: 3 });
+        assert_eq!(m.fresh(2, 30, 50).map(|(d, at)| (d.pixels(), d.host().is_none(), at)), Some((12, true, 20)));
+        assert_eq!((m.bytes(), m.on_device(None), m.on_device(Some(&[1, 2]))), (16, vec![2], vec![2]));
+        assert!(m.on_device(Some(&[0, 1])).is_empty());
+        m.forget(2);
+        assert!(m.fresh(2, 30, 50).is_none() && m.on_device(None).is_empty());
     }
 }

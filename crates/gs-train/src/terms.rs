@@ -11,9 +11,10 @@
 //! N̂); the executor never scales a term's gradient itself.
 
 use crate::config::LossWeights;
-use crate::error::Result;
+use crate::error::{Result, TrainError};
 use crate::profile::Part;
 use crate::devices::LossDevices;
+use crate::source_depths::StoredDepth;
 use gs_core::{Camera, Gaussians, Image};
 use gs_features::FeatureMap;
 use gs_losses::{EdgeGuide, ImageLossConfig, NormalLossConfig, opacity_entropy, smallest_scale_mean};
@@ -176,14 +177,22 @@ pub struct SourceInputs<'a> {
     pub slot: usize,
     /// Its camera.
     pub camera: &'a Camera,
-    /// Its rendered plane depth (no gradient flows into sources).
-    pub plane_depth: &'a Image,
+    /// Its rendered plane depth (no gradient flows into sources): on the host, or on the
+    /// device alone, where L_p reads it there (the executor reads it back for a term that
+    /// needs it on the host).
+    pub plane_depth: &'a StoredDepth,
     /// The iteration that rendered it: a device keeps the depth under this version.
     pub depth_version: u64,
     /// Its grey image (L_p).
     pub grey: Option<&'a Image>,
     /// Its feature map (L_f).
     pub features: Option<&'a FeatureMap>,
+}
+
+/// A source's plane depth for a term made on the host (the executor reads depths on the
+/// device back before such a term runs).
+fn on_host(depth: &StoredDepth) -> Result<&Image> {
+    depth.host().ok_or_else(|| TrainError::InvalidConfig("a source plane depth on the device, read by a term on the host".into()))
 }
 
 /// The colour L_I compares with the photo: on the host (the render's, exposure-corrected when
@@ -221,6 +230,9 @@ pub struct TermInputs<'a> {
     pub sources: &'a [SourceInputs<'a>],
     /// The terms' device executors (a term without one runs on the CPU, the reference).
     pub devices: &'a LossDevices,
+    /// The version under which L_p on the device keeps the reference's plane depth there for
+    /// the depth memo (then the render did not bring it to the host); `None` keeps nothing.
+    pub keep_depth: Option<u64>,
 }
 
 /// One term (or a group of terms that share their computation) of the loss.
@@ -408,7 +420,7 @@ impl PhotometricTerm {
             .iter()
             .map(|s| {
                 let grey = needed(s.grey, "a source grey image")?;
-                Ok(PhotometricSource { camera: s.camera, plane_depth: s.plane_depth.into(), grey: grey.into() })
+                Ok(PhotometricSource { camera: s.camera, plane_depth: on_host(s.plane_depth)?.into(), grey: grey.into() })
             })
             .collect()
     }
@@ -420,12 +432,23 @@ impl PhotometricTerm {
         let reference = gs_mvs::SurfaceReference {
             camera: x.camera,
             surface,
-            plane_depth: channel(&x.render.plane_depth, "plane depth")?.into(),
+            plane_depth: x.render.plane_depth.as_ref().map(Into::into),
             grey: needed(x.grey, "the reference grey image")?.into(),
         };
         let slots: Vec<usize> = std::iter::once(x.slot).chain(x.sources.iter().map(|s| s.slot)).collect();
         let versions: Vec<u64> = x.sources.iter().map(|s| s.depth_version).collect();
-        let started = x.devices.start_photometric_loss_on_device(&reference, &Self::sources(x)?, (&slots, &versions), &self.config)?;
+        let sources = x
+            .sources
+            .iter()
+            .map(|s| {
+                let plane_depth = match s.plane_depth {
+                    StoredDepth::Host(d) => gs_mvs::SourceDepth::Host(d.into()),
+                    StoredDepth::Device { .. } => gs_mvs::SourceDepth::Held,
+                };
+                Ok(gs_mvs::DeviceSource { camera: s.camera, plane_depth, grey: needed(s.grey, "a source grey image")?.into() })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let started = x.devices.start_photometric_loss_on_device(&reference, &sources, (&slots, &versions, x.keep_depth), &self.config)?;
         Ok(Fold::new(move |grads, values| {
             match started.wait()? {
                 gs_mvs::PhotometricOnDevice::Device { loss, gradient, .. } => {
@@ -470,7 +493,7 @@ impl FeatureTerm {
         let sources = x
             .sources
             .iter()
-            .map(|s| Ok(view(s.camera, s.plane_depth, needed(s.features, "a source feature map")?, s.slot)))
+            .map(|s| Ok(view(s.camera, on_host(s.plane_depth)?, needed(s.features, "a source feature map")?, s.slot)))
             .collect::<Result<Vec<AlignView<'_>>>>()?;
         let lf = x.devices.feature_loss(&reference, &sources)?;
         values.features = Some(lf.loss);

@@ -13,12 +13,14 @@
 //! by view ([`PhotometricGpu::loss_of_views`], [`ViewKeys`]) they stay there between calls and
 //! are uploaded once (a depth once a version).
 
+mod depths;
 mod outcome;
 mod reduce;
 mod reference;
 mod select;
 mod submit;
 
+pub use depths::{DeviceSource, SourceDepth, keep_depth_kernel_source};
 pub use outcome::{PendingPhotometric, PhotometricOnDevice};
 pub use reduce::reduce_kernel_source;
 pub use reference::{SurfaceReference, upload_surface};
@@ -33,7 +35,7 @@ use crate::photometric::{
 };
 use reference::RefView;
 use crate::visibility::{Visibility, visibility_unchecked};
-use crate::geometry::PairGeometry;
+use crate::geometry::{MapView, PairGeometry};
 use rayon::prelude::*;
 use gs_gpu::{Arena, Binding, BufId, BufferPool, DeviceImage, Dispatcher, GpuContext, Kernel, ShrinkPolicy};
 use std::borrow::Cow;
@@ -168,6 +170,8 @@ pub struct PhotometricGpu {
     /// The grey images (and the sources' plane depths), kept per view between calls when the
     /// caller keys them ([`PhotometricGpu::loss_of_views`]).
     greys: Arena,
+    /// Copies a reference's plane depth into the arena ([`ViewKeys::keep_reference_depth`]).
+    keep: Kernel,
 }
 
 /// The keys under which [`PhotometricGpu::start_on_device`] keeps its per-view arrays on the
@@ -180,6 +184,10 @@ pub struct ViewKeys<'a> {
     /// One per source: the version of its plane depth under its view's key (e.g. the iteration
     /// that rendered it); another version is uploaded again, into the same slot.
     pub depth_versions: &'a [u64],
+    /// The version under which the reference's plane depth (its surface's z) stays in the
+    /// arena, under the reference's key, for later evaluations that take this view as a
+    /// source ([`SourceDepth::Held`]); `None` keeps nothing.
+    pub keep_reference_depth: Option<u64>,
 }
 
 /// How much device memory the arena of grey images holds (bytes), at most one storage binding.
@@ -262,7 +270,8 @@ impl PhotometricGpu {
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<NccFrame>() as u64);
         let greys = Arena::new(&ctx, "ncc greys", ARENA_BYTES);
-        Ok(Self { ctx, pool, disp, kernel, sums, selection, bufs, greys })
+        let keep = depths::keep_depth_kernel(&ctx)?;
+        Ok(Self { ctx, pool, disp, kernel, sums, selection, bufs, greys, keep })
     }
 
     /// The adapter, in words.
@@ -320,13 +329,15 @@ impl PhotometricGpu {
     /// rasterizer's surface image) and whose gradient image stays there (a `DeviceImage` of
     /// gs-gpu `PlaneGrad`s, for the rasterizer's backward there): neither crosses to the host,
     /// nor do υ/ω and the selected patches, which are made on the device from the surface's
-    /// plane depth and the sources' (`keys` holds the sources' depths by version). Only each
-    /// (source, row)'s sums come back, and, when a source may exceed the sampling cap, its
-    /// candidate counts first (one more wait). [`PhotometricGpu::finish_on_device`] reads it.
+    /// plane depth and the sources' (`keys` holds the sources' depths by version; a
+    /// [`SourceDepth::Held`] one is there already). Only each (source, row)'s sums come back,
+    /// and, when a source may exceed the sampling cap, its candidate counts first (one more
+    /// wait). With [`ViewKeys::keep_reference_depth`] the reference's depth stays in the arena.
+    /// [`PhotometricGpu::finish_on_device`] reads it.
     pub fn start_on_device(
         &mut self,
         reference: &SurfaceReference<'_>,
-        sources: &[PhotometricSource<'_, f32>],
+        sources: &[DeviceSource<'_>],
         keys: Option<ViewKeys<'_>>,
         config: &PhotometricConfig,
     ) -> Result<PendingPhotometric> {
@@ -336,12 +347,30 @@ impl PhotometricGpu {
             let (v, d) = (k.views.len(), k.depth_versions.len());
             return Err(MvsError::InvalidInput(format!("{v} view keys and {d} depth versions for a reference and {} sources", sources.len())));
         }
+        self.check_held(sources, keys)?;
+        let on_host: Vec<PhotometricSource<'_, f32>> = sources.iter().map(|s| s.on_host(None)).collect();
         let view = RefView::of_device(reference, &self.ctx)?;
-        view.check(sources, config)?;
-        if let Some(pending) = self.start_selecting(&view, sources, keys, config)? {
-            return Ok(pending);
+        view.check(&on_host, config)?;
+        let held: Vec<bool> = sources.iter().map(DeviceSource::held).collect();
+        let pending = match self.start_selecting(&view, &on_host, &held, keys, config)? {
+            Some(pending) => pending,
+            None => {
+                // The host selects: every depth comes to the host first.
+                let held = self.read_back_held(sources, keys)?;
+                let on_host: Vec<PhotometricSource<'_, f32>> = sources.iter().zip(&held).map(|(s, d)| s.on_host(d.as_deref())).collect();
+                let z = match reference.plane_depth {
+                    Some(_) => None,
+                    None => Some(view.surface_depth(&self.ctx)?),
+                };
+                let view = RefView { plane_depth: z.as_deref().map_or(view.plane_depth, |z| MapView { data: z, ..view.plane_depth }), ..view };
+                self.start_on_host(view, &on_host, keys.map(|k| k.views), config, true)?
+            }
+        };
+        // After the evaluation's submission, which reads the arena as it was.
+        if let (Some(k), Some(version)) = (keys, keys.and_then(|k| k.keep_reference_depth)) {
+            self.keep_depth(reference.surface, k.views[0], version)?;
         }
-        self.start_on_host(view, sources, keys.map(|k| k.views), config, true)
+        Ok(pending)
     }
 
     /// An evaluation of `reference` (its inputs checked by the caller) whose υ/ω and selection

@@ -1,7 +1,7 @@
 //! The reference view of a device L_p evaluation: its rendered plane (Ñ, D) given on the host,
 //! or kept on the device in the rasterizer's surface image, so that it never crosses to the
-//! host (docs/architecture.md §GPU). The host's share of L_p (υ/ω, the pixel selection) reads
-//! the plane depth and the grey image, which are on the host either way.
+//! host (docs/architecture.md §GPU). Where the host selects L_p's pixels (υ/ω, the pixel
+//! selection) it reads the plane depth, from the surface if it does not have it.
 
 use super::gpu_error;
 use crate::error::{MvsError, Result};
@@ -18,8 +18,9 @@ pub struct SurfaceReference<'a> {
     pub camera: &'a Camera,
     /// The rendered surface: gs-gpu `SurfaceTexel`s of the camera's size (Ñ and D are read).
     pub surface: &'a DeviceImage,
-    /// Plane depth, 1 channel (υ, ω and the selection, on the host).
-    pub plane_depth: MapView<'a, f32>,
+    /// Plane depth, 1 channel, where the host has it; `None` reads the surface's z: on the
+    /// device where υ, ω and the selection run there, and read back where the host selects.
+    pub plane_depth: Option<MapView<'a, f32>>,
     /// Grey GT reference image, 1 channel, W×H or s·W × s·H.
     pub grey: MapView<'a, f32>,
 }
@@ -31,7 +32,10 @@ pub(super) enum Plane<'a> {
     Device(&'a DeviceImage),
 }
 
-/// What an evaluation reads of its reference.
+/// What an evaluation reads of its reference. A plane depth the host does not have
+/// ([`SurfaceReference::plane_depth`] `None`) is an empty view of the camera's size: the device
+/// selection reads the surface's z, and the host's code gets it from
+/// [`RefView::surface_depth`] first.
 #[derive(Clone, Copy)]
 pub(super) struct RefView<'a> {
     pub camera: &'a Camera,
@@ -61,7 +65,17 @@ impl<'a> RefView<'a> {
                 got: format!("{}x{}x{}", s.width(), s.height(), s.channels()),
             });
         }
-        Ok(Self { camera: r.camera, plane_depth: r.plane_depth, grey: r.grey, plane: Plane::Device(s) })
+        let plane_depth = r.plane_depth.unwrap_or(MapView { width: w, height: h, channels: 1, data: &[] });
+        Ok(Self { camera: r.camera, plane_depth, grey: r.grey, plane: Plane::Device(s) })
+    }
+
+    /// The plane depth of a reference whose plane is on the device (its surface's z), read
+    /// back; an error for a plane on the host.
+    pub fn surface_depth(&self, ctx: &GpuContext) -> Result<Vec<f32>> {
+        let Plane::Device(surface) = self.plane else {
+            return Err(MvsError::InvalidInput("a plane on the host has no surface to read".into()));
+        };
+        Ok(read_texels(ctx, surface)?.iter().map(|t| t.z).collect())
     }
 
     /// The checks of [`photometric_loss`]'s inputs.
@@ -78,11 +92,15 @@ impl<'a> RefView<'a> {
         match self.plane {
             Plane::Host { normal, distance } => photometric_loss(&self.with_plane(normal, distance), sources, config),
             Plane::Device(surface) => {
-                let texels: Vec<SurfaceTexel> = bytemuck::pod_collect_to_vec(&ctx.download(surface.buffer(), 0, surface.bytes()).map_err(gpu_error)?);
+                let texels = read_texels(ctx, surface)?;
                 let normal: Vec<f32> = texels.iter().flat_map(|t| t.normal).collect();
                 let distance: Vec<f32> = texels.iter().map(|t| t.distance).collect();
+                let z: Vec<f32> = texels.iter().map(|t| t.z).collect();
                 let (w, h) = (surface.width(), surface.height());
-                let reference = self.with_plane(MapView::new(w, h, 3, &normal)?, MapView::new(w, h, 1, &distance)?);
+                let mut reference = self.with_plane(MapView::new(w, h, 3, &normal)?, MapView::new(w, h, 1, &distance)?);
+                if reference.plane_depth.data.is_empty() {
+                    reference.plane_depth = MapView::new(w, h, 1, &z)?;
+                }
                 photometric_loss(&reference, sources, config)
             }
         }
@@ -95,6 +113,11 @@ impl<'a> RefView<'a> {
     {
         PhotometricReference { camera: self.camera, normal, distance, plane_depth: self.plane_depth, grey: self.grey }
     }
+}
+
+/// The texels of a surface on the device, read back.
+fn read_texels(ctx: &GpuContext, surface: &DeviceImage) -> Result<Vec<SurfaceTexel>> {
+    Ok(bytemuck::pod_collect_to_vec(&ctx.download(surface.buffer(), 0, surface.bytes()).map_err(gpu_error)?))
 }
 
 /// A host reference's rendered surface as a device image of `SurfaceTexel`s (plane depth z,

@@ -138,6 +138,7 @@ impl PhotometricGpu {
         &mut self,
         reference: &RefView<'_>,
         sources: &[PhotometricSource<'_, f32>],
+        held: &[bool],
         keys: Option<ViewKeys<'_>>,
         config: &PhotometricConfig,
     ) -> Result<Option<PendingPhotometric>> {
@@ -155,7 +156,7 @@ impl PhotometricGpu {
             return Ok(None);
         }
         let geometry = sources.iter().map(|s| patch_geometry((reference.camera, &reference.grey), s)).collect::<Result<Vec<_>>>()?;
-        let Some(offsets) = self.place_views(reference, sources, keys) else {
+        let Some(offsets) = self.place_views(reference, sources, held, keys)? else {
             return Ok(None);
         };
         let by_ref: Vec<_> = geometry.iter().map(|(g, s)| (g, *s)).collect();
@@ -217,15 +218,35 @@ impl PhotometricGpu {
 
     /// The grey images (the reference's first) and then the sources' plane depths in the
     /// arena, each under its view's key (a depth by its version): their offsets, or `None`
-    /// when they do not fit.
-    fn place_views(&mut self, reference: &RefView<'_>, sources: &[PhotometricSource<'_, f32>], keys: Option<ViewKeys<'_>>) -> Option<Vec<u32>> {
+    /// when they do not fit. The depths the arena holds alone (`held`) are placed first, so
+    /// that no upload of this call evicts them; an error if one is gone all the same.
+    fn place_views(&mut self, reference: &RefView<'_>, sources: &[PhotometricSource<'_, f32>], held: &[bool], keys: Option<ViewKeys<'_>>) -> Result<Option<Vec<u32>>> {
         let n = sources.len();
         let greys = std::iter::once(reference.grey.data).chain(sources.iter().map(|s| s.grey.data));
         let arrays: Vec<&[f32]> = greys.chain(sources.iter().map(|s| s.plane_depth.data)).collect();
         let key = |i: usize| keys.map(|k| if i <= n { (k.views[i], 0) } else { (k.views[i - n], DEPTH_PART) });
-        let items: Vec<_> = arrays.iter().enumerate().map(|(i, a)| (key(i), a.len())).collect();
-        let versions: Vec<u64> = (0..arrays.len()).map(|i| keys.filter(|_| i > n).map_or(0, |k| k.depth_versions[i - n - 1])).collect();
-        self.greys.place_versions(&self.ctx, &items, &versions, |i| Cow::Borrowed(arrays[i]))
+        let is_held = |i: usize| i > n && held.get(i - n - 1).copied().unwrap_or(false);
+        let mut order: Vec<usize> = (0..arrays.len()).filter(|&i| is_held(i)).collect();
+        order.extend((0..arrays.len()).filter(|&i| !is_held(i)));
+        // A depth's length is its size's: a held one has no values on the host.
+        let floats = |i: usize| if i > n { sources[i - n - 1].plane_depth.width * sources[i - n - 1].plane_depth.height } else { arrays[i].len() };
+        let items: Vec<_> = order.iter().map(|&i| (key(i), floats(i))).collect();
+        let versions: Vec<u64> = order.iter().map(|&i| keys.filter(|_| i > n).map_or(0, |k| k.depth_versions[i - n - 1])).collect();
+        let lost = std::cell::Cell::new(None);
+        let placed = self.greys.place_versions(&self.ctx, &items, &versions, |j| {
+            if is_held(order[j]) {
+                lost.set(Some(order[j] - n - 1));
+            }
+            Cow::Borrowed(arrays[order[j]])
+        });
+        if let Some(k) = lost.get() {
+            return Err(crate::error::MvsError::InvalidInput(format!("source {k}'s plane depth was evicted from the device")));
+        }
+        Ok(placed.map(|at| {
+            let mut offsets = vec![0; at.len()];
+            order.iter().zip(at).for_each(|(&i, o)| offsets[i] = o);
+            offsets
+        }))
     }
 
     /// A capped selection's host share (`n` sources of `h` rows): submits the visibility passes
