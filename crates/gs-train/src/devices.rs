@@ -240,6 +240,17 @@ impl LossDevices {
         }
     }
 
+    /// Keeps the plane depth of a render's `surface` (on the device) in L_p's arena as training
+    /// slot `slot`'s at `version` (its grey image `grey` names its key); `false` where it was
+    /// not kept (no L_p kernels, or no room).
+    #[cfg(feature = "wgpu")]
+    pub fn keep_depth(&self, slot: usize, grey: &gs_core::Image, surface: &gs_gpu::DeviceImage, version: u64) -> gs_mvs::Result<bool> {
+        match &self.photometric {
+            Some(d) => d.borrow_mut().keep_depth(surface, view_key(slot, grey.width(), grey.height()), version),
+            None => Ok(false),
+        }
+    }
+
     /// Whether L_p's arena holds the plane depth of training slot `slot` (`pixels` values; its
     /// grey image `grey` names its key) at `version`.
     pub fn holds_depth(&self, slot: usize, grey: &gs_core::Image, pixels: usize, version: u64) -> bool {

@@ -194,13 +194,14 @@ impl ReferenceExecutor {
     /// the reference view's render `request`. On a rasterizer that renders views together (a
     /// device) they are one call and one wait, timed as the render; on the CPU the sources
     /// first, timed apart. Renders are pure, so the grouping changes no value. With reuse on,
-    /// the source depths go into the memo, else they are returned in source order.
+    /// the source depths go into the memo (kept on the device where `on_device`: they never
+    /// come back), else they are returned in source order.
     fn render_views_of_step(
         &mut self,
         run: &RunInputs<'_>,
         state: &mut TrainState,
         plan: &StepPlan,
-        (camera, request): (&gs_core::Camera, &RenderRequest),
+        (camera, request, on_device): (&gs_core::Camera, &RenderRequest, bool),
         (profile, phase, clock): (&mut StepProfile, usize, &mut Clock),
     ) -> Result<(Vec<Image>, gs_raster::RenderOutput)> {
         let (it, max_age) = (plan.iteration, run.config.source_depth_max_age);
@@ -216,7 +217,16 @@ impl ReferenceExecutor {
             .iter()
             .map(|&s| downscaled_camera(&run.scene.views[run.train_views[s]].camera, downscale))
             .collect::<Result<Vec<_>>>()?;
-        let depth_only = RenderRequest { color: false, alpha: false, plane_depth: true, radii: false, ..RenderRequest::default() };
+        let on_device = on_device && max_age > 0 && downscale == 1;
+        let depth_only = RenderRequest {
+            color: false,
+            alpha: false,
+            plane_depth: true,
+            radii: false,
+            surface_on_device: on_device,
+            plane_depth_on_device: on_device,
+            ..RenderRequest::default()
+        };
         let mut views: Vec<(&gs_core::Camera, RenderRequest)> = cameras.iter().map(|c| (c, depth_only)).collect();
         let g = &state.gaussians;
         let mut outs = if self.rasterizer.renders_together() {
@@ -232,6 +242,11 @@ impl ReferenceExecutor {
         profile.add(phase, Part::Render, clock.lap());
         let mut rendered = Vec::new();
         for (&s, source) in missing.iter().zip(outs) {
+            if on_device {
+                let kept = self.keep_source_depth(s, &source, it)?;
+                state.source_depths.store(s, it, kept);
+                continue;
+            }
             let mut depth = source.plane_depth.expect("requested");
             if downscale > 1 {
                 let full = &run.scene.views[run.train_views[s]].camera;
@@ -249,6 +264,28 @@ impl ReferenceExecutor {
 }
 
 impl ReferenceExecutor {
+    /// The memo entry of source `slot`'s depth, rendered at `version` into `out`'s surface on the
+    /// device: kept there in L_p's arena, or (where the arena did not take it) read back.
+    #[cfg(feature = "wgpu")]
+    fn keep_source_depth(&self, slot: usize, out: &gs_raster::RenderOutput, version: u64) -> Result<StoredDepth> {
+        let (Some(surface), Some(grey), Some(ctx)) = (out.device_surface.as_ref(), self.caches.grey(slot), self.rasterizer.gpu_context()) else {
+            return Err(TrainError::InvalidConfig("a source depth kept on the device without its surface, grey image or device".into()));
+        };
+        let (width, height) = (surface.width(), surface.height());
+        if self.devices.keep_depth(slot, grey, surface, version)? {
+            return Ok(StoredDepth::Device { width, height });
+        }
+        let texels = surface.read(ctx).map_err(|e| gs_raster::RasterError::Gpu(e.to_string()))?;
+        let z = texels.chunks_exact(gs_gpu::SURFACE_CHANNELS).map(|t| t[0]).collect();
+        Ok(StoredDepth::Host(Image::from_vec(width, height, 1, z)?))
+    }
+
+    /// Without the device: never asked (no depth stays on a device).
+    #[cfg(not(feature = "wgpu"))]
+    fn keep_source_depth(&self, _: usize, _: &gs_raster::RenderOutput, _: u64) -> Result<StoredDepth> {
+        Err(TrainError::InvalidConfig("a source depth kept on a device in a build without wgpu".into()))
+    }
+
     /// Makes the model resident on the rasterizer's device when Adam runs there and it is
     /// not resident yet (the first step, or the first after a [`StepExecutor::release`]).
     fn take_up(&mut self, state: &TrainState) -> Result<()> {
@@ -364,7 +401,7 @@ impl StepExecutor for ReferenceExecutor {
             ..plan.render
         };
         let (rendered_depths, out) = self
-            .render_views_of_step(run, state, plan, (camera, &request), (profile, phase, &mut clock))
+            .render_views_of_step(run, state, plan, (camera, &request, depths_stay && memo_on_device), (profile, phase, &mut clock))
             .map_err(|e| self.instead_of(e))?;
         // The render's wait brought the last step's divergence flag.
         self.check_step()?;

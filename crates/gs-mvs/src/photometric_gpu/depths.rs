@@ -80,10 +80,14 @@ pub(super) fn keep_depth_kernel(ctx: &GpuContext) -> Result<Kernel> {
 }
 
 impl PhotometricGpu {
-    /// Copies `surface`'s plane depth (each texel's z) into the arena under `key` at `version`,
-    /// where a later evaluation finds it as a [`SourceDepth::Held`]; `false` when the arena
-    /// cannot take it (nothing is then kept).
-    pub(super) fn keep_depth(&mut self, surface: &DeviceImage, key: u64, version: u64) -> Result<bool> {
+    /// Copies `surface`'s plane depth (each texel's z; a rendered surface of gs-gpu
+    /// `SurfaceTexel`s on this executor's device) into the arena under `key` at `version`,
+    /// where a later evaluation finds it as a [`SourceDepth::Held`] (e.g. a source view's depth
+    /// rendered for a step); `false` when the arena cannot take it (nothing is then kept).
+    pub fn keep_depth(&mut self, surface: &DeviceImage, key: u64, version: u64) -> Result<bool> {
+        if !surface.is_on(&self.ctx) || surface.channels() != gs_gpu::SURFACE_CHANNELS {
+            return Err(MvsError::InvalidInput(format!("a depth to keep from a {}-channel image of another device or kind", surface.channels())));
+        }
         let floats = surface.width() * surface.height();
         let Some(offset) = self.greys.place_filled(&self.ctx, (key, DEPTH_PART), floats, version) else {
             return Ok(false);
