@@ -1,7 +1,8 @@
 #![cfg(feature = "wgpu")]
 //! Training on wgpu with the model resident on the device: N + resume N iterations gives the
-//! same state bit for bit as 2N (the parameters and moments come back from the device for the
-//! checkpoint, between two density-control steps), reading the state back mid-run changes
+//! same state bit for bit as 2N (the parameters, the moments and the source-depth memo come
+//! back from the device for the checkpoint, between two density-control steps, in the L_p
+//! phase), reading the state back mid-run changes
 //! nothing of the run, and Adam runs on the device.
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
