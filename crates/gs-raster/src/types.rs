@@ -196,9 +196,9 @@ impl RenderRequest {
     }
     /// What of this request a device backend brings to the host: all of it but a plane
     /// depth that stays in the surface ([`Self::plane_depth_on_device`]).
-    pub(crate) fn to_host(&self) -> Self {
+    pub(crate) fn host_outputs(self) -> Self {
         let kept = self.surface_on_device && self.plane_depth_on_device;
-        Self { plane_depth: self.plane_depth && !kept, ..*self }
+        Self { plane_depth: self.plane_depth && !kept, ..self }
     }
     /// Whether the geometry accumulators (Ñ, D) are blended.
     pub(crate) fn geo(&self) -> bool {

@@ -168,9 +168,12 @@ pub(crate) fn memo_fits_on_device(run: &crate::executor::RunInputs<'_>, devices:
     sizes.all(|size| size == (w, h)) && devices.memo_fits(run.train_views.len(), w * h * s * s)
 }
 
+/// A depth on the device alone: the grey image that names its key, its version and its size.
+type DeviceEntry<'c> = (&'c Image, u64, usize, usize);
+
 /// The key of `slot`'s depth on the device and its version and size, if it is on the device
 /// alone and the slot's grey image (which names the key) is cached.
-fn device_entry<'c>(memo: &SourceDepths, caches: &'c ViewCaches, slot: usize) -> Option<(&'c Image, u64, usize, usize)> {
+fn device_entry<'c>(memo: &SourceDepths, caches: &'c ViewCaches, slot: usize) -> Option<DeviceEntry<'c>> {
     match memo.entries.get(slot)? {
         Some((at, StoredDepth::Device { width, height })) => Some((caches.grey(slot)?, *at, *width, *height)),
         _ => None,
@@ -195,7 +198,7 @@ pub(crate) fn bring_back(memo: &mut SourceDepths, devices: &LossDevices, caches:
     if on_device.is_empty() {
         return Ok(());
     }
-    let found: Vec<(usize, Option<(&Image, u64, usize, usize)>)> = on_device.iter().map(|&s| (s, device_entry(memo, caches, s))).collect();
+    let found: Vec<(usize, Option<DeviceEntry<'_>>)> = on_device.iter().map(|&s| (s, device_entry(memo, caches, s))).collect();
     let items: Vec<_> = found.iter().filter_map(|&(s, e)| e.map(|(grey, at, w, h)| (s, grey, w * h, at))).collect();
     let mut read = devices.held_depths(&items)?.into_iter();
     for (s, entry) in found {

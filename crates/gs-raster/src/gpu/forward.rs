@@ -55,7 +55,7 @@ impl Readback {
     /// `surface` goes to the device as well.
     pub(super) fn new(request: &RenderRequest, n: u64, npix: u64, staging: BufId, (colour, surface): (Option<DeviceImage>, Option<DeviceImage>)) -> Self {
         // A plane depth kept in the surface does not come back.
-        let request = &request.to_host();
+        let request = &request.host_outputs();
         let mut planes = Vec::new();
         let host_colour = request.color && colour.is_none();
         if host_colour {
@@ -576,7 +576,7 @@ impl WgpuRasterizer {
             )
         };
         // A colour kept on the device is not assembled here.
-        let on_host = RenderRequest { color: request.color && rb.colour.is_none(), ..request.to_host() };
+        let on_host = RenderRequest { color: request.color && rb.colour.is_none(), ..request.host_outputs() };
         let mut out = crate::pixel::assemble(cam, config, &on_host, &acc, &final_t)?;
         out.device_color = rb.colour.clone();
         out.device_surface = rb.surface.clone();
