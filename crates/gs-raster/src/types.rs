@@ -196,6 +196,7 @@ impl RenderRequest {
     }
     /// What of this request a device backend brings to the host: all of it but a plane
     /// depth that stays in the surface ([`Self::plane_depth_on_device`]).
+    #[cfg(feature = "wgpu")]
     pub(crate) fn host_outputs(self) -> Self {
         let kept = self.surface_on_device && self.plane_depth_on_device;
         Self { plane_depth: self.plane_depth && !kept, ..self }
