@@ -393,6 +393,9 @@ impl StepExecutor for ReferenceExecutor {
         }
         let request = RenderRequest {
             radii: !self.adam_on_device,
+            // L_nc/L_ns on the device read A from the surface: the alpha (and with it T_final)
+            // need not come back.
+            alpha: r.alpha && !surface_on_device,
             normal: r.normal && !plane_stays,
             distance: r.distance && !plane_stays,
             color_on_device,

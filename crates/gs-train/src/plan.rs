@@ -76,6 +76,7 @@ impl StepPlan {
                 consistency: p.normal_consistency,
                 smoothing: p.normal_smoothing,
                 config: NormalLossConfig { tau: config.weights.tau, gate: config.ns_gate, ..NormalLossConfig::default() },
+                with_alpha: self.render.alpha,
             }));
         }
         if let Some(pc) = &self.photometric {

@@ -334,6 +334,9 @@ pub struct NormalTerms {
     pub smoothing: bool,
     /// τ and the gate of L_ns.
     pub config: NormalLossConfig,
+    /// Whether the rendered A counts (the plan renders it with these terms): on the device
+    /// the surface carries A, so the render need not bring it to the host.
+    pub with_alpha: bool,
 }
 
 impl LossTerm for NormalTerms {
@@ -351,7 +354,7 @@ impl LossTerm for NormalTerms {
         let guide = needed(x.guide, "the edge guide")?;
         #[cfg(feature = "wgpu")]
         if let Some(surface) = &r.device_surface {
-            let started = x.devices.start_normal_losses_on_device(surface, r.alpha.is_some(), guide, &x.camera.intrinsics, x.slot, &cfg)?;
+            let started = x.devices.start_normal_losses_on_device(surface, self.with_alpha, guide, &x.camera.intrinsics, x.slot, &cfg)?;
             return Ok(Fold::new(move |grads, values| {
                 let nl = started.wait()?;
                 values.normal_consistency = self.consistency.then_some(nl.l_nc);
