@@ -5,7 +5,7 @@
 //! guess changes no value: `pad_keys` sorts the unused entries after the intersections, and
 //! the windows beyond the longest list blend nothing.
 
-use super::forward::{Readback, counters_of};
+use super::readback::{Readback, counters_of};
 use super::kernels::COUNTER_LONGEST_TILE_LIST;
 use super::{Frame, GpuTimings, WgpuRasterizer};
 use crate::cpu::project::CamParams;

@@ -44,6 +44,7 @@
 
 mod backward;
 mod forward;
+mod readback;
 mod guess;
 mod kernels;
 mod resident;
