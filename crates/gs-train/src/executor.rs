@@ -352,6 +352,63 @@ impl ReferenceExecutor {
     }
 }
 
+impl ReferenceExecutor {
+    /// The step's render request, and where its depths go: the colour stays on the device when
+    /// L_I runs there and no exposure correction (on the host) reads it; the surface (z, Ñ,
+    /// D, A) stays there for L_nc/L_ns and L_p when they run on the device, so Ñ, D and the
+    /// alpha need not come back (docs/architecture.md §GPU). The memo's depths may stay on the
+    /// device where L_p reads them there and L_f (on the host) reads none: then this view's
+    /// depth stays there too, kept by L_p under this iteration, and so do the sources rendered
+    /// for the step ([`crate::source_depths`]); elsewhere the sources' depths come back first.
+    fn step_request(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<(RenderRequest, DepthsPlaced)> {
+        let color_on_device = self.devices.image_on_device() && state.exposure.is_none();
+        let r = &plan.render;
+        let surface_on_device = self.devices.normal_on_device() && (r.normal || r.distance || r.plane_depth);
+        let plane_stays = surface_on_device && (plan.photometric.is_none() || self.devices.photometric_on_device());
+        let depths_stay = plane_stays && plan.photometric.is_some() && plan.weights.lambda_f == 0.0;
+        let memo_on_device = *self.memo_on_device.get_or_insert_with(|| crate::source_depths::memo_fits_on_device(run, &self.devices));
+        let max_age = run.config.source_depth_max_age;
+        let keep_depth = (depths_stay && memo_on_device && max_age > 0 && plan.scale == 1).then_some(plan.iteration);
+        match depths_stay {
+            true => crate::source_depths::drop_lost(&mut state.source_depths, &self.devices, &self.caches, &plan.sources),
+            false => crate::source_depths::bring_back(&mut state.source_depths, &self.devices, &self.caches, Some(&plan.sources))?,
+        }
+        let request = RenderRequest {
+            radii: !self.adam_on_device,
+            alpha: r.alpha && !surface_on_device,
+            normal: r.normal && !plane_stays,
+            distance: r.distance && !plane_stays,
+            color_on_device,
+            surface_on_device,
+            plane_depth_on_device: keep_depth.is_some(),
+            ..plan.render
+        };
+        Ok((request, DepthsPlaced { keep_depth, sources_stay: depths_stay && memo_on_device }))
+    }
+
+    /// Records the reference's plane depth (rendered at full size) in the memo, where it serves
+    /// later steps as this view's source depth: from the host, or kept on the device by L_p
+    /// under `keep` (where it was not, it is forgotten and rendered again when needed).
+    fn store_reference_depth(&self, state: &mut TrainState, plan: &StepPlan, camera: &gs_core::Camera, host: Option<Image>, keep: Option<u64>) {
+        let (w, h, it) = (camera.width as usize, camera.height as usize, plan.iteration);
+        let kept = || self.caches.grey(plan.slot).is_some_and(|g| self.devices.holds_depth(plan.slot, g, w * h, it));
+        match host {
+            Some(depth) => state.source_depths.store(plan.slot, it, StoredDepth::Host(depth)),
+            None if keep.is_some() && kept() => state.source_depths.store(plan.slot, it, StoredDepth::Device { width: w, height: h }),
+            None if keep.is_some() => state.source_depths.forget(plan.slot),
+            None => {}
+        }
+    }
+}
+
+/// Where a step's depths go ([`ReferenceExecutor::step_request`]).
+struct DepthsPlaced {
+    /// The version under which L_p keeps the reference's depth on the device.
+    keep_depth: Option<u64>,
+    /// Whether the sources rendered for the step keep their depths on the device.
+    sources_stay: bool,
+}
+
 impl StepExecutor for ReferenceExecutor {
     fn execute(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, profile: &mut StepProfile) -> Result<LossValues> {
         let it = plan.iteration;
@@ -372,39 +429,10 @@ impl StepExecutor for ReferenceExecutor {
         // order changes no value. A step on the device gathers its statistics from the radii
         // there.
         let max_age = run.config.source_depth_max_age;
-        // The colour stays on the device when L_I runs there and no exposure correction (on
-        // the host) reads it: only L_I's row sums come back (docs/architecture.md §GPU).
-        let color_on_device = self.devices.image_on_device() && state.exposure.is_none();
-        // The surface (z, Ñ, D, A) stays there for L_nc/L_ns and L_p when they run on the
-        // device; Ñ and D then need not come back at all (the plane depth still does: it is
-        // this view's source depth for later steps, and L_f's visibility reads it).
-        let r = &plan.render;
-        let surface_on_device = self.devices.normal_on_device() && (r.normal || r.distance || r.plane_depth);
-        let plane_stays = surface_on_device && (plan.photometric.is_none() || self.devices.photometric_on_device());
-        // The memo's depths may stay on the device where L_p reads them there and L_f (on the
-        // host) reads none: then this view's depth stays there too, kept by L_p under this
-        // iteration ([`crate::source_depths`]); elsewhere they come back first.
-        let depths_stay = plane_stays && plan.photometric.is_some() && plan.weights.lambda_f == 0.0;
-        let memo_on_device = *self.memo_on_device.get_or_insert_with(|| crate::source_depths::memo_fits_on_device(run, &self.devices));
-        let keep_depth = (depths_stay && memo_on_device && max_age > 0 && plan.scale == 1).then_some(it);
-        match depths_stay {
-            true => crate::source_depths::drop_lost(&mut state.source_depths, &self.devices, &self.caches, &plan.sources),
-            false => crate::source_depths::bring_back(&mut state.source_depths, &self.devices, &self.caches, Some(&plan.sources))?,
-        }
-        let request = RenderRequest {
-            radii: !self.adam_on_device,
-            // L_nc/L_ns on the device read A from the surface: the alpha (and with it T_final)
-            // need not come back.
-            alpha: r.alpha && !surface_on_device,
-            normal: r.normal && !plane_stays,
-            distance: r.distance && !plane_stays,
-            color_on_device,
-            surface_on_device,
-            plane_depth_on_device: keep_depth.is_some(),
-            ..plan.render
-        };
+        let (request, placed) = self.step_request(run, state, plan)?;
+        let keep_depth = placed.keep_depth;
         let (rendered_depths, out) = self
-            .render_views_of_step(run, state, plan, (camera, &request, depths_stay && memo_on_device), (profile, phase, &mut clock))
+            .render_views_of_step(run, state, plan, (camera, &request, placed.sources_stay), (profile, phase, &mut clock))
             .map_err(|e| self.instead_of(e))?;
         // The render's wait brought the last step's divergence flag.
         self.check_step()?;
@@ -516,19 +544,8 @@ impl StepExecutor for ReferenceExecutor {
             adam_step(&mut state.adam, &mut state.gaussians, &g, it)?;
             profile.add(phase, Part::Optimizer, clock.lap());
         }
-        // The reference's plane depth serves later iterations as this view's source depth: from
-        // the host, or kept on the device by L_p (where it did not, it is rendered again).
         if max_age > 0 && plan.scale == 1 {
-            let (w, h) = (camera.width as usize, camera.height as usize);
-            let kept = |grey: Option<&Image>| grey.is_some_and(|g| self.devices.holds_depth(plan.slot, g, w * h, it));
-            match out.plane_depth {
-                Some(depth) => state.source_depths.store(plan.slot, it, StoredDepth::Host(depth)),
-                None if keep_depth.is_some() && kept(self.caches.grey(plan.slot)) => {
-                    state.source_depths.store(plan.slot, it, StoredDepth::Device { width: w, height: h })
-                }
-                None if keep_depth.is_some() => state.source_depths.forget(plan.slot),
-                None => {}
-            }
+            self.store_reference_depth(state, plan, camera, out.plane_depth, keep_depth);
         }
         Ok(values)
     }
