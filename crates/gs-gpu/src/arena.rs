@@ -103,6 +103,14 @@ impl Arena {
         self.holding(Some(key), floats, version).is_some()
     }
 
+    /// Drops the array held under `key`, whatever its version (e.g. one whose content the
+    /// caller could not provide): its next use uploads or fills it again.
+    pub fn forget(&mut self, key: ArenaKey) {
+        if let Some(i) = self.keyed(Some(key)) {
+            self.slots[i] = None;
+        }
+    }
+
     /// How many arrays of `floats` values the arena can hold at once, within its budget and
     /// one binding: a caller that never names more keys than that is never evicted.
     pub fn capacity(&self, ctx: &GpuContext, floats: usize) -> usize {

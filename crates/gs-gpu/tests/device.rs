@@ -418,4 +418,7 @@ fn arena_holds_what_the_device_filled() {
     assert_eq!(arena.place_filled(&ctx, (2, 1), 4, 9), Some(filled));
     assert!(arena.holds((2, 1), 4, 9) && !arena.holds((2, 1), 4, 7));
     assert_eq!(arena.read_held(&ctx, &[((5, 5), 4, 0)]).unwrap(), vec![None]);
+    // A forgotten key is held no more, at any version.
+    arena.forget((2, 1));
+    assert!(!arena.holds((2, 1), 4, 9) && arena.holds((1, 0), 4, 3));
 }

@@ -119,3 +119,25 @@ fn a_host_selection_reads_held_depths_back() {
     assert_eq!(held.1, want.per_source);
     assert!(want.per_source[0].visibility.n_upsilon > 0, "visibility to compare");
 }
+
+/// A held depth that a call's own placement drops (grey images larger than the arena's slots
+/// start it again, empty) is refused, and forgotten: it never passes for a depth later.
+#[test]
+fn a_held_depth_dropped_by_larger_slots_is_refused_and_forgotten() {
+    let Some((mut g, ctx)) = gpu() else { return };
+    let (cams, maps) = scene(64, 48);
+    let config = PhotometricConfig::default();
+    keep_view_0(&mut g, &ctx, (&cams, &maps), &config, 7);
+    let pixels = 64 * 48;
+    assert!(g.holds_depth(0, pixels, 7));
+    let s = common::box_scene();
+    let greys: Vec<gs_core::Image> = cams.iter().map(|c| s.render(&c.resized(128, 96).unwrap()).grey).collect();
+    let r = reference(&cams, &maps, 1);
+    let surface = gs_mvs::upload_surface(&ctx, &r).unwrap();
+    let on_device = SurfaceReference { camera: r.camera, surface: &surface, plane_depth: None, grey: (&greys[1]).into() };
+    let held = DeviceSource { camera: &cams[0], plane_depth: SourceDepth::Held, grey: (&greys[0]).into() };
+    let keys = ViewKeys { views: &[1, 0], depth_versions: &[7], keep_reference_depth: None };
+    let err = g.start_on_device(&on_device, &[held], Some(keys), &config).err().expect("refused").to_string();
+    assert!(err.contains("source 0") && err.contains("evicted"), "{err}");
+    assert!(!g.holds_depth(0, pixels, 7), "forgotten, not passed off as a depth");
+}

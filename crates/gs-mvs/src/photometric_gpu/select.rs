@@ -240,6 +240,10 @@ impl PhotometricGpu {
             Cow::Borrowed(arrays[order[j]])
         });
         if let Some(k) = lost.get() {
+            // Its slot holds no depth now: never let it pass for one.
+            if let Some(keys) = keys {
+                self.greys.forget((keys.views[k + 1], DEPTH_PART));
+            }
             return Err(crate::error::MvsError::InvalidInput(format!("source {k}'s plane depth was evicted from the device")));
         }
         Ok(placed.map(|at| {
