@@ -180,17 +180,19 @@ for tag in sorted(os.listdir(w)):
     for phase, e in rep.get("time_by_part", {}).items():
         ms = e["ms_per_iteration"]
         top = sorted(((v, k) for k, v in ms.items() if k != "whole"), reverse=True)
-        prof.append("| {} | {} | {} | {:.1f} | {} |".format(tag, phase, e["iterations"], ms["whole"],
-            ", ".join(f"{k} {v:.1f}" for v, k in top if v >= 0.01 * ms["whole"])))
+        t = e.get("transfers_per_iteration")
+        traffic = "{:.2f} waits, {:.0f} KB back, {:.0f} KB up".format(t["syncs"], t["bytes_read_back"] / 1e3, t["bytes_written"] / 1e3) if t else "—"
+        prof.append("| {} | {} | {} | {:.1f} | {} | {} |".format(tag, phase, e["iterations"], ms["whole"],
+            ", ".join(f"{k} {v:.1f}" for v, k in top if v >= 0.01 * ms["whole"]), traffic))
 if rows:
     print("\n## Training runs (train time; warm-up / L_p / refinement seconds; held-out PSNR without LPIPS)\n")
     print("| run | train | warm-up / L_p / refine | Gaussians | held-out PSNR | worst view | veils | Chamfer / F1 |")
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(rows))
 if prof:
-    print("\n## Where an iteration's time goes (ms per iteration, parts of at least 1 %)\n")
-    print("| run | phase | iterations | ms each | parts |")
-    print("|---|---|---|---|---|")
+    print("\n## Where an iteration's time goes (ms per iteration, parts of at least 1 %; host-device traffic per iteration)\n")
+    print("| run | phase | iterations | ms each | parts | traffic |")
+    print("|---|---|---|---|---|---|")
     print("\n".join(prof))
 EOF
 note ""
