@@ -70,6 +70,6 @@ pub use photometric::{
 #[cfg(feature = "wgpu")]
 pub use feature_gpu::FeatureGpu;
 #[cfg(feature = "wgpu")]
-pub use photometric_gpu::{DeviceSource, PendingPhotometric, PhotometricGpu, PhotometricOnDevice, SourceDepth, SurfaceReference, ViewKeys, upload_surface};
+pub use photometric_gpu::{DeviceSource, PendingPhotometric, PhotometricGpu, PhotometricOnDevice, SourceDepth, SurfaceReference, ViewKeys, surface_depth, upload_surface};
 pub use selection::{SourceSelection, SourceViewSelector};
 pub use visibility::{Visibility, VisibilityStats, compute_visibility};

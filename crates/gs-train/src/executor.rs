@@ -275,9 +275,7 @@ impl ReferenceExecutor {
         if self.devices.keep_depth(slot, grey, surface, version)? {
             return Ok(StoredDepth::Device { width, height });
         }
-        let texels = surface.read(ctx).map_err(|e| gs_raster::RasterError::Gpu(e.to_string()))?;
-        let z = texels.chunks_exact(gs_gpu::SURFACE_CHANNELS).map(|t| t[0]).collect();
-        Ok(StoredDepth::Host(Image::from_vec(width, height, 1, z)?))
+        Ok(StoredDepth::Host(Image::from_vec(width, height, 1, gs_mvs::surface_depth(ctx, surface)?)?))
     }
 
     /// Without the device: never asked (no depth stays on a device).

@@ -23,7 +23,7 @@ mod submit;
 pub use depths::{DeviceSource, SourceDepth, keep_depth_kernel_source};
 pub use outcome::{PendingPhotometric, PhotometricOnDevice};
 pub use reduce::reduce_kernel_source;
-pub use reference::{SurfaceReference, upload_surface};
+pub use reference::{SurfaceReference, surface_depth, upload_surface};
 pub use select::{selection_kernel_source, visibility_kernel_source};
 use outcome::{Done, Pending};
 use submit::{Inputs, Readback, patch_inputs};

@@ -75,7 +75,7 @@ impl<'a> RefView<'a> {
         let Plane::Device(surface) = self.plane else {
             return Err(MvsError::InvalidInput("a plane on the host has no surface to read".into()));
         };
-        Ok(read_texels(ctx, surface)?.iter().map(|t| t.z).collect())
+        surface_depth(ctx, surface)
     }
 
     /// The checks of [`photometric_loss`]'s inputs.
@@ -113,6 +113,12 @@ impl<'a> RefView<'a> {
     {
         PhotometricReference { camera: self.camera, normal, distance, plane_depth: self.plane_depth, grey: self.grey }
     }
+}
+
+/// The plane depth (each texel's z) of a rendered surface on `ctx`'s device (gs-gpu
+/// `SurfaceTexel`s), read back.
+pub fn surface_depth(ctx: &GpuContext, surface: &DeviceImage) -> Result<Vec<f32>> {
+    Ok(read_texels(ctx, surface)?.iter().map(|t| t.z).collect())
 }
 
 /// The texels of a surface on the device, read back.
