@@ -158,6 +158,21 @@ impl Rasterizer {
         }
     }
 
+    /// Clone, split and prune the resident model on its device by `rule`, the position draws
+    /// from `rng` in the host's order ([`crate::WgpuRasterizer::densify_resident`]); `None`,
+    /// with nothing changed, where the device does not take the step (the host then runs it).
+    /// The CPU backend has no resident model and refuses.
+    pub fn densify_resident(&mut self, gaussians: &Gaussians, rule: &crate::DensifyRule, rng: &mut gs_core::Rng) -> Result<Option<crate::DensifyCounts>> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.densify_resident(gaussians, rule, rng),
+            _ => {
+                let _ = (gaussians, rule, rng);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to densify".into()))
+            }
+        }
+    }
+
     /// Ends a residency: the device's parameters and moments are dropped (read them first,
     /// [`Rasterizer::read_resident`], to keep them) and the next render uploads again.
     /// Nothing to do when no model is resident.

@@ -408,6 +408,49 @@ impl StepExtras<'_> {
     }
 }
 
+/// Density control's rule for one step on a resident model
+/// ([`crate::Rasterizer::densify_resident`]): gs-train's densification settings resolved for
+/// the scene (docs/method.md §Densification).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DensifyRule {
+    /// Clone or split at a mean screen-space gradient of at least this.
+    pub grad_threshold: f32,
+    /// AbsGS: split large Gaussians at a mean absolute gradient of at least this.
+    pub abs_grad_threshold: f32,
+    /// Largest scale of a Gaussian that clones rather than splits (percent_dense × extent).
+    pub small_limit: f32,
+    /// Screen radius (pixels) above which an AbsGS split applies and `prune_big` prunes.
+    pub max_screen_radius: f32,
+    /// At most this many AbsGS splits (the first in index order).
+    pub max_abs_splits: usize,
+    /// Prune below this opacity.
+    pub min_opacity: f32,
+    /// With `prune_big`: prune a largest scale above this (max world scale × extent).
+    pub max_world: f32,
+    /// Also prune Gaussians too large on screen or in the world.
+    pub prune_big: bool,
+    /// A split child's scales are its parent's divided by this.
+    pub split_divisor: f32,
+    /// How many candidates may grow (clones and splits each add one Gaussian); the highest
+    /// scores are taken when more pass the thresholds.
+    pub room: usize,
+}
+
+/// What density control on a resident model did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DensifyCounts {
+    /// Candidates over the thresholds, before the budget's choice.
+    pub candidates: usize,
+    /// Gaussians cloned.
+    pub cloned: usize,
+    /// Gaussians split (each replaced by two).
+    pub split: usize,
+    /// Rows removed: split parents and pruned Gaussians.
+    pub removed: usize,
+    /// Gaussians after the step.
+    pub len: usize,
+}
+
 /// One Adam step of every parameter of `g` on the host with the gradients `grads`: the CPU
 /// twin of the wgpu backend's resident step (`WgpuRasterizer::backward_and_step`). `adam` has
 /// one group per [`gs_core::Param`], by name; the SH DC and SH rest groups are updated in

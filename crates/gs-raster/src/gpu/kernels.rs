@@ -91,6 +91,8 @@ impl CamUniform {
 
 const COMMON: &str = include_str!("common.wgsl");
 const PROJ_COMMON: &str = include_str!("proj_common.wgsl");
+/// Sigmoid and the quaternion's rotation matrix (also density control's, gpu/densify.rs).
+pub(super) const PARAM_MATH: &str = include_str!("param_math.wgsl");
 
 /// One kernel: entry point, its own source (after the camera struct and common.wgsl) and
 /// its storage bindings (slots 2..).
@@ -273,7 +275,7 @@ fn specs() -> Vec<Spec<'static>> {
     vec![
         spec(
             "project",
-            &[include_str!("project.wgsl"), PROJ_COMMON],
+            &[include_str!("project.wgsl"), PROJ_COMMON, PARAM_MATH],
             &[
                 B::read("params", par),
                 B::read("sh", sh),
@@ -287,7 +289,7 @@ fn specs() -> Vec<Spec<'static>> {
         ),
         spec(
             "project_bwd",
-            &[include_str!("project_bwd.wgsl"), PROJ_COMMON],
+            &[include_str!("project_bwd.wgsl"), PROJ_COMMON, PARAM_MATH],
             &[
                 B::read("params", par),
                 B::read("sh", sh),

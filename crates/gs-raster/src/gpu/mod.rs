@@ -43,6 +43,7 @@
 //! beyond 65535 workgroups into 2D.
 
 mod backward;
+mod densify;
 mod forward;
 mod readback;
 mod guess;
@@ -215,6 +216,8 @@ pub struct WgpuRasterizer {
     timings: CallTimings,
     /// The parameters the kernels read, resident between iterations in a training run.
     model: resident::Model,
+    /// Density control on the resident model, made when first needed.
+    densify: Option<densify::Densify>,
     /// What the last renders of a few image sizes found: the next render of such a size
     /// guesses its buffers from it and runs in one submission (`forward.rs`).
     guesses: Vec<guess::SizeGuess>,
@@ -311,6 +314,7 @@ impl WgpuRasterizer {
             batch_staging: Vec::new(),
             timings: CallTimings::default(),
             model,
+            densify: None,
         })
     }
 

@@ -87,9 +87,9 @@ gs_gpu::wgsl_struct! {
 
 /// The size of a resident model: renders of other Gaussians are refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Residency {
-    n: usize,
-    sh_degree: u32,
+pub(super) struct Residency {
+    pub(super) n: usize,
+    pub(super) sh_degree: u32,
 }
 
 /// A resident step started by [`WgpuRasterizer::start_step`] whose divergence flag has not
@@ -107,16 +107,16 @@ pub(super) struct Model {
     pub(super) pool: BufferPool,
     pub(super) params: BufId,
     pub(super) sh: BufId,
-    m_params: BufId,
-    v_params: BufId,
-    m_sh: BufId,
-    v_sh: BufId,
+    pub(super) m_params: BufId,
+    pub(super) v_params: BufId,
+    pub(super) m_sh: BufId,
+    pub(super) v_sh: BufId,
     extra: BufId,
     flags: BufId,
     /// The divergence flag's own readback buffer: a step's flag may be read after the next
     /// render, which uses the rasterizer's staging buffer.
     flag_staging: BufId,
-    stats: BufId,
+    pub(super) stats: BufId,
     resident: Option<Residency>,
     disp: Dispatcher,
     adam_params: Kernel,
@@ -220,6 +220,24 @@ impl Model {
                 self.upload(ctx, g);
                 Ok(())
             }
+        }
+    }
+
+    /// The size of the resident model, if one is resident.
+    pub(super) fn residency(&self) -> Option<Residency> {
+        self.resident
+    }
+
+    /// Makes `next` (params, m_params, v_params, sh, m_sh, v_sh, as densify/scatter*.wgsl
+    /// filled them) the model's buffers, of `n` Gaussians, and the model's old buffers the
+    /// next set (gpu/densify.rs).
+    pub(super) fn swap_rows(&mut self, next: &mut [BufId; 6], n: usize) {
+        let mine = [&mut self.params, &mut self.m_params, &mut self.v_params, &mut self.sh, &mut self.m_sh, &mut self.v_sh];
+        for (a, b) in mine.into_iter().zip(next.iter_mut()) {
+            std::mem::swap(a, b);
+        }
+        if let Some(r) = &mut self.resident {
+            r.n = n;
         }
     }
 

@@ -1,0 +1,372 @@
+//! Density control on the resident model (docs/architecture.md §GPU): clone, split and prune
+//! without the model leaving the device, the twin of gs-train's `densify_and_prune`.
+//!
+//! Masks and gs-gpu's scan and sort do the host's list work: each Gaussian's candidacy
+//! (densify/classify.wgsl), the AbsGS limit (a scan), the budget's choice of the best scores
+//! (a stable radix sort, ties by index), the born rows' parents (scans of the clone and split
+//! flags), their positions from the host's normal draws (the same draws, in the same order, as
+//! the host's), the prune, and a scatter of every surviving row into a second set of buffers,
+//! which then become the model's. The host reads back three small counts, twice.
+
+use super::kernels::{PARAM_MATH, ParamRecord, ShCoeff};
+use super::resident::StatRecord;
+use super::WgpuRasterizer;
+use crate::{DensifyCounts, DensifyRule, RasterError, Result};
+use gs_core::sh::coeffs_for_degree;
+use gs_core::{Gaussians, Rng};
+use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, Encoder, GeneratedStruct, GpuContext, Kernel, PassUniform, bytes_of, grid};
+
+gs_gpu::wgsl_struct! {
+    /// The constants of one densification (binding 0 of densify/*.wgsl, WGSL `struct
+    /// DensifyRule`): [`DensifyRule`] for a model of `n` Gaussians.
+    pub(crate) struct DensifyUniform as "DensifyRule" {
+        /// Gaussians before the step.
+        n: u32,
+        /// SH coefficients per Gaussian on the device.
+        nc: u32,
+        /// How many candidates the budget lets grow.
+        room: u32,
+        max_abs_splits: u32,
+        prune_big: u32,
+        grad_threshold: f32,
+        abs_grad_threshold: f32,
+        small_limit: f32,
+        max_screen_radius: f32,
+        min_opacity: f32,
+        max_world: f32,
+        /// ln of the split divisor, taken off a split child's log-scales.
+        shrink: f32,
+    }
+}
+
+/// Entry point, own source and storage bindings of each kernel.
+fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
+    use Binding as B;
+    let (par, sh, u) = ("array<ParamRecord>", "array<ShCoeff>", "array<u32>");
+    vec![
+        (
+            "densify_classify",
+            include_str!("densify/classify.wgsl"),
+            vec![B::read("params", par), B::read("stats", "array<StatRecord>"), B::write("classes", u), B::write("abs_flags", u), B::write("keys", u)],
+        ),
+        (
+            "densify_candidates",
+            include_str!("densify/candidates.wgsl"),
+            vec![
+                B::read("classes", u),
+                B::read("abs_flags", u),
+                B::read("chosen", u),
+                B::write("keys", u),
+                B::write("vals", u),
+                B::write("clone_flags", u),
+                B::write("split_flags", u),
+            ],
+        ),
+        ("densify_choose", include_str!("densify/choose.wgsl"), vec![B::read("sorted", u), B::write("chosen", u)]),
+        ("densify_parents", include_str!("densify/parents.wgsl"), vec![B::read("clone_ranks", u), B::read("split_ranks", u), B::write("parents", u)]),
+        (
+            "densify_born",
+            include_str!("densify/born.wgsl"),
+            vec![
+                B::read("params", par),
+                B::read("parents", u),
+                B::read("normals", "array<f32>"),
+                B::read("clone_ranks", u),
+                B::read("split_ranks", u),
+                B::write("born", par),
+                B::write("keep", u),
+            ],
+        ),
+        (
+            "densify_keep",
+            include_str!("densify/keep.wgsl"),
+            vec![B::read("params", par), B::read("stats", "array<StatRecord>"), B::read("split_ranks", u), B::write("keep", u)],
+        ),
+        (
+            "densify_scatter",
+            include_str!("densify/scatter.wgsl"),
+            vec![
+                B::read("params", par),
+                B::read("m_params", par),
+                B::read("v_params", par),
+                B::read("born", par),
+                B::read("dest", u),
+                B::write("next_params", par),
+                B::write("next_m", par),
+                B::write("next_v", par),
+            ],
+        ),
+        (
+            "densify_scatter_sh",
+            include_str!("densify/scatter_sh.wgsl"),
+            vec![
+                B::read("sh", sh),
+                B::read("m_sh", sh),
+                B::read("v_sh", sh),
+                B::read("parents", u),
+                B::read("dest", u),
+                B::write("next_sh", sh),
+                B::write("next_m_sh", sh),
+                B::write("next_v_sh", sh),
+            ],
+        ),
+    ]
+}
+
+/// The structs the kernels declare.
+fn structs() -> [GeneratedStruct; 4] {
+    [GeneratedStruct::of::<DensifyUniform>(), GeneratedStruct::of::<ParamRecord>(), GeneratedStruct::of::<ShCoeff>(), GeneratedStruct::of::<StatRecord>()]
+}
+
+const COMMON: &str = include_str!("densify/common.wgsl");
+
+/// The kernels, their dispatcher and buffers: scratch in the rasterizer's pool, the next
+/// model set in the model's own pool (swapped with the model's after a step).
+pub(super) struct Densify {
+    disp: Dispatcher,
+    kernels: Vec<(&'static str, Kernel)>,
+    classes: BufId,
+    abs_flags: BufId,
+    chosen: BufId,
+    clone_ranks: BufId,
+    split_ranks: BufId,
+    parents: BufId,
+    normals: BufId,
+    born: BufId,
+    dest: BufId,
+    /// params, m_params, v_params, sh, m_sh, v_sh of the next model.
+    next: [BufId; 6],
+}
+
+impl Densify {
+    pub(super) fn new(ctx: &GpuContext, pool: &mut BufferPool, model_pool: &mut BufferPool) -> Result<Self> {
+        let decls = gs_gpu::declarations(&structs());
+        let kernels = specs()
+            .into_iter()
+            .map(|(entry, own, bindings)| Ok((entry, Kernel::new(ctx, entry, &[&decls, COMMON, PARAM_MATH, own], &bindings)?)))
+            .collect::<Result<Vec<_>>>()?;
+        let mut b = |l| pool.add_storage(l);
+        let (classes, abs_flags, chosen, clone_ranks) = (b("densify_classes"), b("densify_abs"), b("densify_chosen"), b("densify_clone_ranks"));
+        let (split_ranks, parents, normals, born, dest) = (b("densify_split_ranks"), b("densify_parents"), b("densify_normals"), b("densify_born"), b("densify_dest"));
+        let next = ["next_params", "next_m_params", "next_v_params", "next_sh", "next_m_sh", "next_v_sh"].map(|l| model_pool.add_storage(l));
+        let disp = Dispatcher::new(ctx, std::mem::size_of::<DensifyUniform>() as u64);
+        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, normals, born, dest, next })
+    }
+
+    fn kernel(&self, entry: &str) -> &Kernel {
+        &self.kernels.iter().find(|(e, _)| *e == entry).expect("a kernel of specs()").1
+    }
+}
+
+/// What the first pass found: candidates before the budget.
+struct Candidates {
+    clones: u32,
+    splits: u32,
+}
+
+impl WgpuRasterizer {
+    /// Clone, split and prune the resident model (of `g`'s size and degree; `g` itself is not
+    /// read) by `rule`, drawing the born positions' normals from `rng` in the host's order.
+    /// The statistics start again at zero. Returns the counts, or `None`, with the model
+    /// unchanged, where the step would leave no Gaussian (the host keeps the most opaque one)
+    /// or the model's buffers do not fit one storage binding each.
+    pub fn densify_resident(&mut self, g: &Gaussians, rule: &DensifyRule, rng: &mut Rng) -> Result<Option<DensifyCounts>> {
+        let Some(r) = self.model.residency() else {
+            return Err(RasterError::Gpu("density control on the device needs a resident model".into()));
+        };
+        if (r.n, r.sh_degree) != (g.len(), g.sh_degree) {
+            return Err(RasterError::Gpu(format!("the resident model holds {} Gaussians, not the {} given to densify", r.n, g.len())));
+        }
+        let nc = coeffs_for_degree(r.sh_degree) as u64;
+        // The rows at most doubled (every Gaussian split): every set must fit one binding.
+        let most = 3 * r.n as u64;
+        if most * nc.max(1) * bytes_of::<ShCoeff>(1) > self.ctx.max_storage_binding() || most * bytes_of::<ParamRecord>(1) > self.ctx.max_storage_binding() {
+            return Ok(None);
+        }
+        if self.densify.is_none() {
+            self.densify = Some(Densify::new(&self.ctx, &mut self.pool, &mut self.model.pool)?);
+        }
+        self.frame = None;
+        self.scoped(|s| s.densify_scoped(rule, rng, r.n as u32, nc as u32))
+    }
+
+    fn densify_scoped(&mut self, rule: &DensifyRule, rng: &mut Rng, n: u32, nc: u32) -> Result<Option<DensifyCounts>> {
+        let room = rule.room.min(u32::MAX as usize) as u32;
+        let uniform = DensifyUniform {
+            n,
+            nc,
+            room,
+            max_abs_splits: rule.max_abs_splits.min(u32::MAX as usize) as u32,
+            prune_big: rule.prune_big as u32,
+            grad_threshold: rule.grad_threshold,
+            abs_grad_threshold: rule.abs_grad_threshold,
+            small_limit: rule.small_limit,
+            max_screen_radius: rule.max_screen_radius,
+            min_opacity: rule.min_opacity,
+            max_world: rule.max_world,
+            shrink: rule.split_divisor.ln(),
+        };
+        let found = self.find_candidates(&uniform)?;
+        let over = found.clones as u64 + found.splits as u64 > room as u64;
+        if over {
+            self.choose_best(n)?;
+        }
+        // Born rows at most: every candidate, or under the budget `room` of them, as many
+        // splits as may be among them.
+        let born_max = match over {
+            false => found.clones + 2 * found.splits,
+            true => room + found.splits.min(room),
+        };
+        let normals: Vec<f32> = (0..3 * born_max as usize).map(|_| rng.normal()).collect();
+        let counts = self.grow_and_prune(&uniform, born_max, &normals)?;
+        let (clones, splits, kept) = (counts[0] as usize, counts[1] as usize, counts[2] as usize);
+        if kept == 0 {
+            return Ok(None);
+        }
+        self.swap_in(kept)?;
+        let born = clones + 2 * splits;
+        Ok(Some(DensifyCounts { candidates: (found.clones + found.splits) as usize, cloned: clones, split: splits, removed: n as usize + born - kept, len: kept }))
+    }
+
+    /// Classifies every Gaussian, applies the AbsGS limit and counts the candidates; leaves
+    /// the sort keys (scores) and values (indices) in `keys_a` / `vals_a`.
+    fn find_candidates(&mut self, uniform: &DensifyUniform) -> Result<Candidates> {
+        let n = uniform.n as u64;
+        let d = self.densify.as_ref().expect("made above");
+        let (p, m) = (&mut self.pool, &self.model);
+        for id in [d.classes, d.abs_flags, d.chosen] {
+            p.ensure(id, 4 * n.max(1));
+        }
+        for id in [d.clone_ranks, d.split_ranks] {
+            p.ensure(id, 4 * (n + 1));
+        }
+        for id in [self.bufs.keys_a, self.bufs.vals_a, self.bufs.keys_b, self.bufs.vals_b] {
+            p.ensure(id, 4 * n.max(1));
+        }
+        self.sort.reserve(p, n + 1);
+        p.ensure(self.bufs.staging, 16);
+        d.disp.write_frame(uniform);
+        let (p, b) = (&self.pool, &self.bufs);
+        let mut enc = d.disp.encoder();
+        let pass = PassUniform { n: uniform.n, ..Default::default() };
+        let binds = [m.pool.whole(m.params), m.pool.whole(m.stats), p.whole(d.classes), p.whole(d.abs_flags), p.whole(b.keys_a)];
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_classify"), &binds, pass)?;
+        self.sort.prefix_scan().encode(&d.disp, &mut enc, p, p.whole(d.abs_flags), uniform.n)?;
+        self.flags(&mut enc, uniform.n, 0)?;
+        let staging = p.buffer(b.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.clone_ranks), n * 4, staging, 0, 4);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.split_ranks), n * 4, staging, 4, 4);
+        d.disp.submit(enc);
+        let [clones, splits] = self.read_counts::<2>()?;
+        Ok(Candidates { clones, splits })
+    }
+
+    /// Records the candidates kernel (`mode` 1: only the chosen) and the scans of its flags.
+    fn flags(&self, enc: &mut Encoder, n: u32, mode: u32) -> Result<()> {
+        let (d, p, b) = (self.densify.as_ref().expect("made"), &self.pool, &self.bufs);
+        let pass = PassUniform { n, mode, ..Default::default() };
+        let binds = [p.whole(d.classes), p.whole(d.abs_flags), p.whole(d.chosen), p.whole(b.keys_a), p.whole(b.vals_a), p.whole(d.clone_ranks), p.whole(d.split_ranks)];
+        d.disp.make_room(enc, 64);
+        d.disp.dispatch(enc, d.kernel("densify_candidates"), &binds, pass, grid((n + 1).div_ceil(256)))?;
+        self.sort.prefix_scan().encode(&d.disp, enc, p, p.whole(d.clone_ranks), n + 1)?;
+        Ok(self.sort.prefix_scan().encode(&d.disp, enc, p, p.whole(d.split_ranks), n + 1)?)
+    }
+
+    /// The budget's choice: sorts the candidates by score and keeps the best `room`.
+    fn choose_best(&mut self, n: u32) -> Result<()> {
+        let (d, p, b) = (self.densify.as_ref().expect("made"), &self.pool, &self.bufs);
+        let mut enc = d.disp.encoder();
+        let pairs = [(p.whole(b.keys_a), p.whole(b.vals_a)), (p.whole(b.keys_b), p.whole(b.vals_b))];
+        let in_b = self.sort.encode(&d.disp, &mut enc, p, pairs, n, 32)?;
+        let sorted = if in_b { p.whole(b.vals_b) } else { p.whole(b.vals_a) };
+        d.disp.make_room(&mut enc, 2);
+        let pass = PassUniform { n, ..Default::default() };
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_choose"), &[sorted, p.whole(d.chosen)], pass)?;
+        self.flags(&mut enc, n, 1)?;
+        d.disp.submit(enc);
+        Ok(())
+    }
+
+    /// The born rows, the prune and the scatter into the next buffers; reads back the clones,
+    /// splits and surviving rows.
+    fn grow_and_prune(&mut self, uniform: &DensifyUniform, born_max: u32, normals: &[f32]) -> Result<[u32; 3]> {
+        let (n, nc) = (uniform.n as u64, uniform.nc as u64);
+        let rows = n + born_max as u64;
+        let d = self.densify.as_ref().expect("made");
+        let p = &mut self.pool;
+        p.ensure(d.parents, 4 * (born_max as u64).max(1));
+        p.ensure(d.born, bytes_of::<ParamRecord>(born_max as usize).max(bytes_of::<ParamRecord>(1)));
+        p.ensure(d.dest, 4 * (rows + 1));
+        self.sort.reserve(p, rows + 1);
+        super::upload_with(&self.ctx, p, d.normals, normals.len().max(1), |out: &mut [f32]| out[..normals.len()].copy_from_slice(normals));
+        let m = &mut self.model;
+        for (k, id) in d.next.iter().enumerate() {
+            let row = if k < 3 { bytes_of::<ParamRecord>(1) } else { nc.max(1) * bytes_of::<ShCoeff>(1) };
+            m.pool.ensure(*id, rows.max(1) * row);
+        }
+        let (p, b, m) = (&self.pool, &self.bufs, &self.model);
+        let mut enc = d.disp.encoder();
+        let whole = |id| p.whole(id);
+        let pass = PassUniform { n: uniform.n, ..Default::default() };
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_parents"), &[whole(d.clone_ranks), whole(d.split_ranks), whole(d.parents)], pass)?;
+        let binds = [m.pool.whole(m.params), whole(d.parents), whole(d.normals), whole(d.clone_ranks), whole(d.split_ranks), whole(d.born), whole(d.dest)];
+        let born_pass = PassUniform { n: born_max, ..Default::default() };
+        d.disp.dispatch(&mut enc, d.kernel("densify_born"), &binds, born_pass, grid((born_max + 1).div_ceil(256)))?;
+        let binds = [m.pool.whole(m.params), m.pool.whole(m.stats), whole(d.split_ranks), whole(d.dest)];
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_keep"), &binds, pass)?;
+        self.sort.prefix_scan().encode(&d.disp, &mut enc, p, whole(d.dest), rows as u32 + 1)?;
+        d.disp.make_room(&mut enc, 2);
+        let all = PassUniform { n: rows as u32, ..Default::default() };
+        let mp = |id| m.pool.whole(id);
+        let binds = [mp(m.params), mp(m.m_params), mp(m.v_params), whole(d.born), whole(d.dest), mp(d.next[0]), mp(d.next[1]), mp(d.next[2])];
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter"), &binds, all)?;
+        if nc > 0 {
+            let binds = [mp(m.sh), mp(m.m_sh), mp(m.v_sh), whole(d.parents), whole(d.dest), mp(d.next[3]), mp(d.next[4]), mp(d.next[5])];
+            d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter_sh"), &binds, all)?;
+        }
+        let staging = p.buffer(b.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.clone_ranks), n * 4, staging, 0, 4);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.split_ranks), n * 4, staging, 4, 4);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.dest), rows * 4, staging, 8, 4);
+        d.disp.submit(enc);
+        self.read_counts::<3>()
+    }
+
+    /// `K` u32 counts from the start of the staging buffer.
+    fn read_counts<const K: usize>(&self) -> Result<[u32; K]> {
+        let staging = self.pool.buffer(self.bufs.staging);
+        let words = self.ctx.read_mapped(staging, 4 * K as u64, |bytes| bytemuck::pod_collect_to_vec::<u8, u32>(bytes))?;
+        Ok(std::array::from_fn(|k| words[k]))
+    }
+
+    /// Makes the next buffers the model's, `kept` Gaussians with statistics at zero.
+    fn swap_in(&mut self, kept: usize) -> Result<()> {
+        let d = self.densify.as_mut().expect("made");
+        self.model.swap_rows(&mut d.next, kept);
+        let m = &mut self.model;
+        m.pool.ensure(m.stats, bytes_of::<StatRecord>(kept));
+        let mut enc = d.disp.encoder();
+        enc.encoder.clear_buffer(m.pool.buffer(m.stats), 0, Some(bytes_of::<StatRecord>(kept)));
+        d.disp.submit(enc);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gs_gpu::{check_layout, kernel_source};
+
+    /// Every densify kernel parses and validates, with the host's layouts.
+    #[test]
+    fn the_densify_kernels_parse_with_the_hosts_layouts() {
+        let decls = gs_gpu::declarations(&structs());
+        for (entry, own, bindings) in specs() {
+            assert!(bindings.len() <= 8, "{entry}: more storage bindings than WebGPU's default limit");
+            let src = kernel_source(&[&decls, COMMON, PARAM_MATH, own], &bindings);
+            check_layout::<PassUniform>(&src).unwrap_or_else(|e| panic!("{entry}: {e}"));
+            gs_gpu::check_layouts(&structs(), &src).unwrap_or_else(|e| panic!("{entry}: {e}"));
+            gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{entry}: {e}"));
+        }
+    }
+}
