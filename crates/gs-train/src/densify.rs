@@ -42,6 +42,40 @@ pub struct Growth {
     pub cap: usize,
 }
 
+impl Growth {
+    /// How many Gaussians a step from `n` may add (a clone adds one, a split one net).
+    pub fn room(&self, n: usize) -> usize {
+        self.target.min(self.cap).saturating_sub(n)
+    }
+
+    /// What bounds a step that found `candidates` over the thresholds with `room` for them:
+    /// the residual error when all fit, else the cap or the budget, whichever is lower.
+    pub fn limit(&self, candidates: usize, room: usize) -> GrowthLimit {
+        match candidates > room {
+            false => GrowthLimit::Residual,
+            true if self.cap <= self.target => GrowthLimit::Cap,
+            true => GrowthLimit::Budget,
+        }
+    }
+}
+
+/// The densification settings as the device's density control takes them
+/// ([`gs_raster::DensifyRule`]; the host's rule is [`densify_and_prune`]).
+pub fn device_rule(cfg: &DensifyConfig, extent: f32, prune_big: bool, room: usize) -> gs_raster::DensifyRule {
+    gs_raster::DensifyRule {
+        grad_threshold: cfg.grad_threshold,
+        abs_grad_threshold: cfg.abs_grad_threshold,
+        small_limit: cfg.percent_dense * extent,
+        max_screen_radius: cfg.max_screen_radius,
+        max_abs_splits: cfg.max_abs_splits,
+        min_opacity: cfg.min_opacity,
+        max_world: cfg.max_world_scale * extent,
+        prune_big,
+        split_divisor: SPLIT_SCALE_DIVISOR,
+        room,
+    }
+}
+
 /// The densification score of Gaussian `i`: its mean screen-space gradient relative to the
 /// clone/split threshold, or its mean absolute gradient relative to the AbsGS threshold,
 /// whichever is larger — how wrong the images still are where it projects.
@@ -121,10 +155,10 @@ pub fn densify_and_prune(
     split.extend(abs_split);
     split.sort_unstable();
     // Clones add one Gaussian each, splits one net (two children replace the parent).
-    let room = growth.target.min(growth.cap).saturating_sub(n);
-    if clone.len() + split.len() > room {
-        report.limit = if growth.cap <= growth.target { GrowthLimit::Cap } else { GrowthLimit::Budget };
-        report.capped = report.limit == GrowthLimit::Cap;
+    let room = growth.room(n);
+    report.limit = growth.limit(clone.len() + split.len(), room);
+    report.capped = report.limit == GrowthLimit::Cap;
+    if report.limit != GrowthLimit::Residual {
         keep_best(&mut clone, &mut split, room, stats, cfg);
     }
     let mut born = Gaussians::with_len(0)?;

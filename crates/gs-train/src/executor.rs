@@ -48,7 +48,8 @@ pub struct RunInputs<'a> {
 /// Where one part of an iteration runs (report.json `parts_on`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PartPlace {
-    /// The part, in words ("render and backward", a loss term, "Adam", "density control").
+    /// The part, in words ("render and backward", a loss term, "Adam", "densification (clone,
+    /// split, prune)").
     pub part: String,
     /// Where it runs: `cpu (N threads)` or `wgpu on ADAPTER`.
     pub on: String,
@@ -144,7 +145,9 @@ impl ReferenceExecutor {
 
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
     /// term on its device kernel or the CPU, Adam and the densification statistics on the
-    /// rasterizer's device when the model is resident there, density control on the CPU.
+    /// rasterizer's device when the model is resident there, and so do clone, split and prune
+    /// (where [`crate::refine::densify_on_device`] applies); the opacity reset, the trim and
+    /// the floater removal run on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
         let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
@@ -153,7 +156,8 @@ impl ReferenceExecutor {
         parts.extend(self.devices.term_parts().into_iter().map(|(part, on_device)| place(part, on_device)));
         parts.push(place("Adam", self.adam_on_device));
         parts.push(place("densification statistics", self.adam_on_device));
-        parts.push(place("density control", false));
+        parts.push(place("densification (clone, split, prune)", self.adam_on_device));
+        parts.push(place("opacity reset, trim and floater removal", false));
         parts
     }
 
@@ -550,10 +554,19 @@ impl StepExecutor for ReferenceExecutor {
 
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
         let r = plan.refine;
-        if r.densify || r.remove_floaters || r.reset_opacity || r.trim {
+        let mut densified = None;
+        if r.densify && self.adam_on_device {
+            // The last step's divergence first; then the model is densified where it is.
+            self.check_step()?;
+            densified = crate::refine::densify_on_device(&mut self.rasterizer, run, state, plan)?;
+            if densified.is_some() {
+                self.behind = Behind { parameters: true, optimiser: true };
+            }
+        }
+        if (r.densify && densified.is_none()) || r.remove_floaters || r.reset_opacity || r.trim {
             self.release(state)?;
         }
-        crate::refine::refine(&mut self.rasterizer, run, state, plan)
+        crate::refine::refine(&mut self.rasterizer, run, state, plan, densified)
     }
 
     fn pull(&mut self, state: &mut TrainState) -> Result<()> {

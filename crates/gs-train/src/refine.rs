@@ -4,6 +4,7 @@
 //! explicit [`TrainState`], so that any executor runs the same control.
 
 use crate::capture_path::CapturePath;
+use crate::budget::GrowthLimit;
 use crate::densify::{self, DensifyReport};
 use crate::floaters::{FloaterReport, FloaterRule, FreeSpaceVotes};
 use crate::error::Result;
@@ -28,11 +29,15 @@ pub struct RefineReport {
 }
 
 /// Runs the density control that `plan` schedules after its step, continuing the iteration's
-/// random stream; renders (floaters, trim) go through `rasterizer`.
-pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
+/// random stream; renders (floaters, trim) go through `rasterizer`. `densified` is the
+/// densification the device already did ([`densify_on_device`]), if it did.
+pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, densified: Option<DensifyReport>) -> Result<RefineReport> {
     let (r, config) = (plan.refine, run.config);
     let mut report = RefineReport::default();
-    if r.densify {
+    if let Some(d) = densified {
+        state.capped |= d.capped;
+        report.densify = Some(d);
+    } else if r.densify {
         let mut rng = plan.refine_rng.clone();
         let s = &mut *state;
         let d = densify::densify_and_prune(
@@ -61,6 +66,49 @@ pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &m
         report.trimmed = Some(densify::trim_unobserved(&mut s.gaussians, &mut s.adam, &mut s.stats, &counts, config.densify.trim_min_views)?);
     }
     Ok(report)
+}
+
+/// Clone, split and prune on the device that holds the model resident
+/// ([`Rasterizer::densify_resident`]), with the host's rule and random draws: `None`, with
+/// nothing changed, where it does not apply (no resident model, a growth region, SH
+/// coefficients above the active degree that are not zero, or a step the device declines).
+/// After it the host's Gaussians and moments are placeholders of the new size, behind the
+/// device's until read back; the statistics start again at zero on both.
+pub(crate) fn densify_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<Option<DensifyReport>> {
+    let cfg = &run.config.densify;
+    if !rasterizer.is_resident() || cfg.region.is_some() || !inactive_sh_zero(state) {
+        return Ok(None);
+    }
+    let n = state.gaussians.len();
+    let growth = densify::Growth { target: run.budget.target(plan.iteration, cfg), cap: run.config.max_gaussians };
+    let rule = densify::device_rule(cfg, run.extent as f32, plan.refine.prune_big, growth.room(n));
+    let mut rng = plan.refine_rng.clone();
+    let Some(c) = rasterizer.densify_resident(&state.gaussians, &rule, &mut rng)? else {
+        return Ok(None);
+    };
+    let degree = state.gaussians.sh_degree;
+    state.gaussians = Gaussians::with_len(c.len)?;
+    state.gaussians.sh_degree = degree;
+    for group in &mut state.adam.groups {
+        group.m = vec![0.0; c.len * group.row_width];
+        group.v = vec![0.0; c.len * group.row_width];
+    }
+    state.stats = gs_core::DensifyStats::new(c.len);
+    let limit = growth.limit(c.candidates, rule.room);
+    Ok(Some(DensifyReport { cloned: c.cloned, split: c.split, pruned: c.removed - c.split, capped: limit == GrowthLimit::Cap, limit }))
+}
+
+/// Whether every SH coefficient above the active degree is zero, in the Gaussians and in the
+/// moments: the device holds only the active ones, so it may move rows only then.
+fn inactive_sh_zero(state: &TrainState) -> bool {
+    let active = gs_core::sh::coeffs_for_degree(state.gaussians.sh_degree);
+    let values = state.gaussians.sh.iter().all(|c| c[active..].iter().all(|v| *v == [0.0; 3]));
+    let Some(rest) = state.adam.groups.iter().find(|g| g.name == crate::params::Param::ShRest.name()) else {
+        return false;
+    };
+    let (w, from) = (rest.row_width, 3 * active.saturating_sub(1));
+    let zero = |m: &[f32]| m.chunks(w).all(|row| row[from.min(w)..].iter().all(|v| *v == 0.0));
+    values && zero(&rest.m) && zero(&rest.v)
 }
 
 /// For every Gaussian, the number of training views in which it was observed (contributed

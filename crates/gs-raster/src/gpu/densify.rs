@@ -244,6 +244,7 @@ impl WgpuRasterizer {
             p.ensure(id, 4 * n.max(1));
         }
         self.sort.reserve(p, n + 1);
+        self.sort.prefix_scan().reserve(p, n + 1);
         p.ensure(self.bufs.staging, 16);
         d.disp.write_frame(uniform);
         let (p, b) = (&self.pool, &self.bufs);
@@ -297,7 +298,7 @@ impl WgpuRasterizer {
         p.ensure(d.parents, 4 * (born_max as u64).max(1));
         p.ensure(d.born, bytes_of::<ParamRecord>(born_max as usize).max(bytes_of::<ParamRecord>(1)));
         p.ensure(d.dest, 4 * (rows + 1));
-        self.sort.reserve(p, rows + 1);
+        self.sort.prefix_scan().reserve(p, rows + 1);
         super::upload_with(&self.ctx, p, d.normals, normals.len().max(1), |out: &mut [f32]| out[..normals.len()].copy_from_slice(normals));
         let m = &mut self.model;
         for (k, id) in d.next.iter().enumerate() {

@@ -1,0 +1,143 @@
+#![cfg(feature = "wgpu")]
+//! Density control on the device (gs-raster's `densify_resident`, driven by gs-train's
+//! `device_rule`) against its host twin `densify_and_prune`: the same rows in the same order,
+//! every value but the sampled means bit for bit, the means within 1e-5 (the device's rotation
+//! may round differently), the moments moved with their rows and zero for born rows, the
+//! statistics at zero, and the same report; on the residual, budget and cap limits, the AbsGS
+//! limit, the large-Gaussian prune, SH degrees 3 and 1, and a step that would leave nothing.
+//!
+//! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
+
+use gs_core::{Adam, AdamConfig, DensifyStats, Gaussians, Param, Rng};
+use gs_raster::{Backend, Rasterizer};
+use gs_train::DensifyConfig;
+use gs_train::densify::{DensifyReport, Growth, densify_and_prune, device_rule};
+
+/// A model of `n` Gaussians with varied parameters, moments and statistics: a third small
+/// with large gradients (clones), a third large with large gradients (splits), the rest
+/// large with large absolute gradients and radii (AbsGS splits), every seventh transparent.
+fn model(n: usize, degree: u32, seed: u64) -> (Gaussians, Adam, DensifyStats) {
+    let mut rng = Rng::new(seed);
+    let mut g = Gaussians::with_len(0).unwrap();
+    let active = gs_core::sh::coeffs_for_degree(degree);
+    for i in 0..n {
+        let mut sh = [[0.0; 3]; 16];
+        for c in sh.iter_mut().take(active) {
+            *c = [rng.normal(), rng.normal(), rng.normal()];
+        }
+        let scale = if i % 3 == 0 { 0.0005f32 } else { 0.05 + 0.01 * rng.uniform() as f32 };
+        let rot = [1.0 + rng.normal(), rng.normal(), rng.normal(), rng.normal()];
+        let opacity = if i % 7 == 6 { -8.0 } else { rng.normal() };
+        g.push([rng.normal(), rng.normal(), rng.normal()], [scale.ln(), (1.3 * scale).ln(), (0.7 * scale).ln()], rot, opacity, sh);
+    }
+    g.sh_degree = degree;
+    let mut adam = Adam::new(AdamConfig::default());
+    for p in Param::ALL {
+        adam.add_group(p.name(), 1e-3, n, p.row_width()).unwrap();
+    }
+    for group in &mut adam.groups {
+        let width = group.row_width;
+        for (k, (m, v)) in group.m.iter_mut().zip(group.v.iter_mut()).enumerate() {
+            // Zero above the active SH degree, as training keeps them.
+            let inactive = group.name == Param::ShRest.name() && k % width >= 3 * (active - 1);
+            if !inactive {
+                (*m, *v) = (rng.normal(), rng.uniform() as f32);
+            }
+        }
+    }
+    let mut st = DensifyStats::new(n);
+    for i in 0..n {
+        st.visible_count[i] = 1 + (i % 4) as u32;
+        let v = st.visible_count[i] as f32;
+        // Distinct scores, well clear of the thresholds.
+        let strength = v * (1.5 + i as f32 * 1e-3);
+        match i % 3 {
+            0 | 1 => st.grad_sum[i] = strength * 2e-4,
+            _ => st.abs_grad_sum[i] = strength * 8e-4,
+        }
+        st.max_radius[i] = if i % 5 == 0 { 40.0 } else { 25.0 };
+    }
+    (g, adam, st)
+}
+
+/// The device's densification of the model next to the host's, compared row by row.
+fn compare(wgpu: &mut Rasterizer, n: usize, degree: u32, cfg: &DensifyConfig, prune_big: bool, growth: Growth) -> DensifyReport {
+    let (g, adam, st) = model(n, degree, n as u64 + degree as u64);
+    let (mut host_g, mut host_adam, mut host_st) = (g.clone(), adam.clone(), st.clone());
+    let host = densify_and_prune(&mut host_g, &mut host_adam, &mut host_st, cfg, 2.0, prune_big, growth, &mut Rng::new(9)).unwrap();
+    wgpu.make_resident(&g, &adam, &st).unwrap();
+    let rule = device_rule(cfg, 2.0, prune_big, growth.room(n));
+    let counts = wgpu.densify_resident(&g, &rule, &mut Rng::new(9)).unwrap().expect("the device takes the step");
+    assert_eq!((counts.cloned, counts.split, counts.removed - counts.split, counts.len), (host.cloned, host.split, host.pruned, host_g.len()));
+    assert_eq!(growth.limit(counts.candidates, rule.room), host.limit);
+    // Read back into placeholders of the new size, as the trainer keeps them.
+    let mut dev_g = Gaussians::with_len(counts.len).unwrap();
+    dev_g.sh_degree = degree;
+    let mut dev_adam = adam.clone();
+    for group in &mut dev_adam.groups {
+        group.m = vec![0.0; counts.len * group.row_width];
+        group.v = vec![0.0; counts.len * group.row_width];
+    }
+    let mut dev_st = DensifyStats::new(counts.len);
+    dev_st.grad_sum.fill(7.0);
+    wgpu.read_resident(&mut dev_g, Some((&mut dev_adam, &mut dev_st))).unwrap();
+    assert_eq!(dev_st, DensifyStats::new(counts.len), "the statistics start again at zero");
+    for i in 0..counts.len {
+        let (d, h) = (dev_g.means[i], host_g.means[i]);
+        assert!((0..3).all(|k| (d[k] - h[k]).abs() <= 1e-5), "row {i}: mean {d:?} on the device, {h:?} on the host");
+    }
+    dev_g.means = host_g.means.clone();
+    assert_eq!(dev_g, host_g, "every other parameter bit for bit");
+    assert_eq!(dev_adam, host_adam, "the moments move with their rows, zero for born rows");
+    wgpu.release_resident();
+    host
+}
+
+fn wgpu_rasterizer() -> Option<Rasterizer> {
+    match Rasterizer::new(Backend::Wgpu) {
+        Ok(r) => Some(r),
+        Err(e) => {
+            gs_testdata::skip_or_fail!(&format!("no wgpu adapter: {e}"), "install mesa-vulkan-drivers for lavapipe");
+            None
+        }
+    }
+}
+
+#[test]
+fn the_device_densifies_as_the_host_does() {
+    let Some(mut wgpu) = wgpu_rasterizer() else { return };
+    let cfg = DensifyConfig::default();
+    let open = Growth { target: usize::MAX, cap: 1_000_000 };
+    // Every candidate grows; the transparent seventh are pruned.
+    let all = compare(&mut wgpu, 300, 3, &cfg, false, open);
+    assert!(all.cloned > 50 && all.split > 100 && all.pruned > 20, "{all:?}");
+    assert_eq!(all.limit, gs_train::GrowthLimit::Residual);
+    // The budget takes the best scores (the highest indices here), then the cap.
+    let budget = compare(&mut wgpu, 300, 3, &cfg, false, Growth { target: 340, cap: 1_000_000 });
+    assert_eq!((budget.cloned + budget.split, budget.limit), (40, gs_train::GrowthLimit::Budget));
+    let cap = compare(&mut wgpu, 300, 1, &cfg, false, Growth { target: usize::MAX, cap: 310 });
+    assert!(cap.capped && cap.cloned + cap.split == 10);
+    // The AbsGS limit and the large-Gaussian prune (radii of 40 over 20 pixels).
+    let few = DensifyConfig { max_abs_splits: 7, ..cfg.clone() };
+    let limited = compare(&mut wgpu, 300, 1, &few, true, open);
+    assert!(limited.split < all.split && limited.pruned > all.pruned, "{limited:?} against {all:?}");
+    // More than one chunk of work per kernel and a scan of several levels.
+    compare(&mut wgpu, 5000, 3, &cfg, true, Growth { target: 5600, cap: 1_000_000 });
+}
+
+#[test]
+fn a_step_that_would_leave_nothing_is_declined() {
+    let Some(mut wgpu) = wgpu_rasterizer() else { return };
+    let (g, adam, st) = model(20, 0, 1);
+    // Everything below the minimum opacity: the host keeps the most opaque one, the device declines.
+    let cfg = DensifyConfig { min_opacity: 0.9999, ..DensifyConfig::default() };
+    wgpu.make_resident(&g, &adam, &st).unwrap();
+    let rule = device_rule(&cfg, 2.0, false, 0);
+    assert_eq!(wgpu.densify_resident(&g, &rule, &mut Rng::new(1)).unwrap(), None);
+    let (mut back, mut back_adam, mut back_st) = (g.clone(), adam.clone(), DensifyStats::new(20));
+    wgpu.read_resident(&mut back, Some((&mut back_adam, &mut back_st))).unwrap();
+    assert_eq!((&back, &back_adam, &back_st), (&g, &adam, &st), "the resident model is unchanged");
+    // The CPU backend has nothing resident to densify.
+    let mut cpu = Rasterizer::new(Backend::Cpu).unwrap();
+    assert!(cpu.densify_resident(&g, &rule, &mut Rng::new(1)).is_err());
+}
