@@ -30,6 +30,8 @@ pub struct DensifyReport {
     pub capped: bool,
     /// What bounded the growth of this step.
     pub limit: GrowthLimit,
+    /// Whether the step ran on the device that holds the model ([`crate::refine::densify_on_device`]).
+    pub on_device: bool,
 }
 
 /// How far one densification step may grow the model: the scheduled `target`

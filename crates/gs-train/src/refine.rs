@@ -95,7 +95,7 @@ pub(crate) fn densify_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>
     }
     state.stats = gs_core::DensifyStats::new(c.len);
     let limit = growth.limit(c.candidates, rule.room);
-    Ok(Some(DensifyReport { cloned: c.cloned, split: c.split, pruned: c.removed - c.split, capped: limit == GrowthLimit::Cap, limit }))
+    Ok(Some(DensifyReport { cloned: c.cloned, split: c.split, pruned: c.removed - c.split, capped: limit == GrowthLimit::Cap, limit, on_device: true }))
 }
 
 /// Whether every SH coefficient above the active degree is zero, in the Gaussians and in the

@@ -2,7 +2,7 @@
 //! Training on wgpu with the model resident on the device: N + resume N iterations gives the
 //! same state bit for bit as 2N (the parameters, the moments and the source-depth memo come
 //! back from the device for the checkpoint, between two density-control steps, in the L_p
-//! phase), reading the state back mid-run changes
+//! phase; the densifications run on the device), reading the state back mid-run changes
 //! nothing of the run, and Adam runs on the device.
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
@@ -36,7 +36,13 @@ fn a_resident_run_resumes_bit_identically() {
     let parts = straight.parts_on();
     let adam = parts.iter().find(|p| p.part == "Adam").unwrap();
     assert!(adam.on.starts_with("wgpu on "), "Adam runs on {}", adam.on);
-    straight.run(|_, _| true).unwrap();
+    let mut densified_on_device = 0;
+    straight.run(|_, r| {
+        densified_on_device += r.densify.is_some_and(|d| d.on_device) as usize;
+        true
+    })
+    .unwrap();
+    assert!(densified_on_device > 0, "clone / split / prune ran on the device");
 
     // Stopped at 55, after the opacity reset of 50 and before the densification of 60: the
     // parameters, the moments and the gathering statistics live on the device there and come
