@@ -158,16 +158,16 @@ impl Rasterizer {
         }
     }
 
-    /// Clone, split and prune the resident model on its device by `rule`, the position draws
-    /// from `rng` in the host's order ([`crate::WgpuRasterizer::densify_resident`]); `None`,
+    /// Clone, split and prune the resident model on its device by `rule`, each born row's
+    /// position from `sample` in the host's order ([`crate::WgpuRasterizer::densify_resident`]); `None`,
     /// with nothing changed, where the device does not take the step (the host then runs it).
     /// The CPU backend has no resident model and refuses.
-    pub fn densify_resident(&mut self, gaussians: &Gaussians, rule: &crate::DensifyRule, rng: &mut gs_core::Rng) -> Result<Option<crate::DensifyCounts>> {
+    pub fn densify_resident(&mut self, gaussians: &Gaussians, rule: &crate::DensifyRule, sample: &mut dyn FnMut(&crate::BornParent) -> [f32; 3]) -> Result<Option<crate::DensifyCounts>> {
         match &mut self.inner {
             #[cfg(feature = "wgpu")]
-            Inner::Wgpu(r) => r.densify_resident(gaussians, rule, rng),
+            Inner::Wgpu(r) => r.densify_resident(gaussians, rule, sample),
             _ => {
-                let _ = (gaussians, rule, rng);
+                let _ = (gaussians, rule, sample);
                 Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to densify".into()))
             }
         }

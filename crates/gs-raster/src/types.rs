@@ -436,6 +436,18 @@ pub struct DensifyRule {
     pub room: usize,
 }
 
+/// The parent of a row born on the device, as [`crate::Rasterizer::densify_resident`] hands
+/// it to the host's sampler of positions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BornParent {
+    /// The parent's mean.
+    pub mean: [f32; 3],
+    /// The parent's log-scales.
+    pub log_scale: [f32; 3],
+    /// The parent's quaternion (w, x, y, z), unnormalised.
+    pub rotation: [f32; 4],
+}
+
 /// What density control on a resident model did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DensifyCounts {

@@ -109,10 +109,16 @@ fn max_scale(g: &Gaussians, i: usize) -> f32 {
 
 /// A position sampled from Gaussian `i`: μ + R·(s ⊙ n), n ~ N(0, I).
 fn sample_position(g: &Gaussians, i: usize, rng: &mut Rng) -> [f32; 3] {
-    let s = g.scale(i);
+    sample_near(&gs_raster::BornParent { mean: g.means[i], log_scale: g.log_scales[i], rotation: g.rotations[i] }, rng)
+}
+
+/// A position sampled from a parent Gaussian: μ + R·(s ⊙ n), n ~ N(0, I) (3 draws). The one
+/// rule of born positions, on the host and for the device's density control.
+pub fn sample_near(parent: &gs_raster::BornParent, rng: &mut Rng) -> [f32; 3] {
+    let s = parent.log_scale.map(f32::exp);
     let n = Vec3::new(rng.normal() * s[0], rng.normal() * s[1], rng.normal() * s[2]);
-    let r = rotation_matrix(g.rotations[i]);
-    (Vec3::from(g.means[i]) + r * n).to_array()
+    let r = rotation_matrix(parent.rotation);
+    (Vec3::from(parent.mean) + r * n).to_array()
 }
 
 /// Clone, split and prune (PGSR's `densify_and_prune` with AbsGS): `prune_big` also prunes

@@ -69,7 +69,8 @@ pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &m
 }
 
 /// Clone, split and prune on the device that holds the model resident
-/// ([`Rasterizer::densify_resident`]), with the host's rule and random draws: `None`, with
+/// ([`Rasterizer::densify_resident`]), with the host's rule and its sampled positions
+/// ([`densify::sample_near`], the same random stream): the model the host would make. `None`, with
 /// nothing changed, where it does not apply (no resident model, a growth region, SH
 /// coefficients above the active degree that are not zero, or a step the device declines).
 /// After it the host's Gaussians and moments are placeholders of the new size, behind the
@@ -83,7 +84,7 @@ pub(crate) fn densify_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>
     let growth = densify::Growth { target: run.budget.target(plan.iteration, cfg), cap: run.config.max_gaussians };
     let rule = densify::device_rule(cfg, run.extent as f32, plan.refine.prune_big, growth.room(n));
     let mut rng = plan.refine_rng.clone();
-    let Some(c) = rasterizer.densify_resident(&state.gaussians, &rule, &mut rng)? else {
+    let Some(c) = rasterizer.densify_resident(&state.gaussians, &rule, &mut |parent| densify::sample_near(parent, &mut rng))? else {
         return Ok(None);
     };
     let degree = state.gaussians.sh_degree;

@@ -4,16 +4,18 @@
 //! Masks and gs-gpu's scan and sort do the host's list work: each Gaussian's candidacy
 //! (densify/classify.wgsl), the AbsGS limit (a scan), the budget's choice of the best scores
 //! (a stable radix sort, ties by index), the born rows' parents (scans of the clone and split
-//! flags), their positions from the host's normal draws (the same draws, in the same order, as
-//! the host's), the prune, and a scatter of every surviving row into a second set of buffers,
-//! which then become the model's. The host reads back three small counts, twice.
+//! flags), the prune, and a scatter of every surviving row into a second set of buffers, which
+//! then become the model's. The born rows' positions are the host's: it reads back their
+//! parents' records and samples each position with its own rule and random stream, so the
+//! model is the one the host would make. The host reads back counts twice and the parents'
+//! records (44 bytes a born row) once, and uploads 12 bytes a born row.
 
 use super::kernels::{PARAM_MATH, ParamRecord, ShCoeff};
 use super::resident::StatRecord;
 use super::WgpuRasterizer;
-use crate::{DensifyCounts, DensifyRule, RasterError, Result};
+use crate::{BornParent, DensifyCounts, DensifyRule, RasterError, Result};
 use gs_core::sh::coeffs_for_degree;
-use gs_core::{Gaussians, Rng};
+use gs_core::Gaussians;
 use gs_gpu::{Binding, BufId, BufferPool, Dispatcher, Encoder, GeneratedStruct, GpuContext, Kernel, PassUniform, bytes_of, grid};
 
 gs_gpu::wgsl_struct! {
@@ -63,19 +65,15 @@ fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
             ],
         ),
         ("densify_choose", include_str!("densify/choose.wgsl"), vec![B::read("sorted", u), B::write("chosen", u)]),
-        ("densify_parents", include_str!("densify/parents.wgsl"), vec![B::read("clone_ranks", u), B::read("split_ranks", u), B::write("parents", u)]),
+        (
+            "densify_parents",
+            include_str!("densify/parents.wgsl"),
+            vec![B::read("params", par), B::read("clone_ranks", u), B::read("split_ranks", u), B::write("parents", u), B::write("born", par)],
+        ),
         (
             "densify_born",
             include_str!("densify/born.wgsl"),
-            vec![
-                B::read("params", par),
-                B::read("parents", u),
-                B::read("normals", "array<f32>"),
-                B::read("clone_ranks", u),
-                B::read("split_ranks", u),
-                B::write("born", par),
-                B::write("keep", u),
-            ],
+            vec![B::read("means", "array<f32>"), B::read("clone_ranks", u), B::read("split_ranks", u), B::write("born", par), B::write("keep", u)],
         ),
         (
             "densify_keep",
@@ -131,7 +129,7 @@ pub(super) struct Densify {
     clone_ranks: BufId,
     split_ranks: BufId,
     parents: BufId,
-    normals: BufId,
+    means: BufId,
     born: BufId,
     dest: BufId,
     /// params, m_params, v_params, sh, m_sh, v_sh of the next model.
@@ -147,10 +145,10 @@ impl Densify {
             .collect::<Result<Vec<_>>>()?;
         let mut b = |l| pool.add_storage(l);
         let (classes, abs_flags, chosen, clone_ranks) = (b("densify_classes"), b("densify_abs"), b("densify_chosen"), b("densify_clone_ranks"));
-        let (split_ranks, parents, normals, born, dest) = (b("densify_split_ranks"), b("densify_parents"), b("densify_normals"), b("densify_born"), b("densify_dest"));
+        let (split_ranks, parents, means, born, dest) = (b("densify_split_ranks"), b("densify_parents"), b("densify_means"), b("densify_born"), b("densify_dest"));
         let next = ["next_params", "next_m_params", "next_v_params", "next_sh", "next_m_sh", "next_v_sh"].map(|l| model_pool.add_storage(l));
         let disp = Dispatcher::new(ctx, std::mem::size_of::<DensifyUniform>() as u64);
-        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, normals, born, dest, next })
+        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, means, born, dest, next })
     }
 
     fn kernel(&self, entry: &str) -> &Kernel {
@@ -166,11 +164,13 @@ struct Candidates {
 
 impl WgpuRasterizer {
     /// Clone, split and prune the resident model (of `g`'s size and degree; `g` itself is not
-    /// read) by `rule`, drawing the born positions' normals from `rng` in the host's order.
-    /// The statistics start again at zero. Returns the counts, or `None`, with the model
+    /// read) by `rule`. `sample` gives each born row's position from its parent, called in row
+    /// order (clones in index order, then two children per split parent), as the host's rule
+    /// calls its own: the host's random stream stays the one source of positions. The
+    /// statistics start again at zero. Returns the counts, or `None`, with the model
     /// unchanged, where the step would leave no Gaussian (the host keeps the most opaque one)
     /// or the model's buffers do not fit one storage binding each.
-    pub fn densify_resident(&mut self, g: &Gaussians, rule: &DensifyRule, rng: &mut Rng) -> Result<Option<DensifyCounts>> {
+    pub fn densify_resident(&mut self, g: &Gaussians, rule: &DensifyRule, sample: &mut dyn FnMut(&BornParent) -> [f32; 3]) -> Result<Option<DensifyCounts>> {
         let Some(r) = self.model.residency() else {
             return Err(RasterError::Gpu("density control on the device needs a resident model".into()));
         };
@@ -187,10 +187,10 @@ impl WgpuRasterizer {
             self.densify = Some(Densify::new(&self.ctx, &mut self.pool, &mut self.model.pool)?);
         }
         self.frame = None;
-        self.scoped(|s| s.densify_scoped(rule, rng, r.n as u32, nc as u32))
+        self.scoped(|s| s.densify_scoped(rule, sample, r.n as u32, nc as u32))
     }
 
-    fn densify_scoped(&mut self, rule: &DensifyRule, rng: &mut Rng, n: u32, nc: u32) -> Result<Option<DensifyCounts>> {
+    fn densify_scoped(&mut self, rule: &DensifyRule, sample: &mut dyn FnMut(&BornParent) -> [f32; 3], n: u32, nc: u32) -> Result<Option<DensifyCounts>> {
         let room = rule.room.min(u32::MAX as usize) as u32;
         let uniform = DensifyUniform {
             n,
@@ -217,8 +217,9 @@ impl WgpuRasterizer {
             false => found.clones + 2 * found.splits,
             true => room + found.splits.min(room),
         };
-        let normals: Vec<f32> = (0..3 * born_max as usize).map(|_| rng.normal()).collect();
-        let counts = self.grow_and_prune(&uniform, born_max, &normals)?;
+        let parents = self.born_parents(&uniform, born_max)?;
+        let means: Vec<f32> = parents.iter().flat_map(|p| sample(p)).collect();
+        let counts = self.grow_and_prune(&uniform, born_max, &means)?;
         let (clones, splits, kept) = (counts[0] as usize, counts[1] as usize, counts[2] as usize);
         if kept == 0 {
             return Ok(None);
@@ -288,18 +289,47 @@ impl WgpuRasterizer {
         Ok(())
     }
 
-    /// The born rows, the prune and the scatter into the next buffers; reads back the clones,
-    /// splits and surviving rows.
-    fn grow_and_prune(&mut self, uniform: &DensifyUniform, born_max: u32, normals: &[f32]) -> Result<[u32; 3]> {
+    /// The born rows' parents, in row order: their records, read back for the host's sampler.
+    fn born_parents(&mut self, uniform: &DensifyUniform, born_max: u32) -> Result<Vec<BornParent>> {
+        let n = uniform.n as u64;
+        let d = self.densify.as_ref().expect("made");
+        let p = &mut self.pool;
+        let record = bytes_of::<ParamRecord>(1);
+        p.ensure(d.parents, 4 * (born_max as u64).max(1));
+        p.ensure(d.born, record * (born_max as u64).max(1));
+        p.ensure(self.bufs.staging, 8 + record * born_max as u64);
+        let (p, b, m) = (&self.pool, &self.bufs, &self.model);
+        let mut enc = d.disp.encoder();
+        let pass = PassUniform { n: uniform.n, ..Default::default() };
+        let binds = [m.pool.whole(m.params), p.whole(d.clone_ranks), p.whole(d.split_ranks), p.whole(d.parents), p.whole(d.born)];
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_parents"), &binds, pass)?;
+        let staging = p.buffer(b.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.clone_ranks), n * 4, staging, 0, 4);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.split_ranks), n * 4, staging, 4, 4);
+        if born_max > 0 {
+            enc.encoder.copy_buffer_to_buffer(p.buffer(d.born), 0, staging, 8, record * born_max as u64);
+        }
+        d.disp.submit(enc);
+        let bytes = 8 + record * born_max as u64;
+        self.ctx.read_mapped(staging, bytes, |bytes| {
+            let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[..8]);
+            let born = (counts[0] as usize + 2 * counts[1] as usize).min(born_max as usize);
+            let records: Vec<ParamRecord> = bytemuck::pod_collect_to_vec(&bytes[8..]);
+            records[..born].iter().map(|r| BornParent { mean: r.mean, log_scale: r.log_scale, rotation: [r.rot_w, r.rot_x, r.rot_y, r.rot_z] }).collect()
+        })
+        .map_err(Into::into)
+    }
+
+    /// The born rows at the host's `means`, the prune and the scatter into the next buffers;
+    /// reads back the clones, splits and surviving rows.
+    fn grow_and_prune(&mut self, uniform: &DensifyUniform, born_max: u32, means: &[f32]) -> Result<[u32; 3]> {
         let (n, nc) = (uniform.n as u64, uniform.nc as u64);
         let rows = n + born_max as u64;
         let d = self.densify.as_ref().expect("made");
         let p = &mut self.pool;
-        p.ensure(d.parents, 4 * (born_max as u64).max(1));
-        p.ensure(d.born, bytes_of::<ParamRecord>(born_max as usize).max(bytes_of::<ParamRecord>(1)));
         p.ensure(d.dest, 4 * (rows + 1));
         self.sort.prefix_scan().reserve(p, rows + 1);
-        super::upload_with(&self.ctx, p, d.normals, normals.len().max(1), |out: &mut [f32]| out[..normals.len()].copy_from_slice(normals));
+        super::upload_with(&self.ctx, p, d.means, means.len().max(1), |out: &mut [f32]| out[..means.len()].copy_from_slice(means));
         let m = &mut self.model;
         for (k, id) in d.next.iter().enumerate() {
             let row = if k < 3 { bytes_of::<ParamRecord>(1) } else { nc.max(1) * bytes_of::<ShCoeff>(1) };
@@ -309,8 +339,7 @@ impl WgpuRasterizer {
         let mut enc = d.disp.encoder();
         let whole = |id| p.whole(id);
         let pass = PassUniform { n: uniform.n, ..Default::default() };
-        d.disp.dispatch_1d(&mut enc, d.kernel("densify_parents"), &[whole(d.clone_ranks), whole(d.split_ranks), whole(d.parents)], pass)?;
-        let binds = [m.pool.whole(m.params), whole(d.parents), whole(d.normals), whole(d.clone_ranks), whole(d.split_ranks), whole(d.born), whole(d.dest)];
+        let binds = [whole(d.means), whole(d.clone_ranks), whole(d.split_ranks), whole(d.born), whole(d.dest)];
         let born_pass = PassUniform { n: born_max, ..Default::default() };
         d.disp.dispatch(&mut enc, d.kernel("densify_born"), &binds, born_pass, grid((born_max + 1).div_ceil(256)))?;
         let binds = [m.pool.whole(m.params), m.pool.whole(m.stats), whole(d.split_ranks), whole(d.dest)];

@@ -1,7 +1,7 @@
-// The born rows: a position sampled from the parent, μ + R·(s ⊙ n) with the host's normal
-// draws n (3 per row, in row order), the parent's rotation, opacity and (halved by the split
-// divisor for split children) log-scale; and whether each survives the prune (`keep` from row
-// `rule.n` on; rows past the born count, up to the reserved `pass_.n`, are not kept).
+// The born rows, from their parents' records (densify/parents.wgsl): the position the host
+// sampled (`means`, 3 per row in row order), the split children's log-scales less the split
+// divisor's log; and whether each survives the prune (`keep` from row `rule.n` on; rows past
+// the born count, up to the reserved `pass_.n`, are not kept).
 
 @compute @workgroup_size(256)
 fn densify_born(ids: Ids) {
@@ -15,12 +15,8 @@ fn densify_born(ids: Ids) {
         keep[rule.n + b] = 0u;
         return;
     }
-    var p = params[parents[b]];
-    let s = exp(log_scale_of(p));
-    let d = vec3<f32>(normals[3u * b] * s.x, normals[3u * b + 1u] * s.y, normals[3u * b + 2u] * s.z);
-    let r = rotation_matrix(vec4<f32>(p.rot_w, p.rot_x, p.rot_y, p.rot_z));
-    let m = vec3<f32>(p.mean[0], p.mean[1], p.mean[2]) + r * d;
-    p.mean = array<f32, 3>(m.x, m.y, m.z);
+    var p = born[b];
+    p.mean = array<f32, 3>(means[3u * b], means[3u * b + 1u], means[3u * b + 2u]);
     if (b >= clones) {
         p.log_scale = array<f32, 3>(p.log_scale[0] - rule.shrink, p.log_scale[1] - rule.shrink, p.log_scale[2] - rule.shrink);
     }
