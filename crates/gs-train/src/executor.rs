@@ -68,6 +68,10 @@ pub trait StepExecutor {
     /// moments of a resident model), so that the host may read it; the residency goes on.
     fn pull(&mut self, state: &mut TrainState) -> Result<()>;
 
+    /// Brings into `state` the resident model's parameters alone (what renders, exports and
+    /// held-out scoring read), not its moments, statistics or the memo's depths.
+    fn pull_parameters(&mut self, state: &mut TrainState) -> Result<()>;
+
     /// [`StepExecutor::pull`], then ends the residency, so that the host may change the
     /// state; the next [`StepExecutor::execute`] takes it up again.
     fn release(&mut self, state: &mut TrainState) -> Result<()>;
@@ -451,10 +455,9 @@ impl StepExecutor for ReferenceExecutor {
             _ => return Err(TrainError::InvalidConfig("the render has no colour for L_I".into())),
         };
         profile.add(phase, Part::Render, clock.lap());
-        if (plan.weights.lambda_o > 0.0 || plan.weights.lambda_s > 0.0) && self.behind.parameters {
+        if plan.weights.lambda_o > 0.0 || plan.weights.lambda_s > 0.0 {
             // L_o and L_s read the opacity logits and log-scales, which moved on the device only.
-            self.rasterizer.read_resident(&mut state.gaussians, None)?;
-            self.behind.parameters = false;
+            self.pull_parameters(state)?;
         }
         // Each depth with the iteration that rendered it (its version on a device).
         let memo = &state.source_depths;
@@ -567,6 +570,15 @@ impl StepExecutor for ReferenceExecutor {
             self.release(state)?;
         }
         crate::refine::refine(&mut self.rasterizer, run, state, plan, densified)
+    }
+
+    fn pull_parameters(&mut self, state: &mut TrainState) -> Result<()> {
+        self.check_step()?;
+        if self.behind.parameters {
+            self.rasterizer.read_resident(&mut state.gaussians, None)?;
+            self.behind.parameters = false;
+        }
+        Ok(())
     }
 
     fn pull(&mut self, state: &mut TrainState) -> Result<()> {

@@ -117,14 +117,21 @@ fn inactive_sh_zero(state: &TrainState) -> bool {
 pub fn views_observed(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, gaussians: &Gaussians) -> Result<Vec<u32>> {
     let mut counts = vec![0u32; gaussians.len()];
     let req = RenderRequest { color: false, alpha: false, observed: true, ..RenderRequest::default() };
-    for &i in run.train_views {
-        let out = rasterizer.render(gaussians, &run.scene.views[i].camera, &req, run.raster)?;
-        for (c, &o) in counts.iter_mut().zip(out.observed.as_ref().expect("requested")) {
-            *c += (o > 0) as u32;
+    for views in run.train_views.chunks(VIEWS_TOGETHER) {
+        let cameras: Vec<_> = views.iter().map(|&i| (&run.scene.views[i].camera, req)).collect();
+        for out in rasterizer.render_views(gaussians, &cameras, run.raster)? {
+            for (c, &o) in counts.iter_mut().zip(out.observed.as_ref().expect("requested")) {
+                *c += (o > 0) as u32;
+            }
         }
     }
     Ok(counts)
 }
+
+/// Training views rendered in one call by the trim and the floater votes: a device uploads
+/// the model once a call (the model is not resident during host density control), and the
+/// host holds this many views' outputs at once.
+const VIEWS_TOGETHER: usize = 8;
 
 /// Renders every training view's plane depth and alpha and collects the free-space votes of
 /// `gaussians` (docs/method.md §Floaters; no renders when only the capture path is asked for).
@@ -132,11 +139,12 @@ pub fn free_space_votes(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, gaussi
     let mut votes = FreeSpaceVotes::new(gaussians.len());
     let req = RenderRequest { color: false, alpha: true, plane_depth: true, ..RenderRequest::default() };
     let views = if rule.enabled { run.train_views } else { &[] };
-    for &v in views {
-        let camera = &run.scene.views[v].camera;
-        let out = rasterizer.render(gaussians, camera, &req, run.raster)?;
-        let (depth, alpha) = (out.plane_depth.expect("requested"), out.alpha.expect("requested"));
-        votes.add_view(gaussians, camera, &depth, &alpha, run.raster.near, rule)?;
+    for group in views.chunks(VIEWS_TOGETHER) {
+        let cameras: Vec<_> = group.iter().map(|&v| (&run.scene.views[v].camera, req)).collect();
+        for ((camera, _), out) in cameras.iter().zip(rasterizer.render_views(gaussians, &cameras, run.raster)?) {
+            let (depth, alpha) = (out.plane_depth.expect("requested"), out.alpha.expect("requested"));
+            votes.add_view(gaussians, camera, &depth, &alpha, run.raster.near, rule)?;
+        }
     }
     let cameras = run.scene.cameras_of(run.train_views);
     let surface: Vec<gs_core::glam::DVec3> = run.scene.points.iter().map(|p| p.position).collect();

@@ -271,7 +271,8 @@ impl<'s> Trainer<'s> {
     }
 
     /// The current model with its scene, split and settings (for meshing, rendering and
-    /// evaluating it), brought back from the device first (as [`Trainer::state`]).
+    /// evaluating it), its parameters brought back from the device first (not the moments,
+    /// statistics or memo that [`Trainer::state`] also brings).
     pub fn model(&mut self) -> Result<TrainedModel<'_>> {
         Ok(self.model_and_rasterizer()?.0)
     }
@@ -332,7 +333,8 @@ impl<'s> Trainer<'s> {
 
     /// The current model (brought back from the device) and the rasterizer, borrowed together.
     fn model_and_rasterizer(&mut self) -> Result<(TrainedModel<'_>, &mut Rasterizer)> {
-        self.executor.pull(&mut self.state)?;
+        // The parameters alone: the moments, statistics and memo stay where they are.
+        self.executor.pull_parameters(&mut self.state)?;
         let model = TrainedModel {
             scene: self.scene,
             train: &self.train_views,
