@@ -173,6 +173,20 @@ impl Rasterizer {
         }
     }
 
+    /// The opacity reset on the resident model ([`crate::WgpuRasterizer::reset_opacity_resident`]):
+    /// opacities above `level` take the logit `logit`, the opacity moments start again at
+    /// zero. The CPU backend has no resident model and refuses.
+    pub fn reset_opacity_resident(&mut self, gaussians: &Gaussians, level: f32, logit: f32) -> Result<()> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.reset_opacity_resident(gaussians, level, logit),
+            _ => {
+                let _ = (gaussians, level, logit);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to reset".into()))
+            }
+        }
+    }
+
     /// Ends a residency: the device's parameters and moments are dropped (read them first,
     /// [`Rasterizer::read_resident`], to keep them) and the next render uploads again.
     /// Nothing to do when no model is resident.

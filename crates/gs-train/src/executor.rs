@@ -48,8 +48,8 @@ pub struct RunInputs<'a> {
 /// Where one part of an iteration runs (report.json `parts_on`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PartPlace {
-    /// The part, in words ("render and backward", a loss term, "Adam", "densification (clone,
-    /// split, prune)").
+    /// The part, in words ("render and backward", a loss term, "Adam", "trim and floater
+    /// removal").
     pub part: String,
     /// Where it runs: `cpu (N threads)` or `wgpu on ADAPTER`.
     pub on: String,
@@ -150,8 +150,8 @@ impl ReferenceExecutor {
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
     /// term on its device kernel or the CPU, Adam and the densification statistics on the
     /// rasterizer's device when the model is resident there, and so do clone, split and prune
-    /// (where [`crate::refine::densify_on_device`] applies); the opacity reset, the trim and
-    /// the floater removal run on the CPU.
+    /// and the opacity reset (where [`crate::refine::densify_on_device`] applies); the trim
+    /// and the floater removal run on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
         let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
@@ -160,8 +160,8 @@ impl ReferenceExecutor {
         parts.extend(self.devices.term_parts().into_iter().map(|(part, on_device)| place(part, on_device)));
         parts.push(place("Adam", self.adam_on_device));
         parts.push(place("densification statistics", self.adam_on_device));
-        parts.push(place("densification (clone, split, prune)", self.adam_on_device));
-        parts.push(place("opacity reset, trim and floater removal", false));
+        parts.push(place("densification (clone, split, prune) and opacity reset", self.adam_on_device));
+        parts.push(place("trim and floater removal", false));
         parts
     }
 
@@ -557,19 +557,28 @@ impl StepExecutor for ReferenceExecutor {
 
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
         let r = plan.refine;
-        let mut densified = None;
-        if r.densify && self.adam_on_device {
-            // The last step's divergence first; then the model is densified where it is.
+        let mut done = crate::refine::DoneOnDevice::default();
+        if self.adam_on_device && (r.densify || r.reset_opacity) {
+            // The last step's divergence first; then the model is changed where it is, in the
+            // host's order, until a part only the host runs comes first.
             self.check_step()?;
-            densified = crate::refine::densify_on_device(&mut self.rasterizer, run, state, plan)?;
-            if densified.is_some() {
+            if r.densify {
+                done.densified = crate::refine::densify_on_device(&mut self.rasterizer, run, state, plan)?;
+            }
+            let host_first = (r.densify && done.densified.is_none()) || r.remove_floaters;
+            if r.reset_opacity && !host_first && self.rasterizer.is_resident() {
+                crate::refine::reset_on_device(&mut self.rasterizer, state)?;
+                done.opacity_reset = true;
+            }
+            if done.densified.is_some() || done.opacity_reset {
                 self.behind = Behind { parameters: true, optimiser: true };
             }
         }
-        if (r.densify && densified.is_none()) || r.remove_floaters || r.reset_opacity || r.trim {
+        let densify_left = r.densify && done.densified.is_none();
+        if densify_left || r.remove_floaters || (r.reset_opacity && !done.opacity_reset) || r.trim {
             self.release(state)?;
         }
-        crate::refine::refine(&mut self.rasterizer, run, state, plan, densified)
+        crate::refine::refine(&mut self.rasterizer, run, state, plan, done)
     }
 
     fn pull_parameters(&mut self, state: &mut TrainState) -> Result<()> {

@@ -28,13 +28,22 @@ pub struct RefineReport {
     pub floaters: Option<crate::floaters::FloaterReport>,
 }
 
+/// What of a step's density control the device that holds the model has already done.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct DoneOnDevice {
+    /// The densification ([`densify_on_device`]).
+    pub densified: Option<DensifyReport>,
+    /// The opacity reset ([`reset_on_device`]).
+    pub opacity_reset: bool,
+}
+
 /// Runs the density control that `plan` schedules after its step, continuing the iteration's
-/// random stream; renders (floaters, trim) go through `rasterizer`. `densified` is the
-/// densification the device already did ([`densify_on_device`]), if it did.
-pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, densified: Option<DensifyReport>) -> Result<RefineReport> {
+/// random stream; renders (floaters, trim) go through `rasterizer`. What `done` says the
+/// device did is not done again.
+pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, done: DoneOnDevice) -> Result<RefineReport> {
     let (r, config) = (plan.refine, run.config);
     let mut report = RefineReport::default();
-    if let Some(d) = densified {
+    if let Some(d) = done.densified {
         state.capped |= d.capped;
         report.densify = Some(d);
     } else if r.densify {
@@ -56,10 +65,10 @@ pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &m
     if r.remove_floaters {
         report.floaters = Some(remove_floaters(rasterizer, run, state, &config.densify.floaters)?);
     }
-    if r.reset_opacity {
+    if r.reset_opacity && !done.opacity_reset {
         densify::reset_opacity(&mut state.gaussians, &mut state.adam)?;
-        report.opacity_reset = true;
     }
+    report.opacity_reset = r.reset_opacity;
     if r.trim {
         let counts = views_observed(rasterizer, run, &state.gaussians)?;
         let s = &mut *state;
@@ -97,6 +106,13 @@ pub(crate) fn densify_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>
     state.stats = gs_core::DensifyStats::new(c.len);
     let limit = growth.limit(c.candidates, rule.room);
     Ok(Some(DensifyReport { cloned: c.cloned, split: c.split, pruned: c.removed - c.split, capped: limit == GrowthLimit::Cap, limit, on_device: true }))
+}
+
+/// The opacity reset ([`densify::reset_opacity`]) on the device that holds the model resident
+/// ([`Rasterizer::reset_opacity_resident`]). The host's copy is then behind the device's.
+pub(crate) fn reset_on_device(rasterizer: &mut Rasterizer, state: &TrainState) -> Result<()> {
+    let level = densify::RESET_OPACITY;
+    Ok(rasterizer.reset_opacity_resident(&state.gaussians, level, gs_core::gaussians::inverse_sigmoid(level))?)
 }
 
 /// Whether every SH coefficient above the active degree is zero, in the Gaussians and in the

@@ -3,7 +3,8 @@
 //! `device_rule`, positions from `sample_near`) against its host twin `densify_and_prune`: the
 //! same rows in the same order, bit for bit, the moments moved with their rows and zero for
 //! born rows, the statistics at zero, and the same report; on the residual, budget and cap limits, the AbsGS
-//! limit, the large-Gaussian prune, SH degrees 3 and 1, and a step that would leave nothing.
+//! limit, the large-Gaussian prune, SH degrees 3 and 1, and a step that would leave nothing;
+//! and the opacity reset (`reset_opacity_resident` against `reset_opacity`).
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
 
@@ -136,4 +137,25 @@ fn a_step_that_would_leave_nothing_is_declined() {
     // The CPU backend has nothing resident to densify.
     let mut cpu = Rasterizer::new(Backend::Cpu).unwrap();
     assert!(cpu.densify_resident(&g, &rule, &mut |p| sample_near(p, &mut rng)).is_err());
+}
+
+#[test]
+fn the_device_resets_opacities_as_the_host_does() {
+    let Some(mut wgpu) = wgpu_rasterizer() else { return };
+    let (mut g, adam, st) = model(500, 2, 3);
+    // Some opacities just below and above the reset level.
+    for (i, o) in g.opacity_logits.iter_mut().enumerate().step_by(5) {
+        *o = gs_core::gaussians::inverse_sigmoid(if i % 2 == 0 { 0.0099 } else { 0.0101 });
+    }
+    let (mut host_g, mut host_adam) = (g.clone(), adam.clone());
+    gs_train::densify::reset_opacity(&mut host_g, &mut host_adam).unwrap();
+    wgpu.make_resident(&g, &adam, &st).unwrap();
+    let level = gs_train::densify::RESET_OPACITY;
+    wgpu.reset_opacity_resident(&g, level, gs_core::gaussians::inverse_sigmoid(level)).unwrap();
+    let (mut dev_g, mut dev_adam, mut dev_st) = (g.clone(), adam.clone(), st.clone());
+    wgpu.read_resident(&mut dev_g, Some((&mut dev_adam, &mut dev_st))).unwrap();
+    assert_eq!(dev_g, host_g, "the parameters bit for bit");
+    assert_eq!(dev_adam, host_adam, "the opacity moments at zero, the others as they were");
+    assert_eq!(dev_st, st, "the statistics untouched");
+    assert!(host_g.opacity_logits != g.opacity_logits, "the reset changed opacities");
 }

@@ -38,6 +38,9 @@ gs_gpu::wgsl_struct! {
         max_world: f32,
         /// ln of the split divisor, taken off a split child's log-scales.
         shrink: f32,
+        /// The opacity reset: opacities above this level take `reset_logit` (densify/reset.wgsl).
+        reset_level: f32,
+        reset_logit: f32,
     }
 }
 
@@ -107,6 +110,11 @@ fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
                 B::write("next_m_sh", sh),
                 B::write("next_v_sh", sh),
             ],
+        ),
+        (
+            "densify_reset",
+            include_str!("densify/reset.wgsl"),
+            vec![B::write("params", par), B::write("m_params", par), B::write("v_params", par)],
         ),
     ]
 }
@@ -190,6 +198,32 @@ impl WgpuRasterizer {
         self.scoped(|s| s.densify_scoped(rule, sample, r.n as u32, nc as u32))
     }
 
+    /// The opacity reset on the resident model (of `g`'s size and degree): every opacity
+    /// above `level` takes the logit `logit`, and the opacity moments start again at zero, the
+    /// twin of gs-train's `reset_opacity`.
+    pub fn reset_opacity_resident(&mut self, g: &Gaussians, level: f32, logit: f32) -> Result<()> {
+        let Some(r) = self.model.residency() else {
+            return Err(RasterError::Gpu("an opacity reset on the device needs a resident model".into()));
+        };
+        if (r.n, r.sh_degree) != (g.len(), g.sh_degree) {
+            return Err(RasterError::Gpu(format!("the resident model holds {} Gaussians, not the {} given to reset", r.n, g.len())));
+        }
+        self.check_binding("the opacity reset", bytes_of::<ParamRecord>(r.n))?;
+        if self.densify.is_none() {
+            self.densify = Some(Densify::new(&self.ctx, &mut self.pool, &mut self.model.pool)?);
+        }
+        self.frame = None;
+        self.scoped(|s| {
+            let (d, m) = (s.densify.as_ref().expect("made above"), &s.model);
+            d.disp.write_frame(&DensifyUniform { n: r.n as u32, reset_level: level, reset_logit: logit, ..Default::default() });
+            let mut enc = d.disp.encoder();
+            let binds = [m.pool.whole(m.params), m.pool.whole(m.m_params), m.pool.whole(m.v_params)];
+            d.disp.dispatch_1d(&mut enc, d.kernel("densify_reset"), &binds, PassUniform { n: r.n as u32, ..Default::default() })?;
+            d.disp.submit(enc);
+            Ok(())
+        })
+    }
+
     fn densify_scoped(&mut self, rule: &DensifyRule, sample: &mut dyn FnMut(&BornParent) -> [f32; 3], n: u32, nc: u32) -> Result<Option<DensifyCounts>> {
         let room = rule.room.min(u32::MAX as usize) as u32;
         let uniform = DensifyUniform {
@@ -205,6 +239,7 @@ impl WgpuRasterizer {
             min_opacity: rule.min_opacity,
             max_world: rule.max_world,
             shrink: rule.split_divisor.ln(),
+            ..Default::default()
         };
         let found = self.find_candidates(&uniform)?;
         let over = found.clones as u64 + found.splits as u64 > room as u64;
