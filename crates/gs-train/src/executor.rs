@@ -251,7 +251,7 @@ impl ReferenceExecutor {
         let mut rendered = Vec::new();
         for (&s, source) in missing.iter().zip(outs) {
             if on_device {
-                let kept = self.keep_source_depth(s, &source, it)?;
+                let kept = crate::source_depths::keep_source_depth((&self.devices, &self.caches, &self.rasterizer), s, &source, it)?;
                 state.source_depths.store(s, it, kept);
                 continue;
             }
@@ -272,26 +272,6 @@ impl ReferenceExecutor {
 }
 
 impl ReferenceExecutor {
-    /// The memo entry of source `slot`'s depth, rendered at `version` into `out`'s surface on the
-    /// device: kept there in L_p's arena, or (where the arena did not take it) read back.
-    #[cfg(feature = "wgpu")]
-    fn keep_source_depth(&self, slot: usize, out: &gs_raster::RenderOutput, version: u64) -> Result<StoredDepth> {
-        let (Some(surface), Some(grey), Some(ctx)) = (out.device_surface.as_ref(), self.caches.grey(slot), self.rasterizer.gpu_context()) else {
-            return Err(TrainError::InvalidConfig("a source depth kept on the device without its surface, grey image or device".into()));
-        };
-        let (width, height) = (surface.width(), surface.height());
-        if self.devices.keep_depth(slot, grey, surface, version)? {
-            return Ok(StoredDepth::Device { width, height });
-        }
-        Ok(StoredDepth::Host(Image::from_vec(width, height, 1, gs_mvs::surface_depth(ctx, surface)?)?))
-    }
-
-    /// Without the device: never asked (no depth stays on a device).
-    #[cfg(not(feature = "wgpu"))]
-    fn keep_source_depth(&self, _: usize, _: &gs_raster::RenderOutput, _: u64) -> Result<StoredDepth> {
-        Err(TrainError::InvalidConfig("a source depth kept on a device in a build without wgpu".into()))
-    }
-
     /// Makes the model resident on the rasterizer's device when Adam runs there and it is
     /// not resident yet (the first step, or the first after a [`StepExecutor::release`]).
     fn take_up(&mut self, state: &TrainState) -> Result<()> {
@@ -559,23 +539,14 @@ impl StepExecutor for ReferenceExecutor {
         let r = plan.refine;
         let mut done = crate::refine::DoneOnDevice::default();
         if self.adam_on_device && (r.densify || r.reset_opacity) {
-            // The last step's divergence first; then the model is changed where it is, in the
-            // host's order, until a part only the host runs comes first.
+            // The last step's divergence first; then the model is changed where it is.
             self.check_step()?;
-            if r.densify {
-                done.densified = crate::refine::densify_on_device(&mut self.rasterizer, run, state, plan)?;
-            }
-            let host_first = (r.densify && done.densified.is_none()) || r.remove_floaters;
-            if r.reset_opacity && !host_first && self.rasterizer.is_resident() {
-                crate::refine::reset_on_device(&mut self.rasterizer, state)?;
-                done.opacity_reset = true;
-            }
-            if done.densified.is_some() || done.opacity_reset {
+            done = crate::refine::on_device(&mut self.rasterizer, run, state, plan)?;
+            if done.changed() {
                 self.behind = Behind { parameters: true, optimiser: true };
             }
         }
-        let densify_left = r.densify && done.densified.is_none();
-        if densify_left || r.remove_floaters || (r.reset_opacity && !done.opacity_reset) || r.trim {
+        if done.host_left(&r) {
             self.release(state)?;
         }
         crate::refine::refine(&mut self.rasterizer, run, state, plan, done)

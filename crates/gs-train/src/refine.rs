@@ -37,6 +37,35 @@ pub(crate) struct DoneOnDevice {
     pub opacity_reset: bool,
 }
 
+impl DoneOnDevice {
+    /// Whether the device changed the model (the host's copy is then behind).
+    pub fn changed(&self) -> bool {
+        self.densified.is_some() || self.opacity_reset
+    }
+
+    /// Whether the host has a part of `r` left to run (it needs the model back for it).
+    pub fn host_left(&self, r: &crate::plan::RefinePlan) -> bool {
+        (r.densify && self.densified.is_none()) || r.remove_floaters || (r.reset_opacity && !self.opacity_reset) || r.trim
+    }
+}
+
+/// The parts of `plan`'s density control that the device holding the model takes, in the
+/// host's order (densification, then the opacity reset) until a part only the host runs
+/// comes first: the floater removal, or a densification the device declined.
+pub(crate) fn on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<DoneOnDevice> {
+    let r = plan.refine;
+    let mut done = DoneOnDevice::default();
+    if r.densify {
+        done.densified = densify_on_device(rasterizer, run, state, plan)?;
+    }
+    let host_first = (r.densify && done.densified.is_none()) || r.remove_floaters;
+    if r.reset_opacity && !host_first && rasterizer.is_resident() {
+        reset_on_device(rasterizer, state)?;
+        done.opacity_reset = true;
+    }
+    Ok(done)
+}
+
 /// Runs the density control that `plan` schedules after its step, continuing the iteration's
 /// random stream; renders (floaters, trim) go through `rasterizer`. What `done` says the
 /// device did is not done again.
@@ -110,7 +139,7 @@ pub(crate) fn densify_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>
 
 /// The opacity reset ([`densify::reset_opacity`]) on the device that holds the model resident
 /// ([`Rasterizer::reset_opacity_resident`]). The host's copy is then behind the device's.
-pub(crate) fn reset_on_device(rasterizer: &mut Rasterizer, state: &TrainState) -> Result<()> {
+fn reset_on_device(rasterizer: &mut Rasterizer, state: &TrainState) -> Result<()> {
     let level = densify::RESET_OPACITY;
     Ok(rasterizer.reset_opacity_resident(&state.gaussians, level, gs_core::gaussians::inverse_sigmoid(level))?)
 }

@@ -203,6 +203,30 @@ pub(crate) fn bring_back(memo: &mut SourceDepths, devices: &LossDevices, caches:
     Ok(())
 }
 
+/// What keeps a source depth on the device: the loss terms' devices, the view caches and the
+/// rasterizer whose render made it.
+pub(crate) type Keepers<'a> = (&'a LossDevices, &'a ViewCaches, &'a gs_raster::Rasterizer);
+
+/// The memo entry of source `slot`'s depth, rendered at `version` into `out`'s surface on the
+/// device: kept there in L_p's arena, or (where the arena did not take it) read back.
+#[cfg(feature = "wgpu")]
+pub(crate) fn keep_source_depth((devices, caches, rasterizer): Keepers<'_>, slot: usize, out: &gs_raster::RenderOutput, version: u64) -> Result<StoredDepth> {
+    let (Some(surface), Some(grey), Some(ctx)) = (out.device_surface.as_ref(), caches.grey(slot), rasterizer.gpu_context()) else {
+        return Err(TrainError::InvalidConfig("a source depth kept on the device without its surface, grey image or device".into()));
+    };
+    let (width, height) = (surface.width(), surface.height());
+    if devices.keep_depth(slot, grey, surface, version)? {
+        return Ok(StoredDepth::Device { width, height });
+    }
+    Ok(StoredDepth::Host(Image::from_vec(width, height, 1, gs_mvs::surface_depth(ctx, surface)?)?))
+}
+
+/// Without the device: never asked (no depth stays on a device).
+#[cfg(not(feature = "wgpu"))]
+pub(crate) fn keep_source_depth(_: Keepers<'_>, _: usize, _: &gs_raster::RenderOutput, _: u64) -> Result<StoredDepth> {
+    Err(TrainError::InvalidConfig("a source depth kept on a device in a build without wgpu".into()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

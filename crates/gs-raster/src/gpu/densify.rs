@@ -253,7 +253,7 @@ impl WgpuRasterizer {
             true => room + found.splits.min(room),
         };
         let parents = self.born_parents(&uniform, born_max)?;
-        let means: Vec<f32> = parents.iter().flat_map(|p| sample(p)).collect();
+        let means: Vec<f32> = parents.iter().flat_map(sample).collect();
         let counts = self.grow_and_prune(&uniform, born_max, &means)?;
         let (clones, splits, kept) = (counts[0] as usize, counts[1] as usize, counts[2] as usize);
         if kept == 0 {
@@ -400,7 +400,7 @@ impl WgpuRasterizer {
     /// `K` u32 counts from the start of the staging buffer.
     fn read_counts<const K: usize>(&self) -> Result<[u32; K]> {
         let staging = self.pool.buffer(self.bufs.staging);
-        let words = self.ctx.read_mapped(staging, 4 * K as u64, |bytes| bytemuck::pod_collect_to_vec::<u8, u32>(bytes))?;
+        let words = self.ctx.read_mapped(staging, 4 * K as u64, bytemuck::pod_collect_to_vec::<u8, u32>)?;
         Ok(std::array::from_fn(|k| words[k]))
     }
 
