@@ -332,7 +332,8 @@ impl WgpuRasterizer {
         let record = bytes_of::<ParamRecord>(1);
         p.ensure(d.parents, 4 * (born_max as u64).max(1));
         p.ensure(d.born, record * (born_max as u64).max(1));
-        p.ensure(self.bufs.staging, 8 + record * born_max as u64);
+        // The counts and records now; grow_and_prune's three counts later.
+        p.ensure(self.bufs.staging, (8 + record * born_max as u64).max(12));
         let (p, b, m) = (&self.pool, &self.bufs, &self.model);
         let mut enc = d.disp.encoder();
         let pass = PassUniform { n: uniform.n, ..Default::default() };
