@@ -159,6 +159,13 @@ impl Densify {
         Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, means, born, dest, next })
     }
 
+    /// Records the copy of the clone and split totals (the scans' last elements, of `n`
+    /// Gaussians) to the start of `staging`.
+    fn copy_totals(&self, enc: &mut Encoder, pool: &BufferPool, n: u64, staging: &gs_gpu::wgpu::Buffer) {
+        enc.encoder.copy_buffer_to_buffer(pool.buffer(self.clone_ranks), n * 4, staging, 0, 4);
+        enc.encoder.copy_buffer_to_buffer(pool.buffer(self.split_ranks), n * 4, staging, 4, 4);
+    }
+
     fn kernel(&self, entry: &str) -> &Kernel {
         &self.kernels.iter().find(|(e, _)| *e == entry).expect("a kernel of specs()").1
     }
@@ -179,40 +186,45 @@ impl WgpuRasterizer {
     /// unchanged, where the step would leave no Gaussian (the host keeps the most opaque one)
     /// or the model's buffers do not fit one storage binding each.
     pub fn densify_resident(&mut self, g: &Gaussians, rule: &DensifyRule, sample: &mut dyn FnMut(&BornParent) -> [f32; 3]) -> Result<Option<DensifyCounts>> {
-        let Some(r) = self.model.residency() else {
-            return Err(RasterError::Gpu("density control on the device needs a resident model".into()));
-        };
-        if (r.n, r.sh_degree) != (g.len(), g.sh_degree) {
-            return Err(RasterError::Gpu(format!("the resident model holds {} Gaussians, not the {} given to densify", r.n, g.len())));
-        }
+        let r = self.resident_to_change(g, "density control")?;
         let nc = coeffs_for_degree(r.sh_degree) as u64;
         // The rows at most doubled (every Gaussian split): every set must fit one binding.
         let most = 3 * r.n as u64;
         if most * nc.max(1) * bytes_of::<ShCoeff>(1) > self.ctx.max_storage_binding() || most * bytes_of::<ParamRecord>(1) > self.ctx.max_storage_binding() {
             return Ok(None);
         }
+        self.make_densify()?;
+        self.scoped(|s| s.densify_scoped(rule, sample, r.n as u32, nc as u32))
+    }
+
+    /// The resident model's size, checked to be `g`'s: the model that `what` will change on
+    /// the device (the last render's state is then no longer the model's).
+    fn resident_to_change(&mut self, g: &Gaussians, what: &str) -> Result<super::resident::Residency> {
+        let Some(r) = self.model.residency() else {
+            return Err(RasterError::Gpu(format!("{what} on the device needs a resident model")));
+        };
+        if !self.model.holds(g) {
+            return Err(r.refuses(g, &format!("{what} was given"), ""));
+        }
+        self.frame = None;
+        Ok(r)
+    }
+
+    /// Compiles the density-control kernels and adds their buffers, the first time.
+    fn make_densify(&mut self) -> Result<()> {
         if self.densify.is_none() {
             self.densify = Some(Densify::new(&self.ctx, &mut self.pool, &mut self.model.pool)?);
         }
-        self.frame = None;
-        self.scoped(|s| s.densify_scoped(rule, sample, r.n as u32, nc as u32))
+        Ok(())
     }
 
     /// The opacity reset on the resident model (of `g`'s size and degree): every opacity
     /// above `level` takes the logit `logit`, and the opacity moments start again at zero, the
     /// twin of gs-train's `reset_opacity`.
     pub fn reset_opacity_resident(&mut self, g: &Gaussians, level: f32, logit: f32) -> Result<()> {
-        let Some(r) = self.model.residency() else {
-            return Err(RasterError::Gpu("an opacity reset on the device needs a resident model".into()));
-        };
-        if (r.n, r.sh_degree) != (g.len(), g.sh_degree) {
-            return Err(RasterError::Gpu(format!("the resident model holds {} Gaussians, not the {} given to reset", r.n, g.len())));
-        }
+        let r = self.resident_to_change(g, "the opacity reset")?;
         self.check_binding("the opacity reset", bytes_of::<ParamRecord>(r.n))?;
-        if self.densify.is_none() {
-            self.densify = Some(Densify::new(&self.ctx, &mut self.pool, &mut self.model.pool)?);
-        }
-        self.frame = None;
+        self.make_densify()?;
         self.scoped(|s| {
             let (d, m) = (s.densify.as_ref().expect("made above"), &s.model);
             d.disp.write_frame(&DensifyUniform { n: r.n as u32, reset_level: level, reset_logit: logit, ..Default::default() });
@@ -259,7 +271,7 @@ impl WgpuRasterizer {
         if kept == 0 {
             return Ok(None);
         }
-        self.swap_in(kept)?;
+        self.swap_in(kept);
         let born = clones + 2 * splits;
         Ok(Some(DensifyCounts { candidates: (found.clones + found.splits) as usize, cloned: clones, split: splits, removed: n as usize + born - kept, len: kept }))
     }
@@ -291,8 +303,7 @@ impl WgpuRasterizer {
         self.sort.prefix_scan().encode(&d.disp, &mut enc, p, p.whole(d.abs_flags), uniform.n)?;
         self.flags(&mut enc, uniform.n, 0)?;
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(d.clone_ranks), n * 4, staging, 0, 4);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(d.split_ranks), n * 4, staging, 4, 4);
+        d.copy_totals(&mut enc, p, n, staging);
         d.disp.submit(enc);
         let [clones, splits] = self.read_counts::<2>()?;
         Ok(Candidates { clones, splits })
@@ -340,8 +351,7 @@ impl WgpuRasterizer {
         let binds = [m.pool.whole(m.params), p.whole(d.clone_ranks), p.whole(d.split_ranks), p.whole(d.parents), p.whole(d.born)];
         d.disp.dispatch_1d(&mut enc, d.kernel("densify_parents"), &binds, pass)?;
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(d.clone_ranks), n * 4, staging, 0, 4);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(d.split_ranks), n * 4, staging, 4, 4);
+        d.copy_totals(&mut enc, p, n, staging);
         if born_max > 0 {
             enc.encoder.copy_buffer_to_buffer(p.buffer(d.born), 0, staging, 8, record * born_max as u64);
         }
@@ -391,8 +401,7 @@ impl WgpuRasterizer {
             d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter_sh"), &binds, all)?;
         }
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(d.clone_ranks), n * 4, staging, 0, 4);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(d.split_ranks), n * 4, staging, 4, 4);
+        d.copy_totals(&mut enc, p, n, staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(d.dest), rows * 4, staging, 8, 4);
         d.disp.submit(enc);
         self.read_counts::<3>()
@@ -406,7 +415,7 @@ impl WgpuRasterizer {
     }
 
     /// Makes the next buffers the model's, `kept` Gaussians with statistics at zero.
-    fn swap_in(&mut self, kept: usize) -> Result<()> {
+    fn swap_in(&mut self, kept: usize) {
         let d = self.densify.as_mut().expect("made");
         self.model.swap_rows(&mut d.next, kept);
         let m = &mut self.model;
@@ -414,7 +423,6 @@ impl WgpuRasterizer {
         let mut enc = d.disp.encoder();
         enc.encoder.clear_buffer(m.pool.buffer(m.stats), 0, Some(bytes_of::<StatRecord>(kept)));
         d.disp.submit(enc);
-        Ok(())
     }
 }
 

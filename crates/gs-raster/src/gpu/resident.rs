@@ -242,7 +242,7 @@ impl Model {
     }
 
     /// Whether the resident model is one of `g`'s size and SH degree.
-    fn holds(&self, g: &Gaussians) -> bool {
+    pub(super) fn holds(&self, g: &Gaussians) -> bool {
         self.resident == Some(Residency::of(g))
     }
 
@@ -271,7 +271,7 @@ impl Residency {
 
     /// The error for Gaussians `g` of another size or degree than the resident model, their
     /// count and degree framed by `before` and `after`.
-    fn refuses(self, g: &Gaussians, before: &str, after: &str) -> RasterError {
+    pub(super) fn refuses(self, g: &Gaussians, before: &str, after: &str) -> RasterError {
         RasterError::Gpu(format!(
             "the resident model holds {} Gaussians of SH degree {}, {before} {} of degree {}{after}",
             self.n,
