@@ -187,6 +187,20 @@ impl Rasterizer {
         }
     }
 
+    /// Keeps the resident model's rows where `keep` is true, with their moments and statistics
+    /// ([`crate::WgpuRasterizer::retain_resident`]); `None`, with nothing changed, where the
+    /// device does not take it. The CPU backend has no resident model and refuses.
+    pub fn retain_resident(&mut self, gaussians: &Gaussians, keep: &[bool]) -> Result<Option<usize>> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.retain_resident(gaussians, keep),
+            _ => {
+                let _ = (gaussians, keep);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to remove Gaussians from".into()))
+            }
+        }
+    }
+
     /// Ends a residency: the device's parameters and moments are dropped (read them first,
     /// [`Rasterizer::read_resident`], to keep them) and the next render uploads again.
     /// Nothing to do when no model is resident.

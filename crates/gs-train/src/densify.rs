@@ -208,10 +208,7 @@ pub fn densify_and_prune(
 /// Removes the rows with `keep = false` from the Gaussians and the optimiser; never removes
 /// the last Gaussian (the most opaque one stays), so a model is never empty.
 pub fn retain_rows(g: &mut Gaussians, adam: &mut Adam, keep: &mut [bool]) -> Result<usize> {
-    if !keep.iter().any(|k| *k) && !keep.is_empty() {
-        let best = (0..keep.len()).fold(0, |b, i| if g.opacity_logits[i] > g.opacity_logits[b] { i } else { b });
-        keep[best] = true;
-    }
+    keep_one(keep, &g.opacity_logits);
     let removed = keep.iter().filter(|k| !**k).count();
     if removed > 0 {
         g.retain(keep)?;
@@ -220,22 +217,41 @@ pub fn retain_rows(g: &mut Gaussians, adam: &mut Adam, keep: &mut [bool]) -> Res
     Ok(removed)
 }
 
+/// The rule that no removal leaves the model empty: where `keep` keeps no row, the most
+/// opaque (the first of equals, by `opacity_logits`, read only then) stays.
+pub fn keep_one(keep: &mut [bool], opacity_logits: &[f32]) {
+    if !keep.iter().any(|k| *k) && !keep.is_empty() {
+        let best = (0..keep.len()).fold(0, |b, i| if opacity_logits[i] > opacity_logits[b] { i } else { b });
+        keep[best] = true;
+    }
+}
+
 /// Opacity reset: opacity = min(opacity, 0.01), with the opacity moments zeroed.
 pub fn reset_opacity(g: &mut Gaussians, adam: &mut Adam) -> Result<()> {
+    cap_opacities(g);
+    adam.reset_group(crate::params::Param::Opacity.name())?;
+    Ok(())
+}
+
+/// The opacity reset's parameters alone: every opacity above [`RESET_OPACITY`] takes it.
+pub fn cap_opacities(g: &mut Gaussians) {
     let cap = inverse_sigmoid(RESET_OPACITY);
     for o in &mut g.opacity_logits {
         if sigmoid(*o) > RESET_OPACITY {
             *o = cap;
         }
     }
-    adam.reset_group(crate::params::Param::Opacity.name())?;
-    Ok(())
+}
+
+/// The multi-view trim's keep mask: the Gaussians observed in at least `min_views` views.
+pub fn observed_enough(views_observed: &[u32], min_views: u32) -> Vec<bool> {
+    views_observed.iter().map(|&c| c >= min_views).collect()
 }
 
 /// Multi-view trim: removes Gaussians observed (T > 0.5 while contributing) in fewer than
 /// `min_views` of the training views; `views_observed[i]` counts the views. Returns how many.
 pub fn trim_unobserved(g: &mut Gaussians, adam: &mut Adam, stats: &mut DensifyStats, views_observed: &[u32], min_views: u32) -> Result<usize> {
-    let mut keep: Vec<bool> = views_observed.iter().map(|&c| c >= min_views).collect();
+    let mut keep = observed_enough(views_observed, min_views);
     let removed = retain_rows(g, adam, &mut keep)?;
     if removed > 0 {
         // Keep the accumulated statistics of the survivors.

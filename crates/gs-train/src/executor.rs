@@ -48,8 +48,7 @@ pub struct RunInputs<'a> {
 /// Where one part of an iteration runs (report.json `parts_on`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PartPlace {
-    /// The part, in words ("render and backward", a loss term, "Adam", "trim and floater
-    /// removal").
+    /// The part, in words ("render and backward", a loss term, "Adam", "the floater votes").
     pub part: String,
     /// Where it runs: `cpu (N threads)` or `wgpu on ADAPTER`.
     pub on: String,
@@ -149,9 +148,9 @@ impl ReferenceExecutor {
 
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
     /// term on its device kernel or the CPU, Adam and the densification statistics on the
-    /// rasterizer's device when the model is resident there, and so do clone, split and prune
-    /// and the opacity reset (where [`crate::refine::densify_on_device`] applies); the trim
-    /// and the floater removal run on the CPU.
+    /// rasterizer's device when the model is resident there, and so does density control
+    /// (where [`crate::refine::on_device`] applies); the trim's view counts and the floater
+    /// votes, which decide which rows go, are summed on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
         let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
@@ -160,8 +159,8 @@ impl ReferenceExecutor {
         parts.extend(self.devices.term_parts().into_iter().map(|(part, on_device)| place(part, on_device)));
         parts.push(place("Adam", self.adam_on_device));
         parts.push(place("densification statistics", self.adam_on_device));
-        parts.push(place("densification (clone, split, prune) and opacity reset", self.adam_on_device));
-        parts.push(place("trim and floater removal", false));
+        parts.push(place("density control (clone, split, prune, opacity reset, trim, floater removal)", self.adam_on_device));
+        parts.push(place("the trim's view counts and the floater votes", false));
         parts
     }
 
@@ -538,13 +537,12 @@ impl StepExecutor for ReferenceExecutor {
     fn refine(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<RefineReport> {
         let r = plan.refine;
         let mut done = crate::refine::DoneOnDevice::default();
-        if self.adam_on_device && (r.densify || r.reset_opacity) {
+        if self.adam_on_device && (r.densify || r.reset_opacity || r.remove_floaters || r.trim) {
             // The last step's divergence first; then the model is changed where it is.
             self.check_step()?;
-            done = crate::refine::on_device(&mut self.rasterizer, run, state, plan)?;
-            if done.changed() {
-                self.behind = Behind { parameters: true, optimiser: true };
-            }
+            done = crate::refine::on_device(&mut self.rasterizer, run, state, plan, !self.behind.parameters)?;
+            self.behind.parameters = !done.params_current;
+            self.behind.optimiser |= done.changed;
         }
         if done.host_left(&r) {
             self.release(state)?;

@@ -33,35 +33,61 @@ pub struct RefineReport {
 pub(crate) struct DoneOnDevice {
     /// The densification ([`densify_on_device`]).
     pub densified: Option<DensifyReport>,
+    /// The floater removal ([`floaters_on_device`]).
+    pub floaters: Option<FloaterReport>,
     /// The opacity reset ([`reset_on_device`]).
     pub opacity_reset: bool,
+    /// The multi-view trim, with how many it removed ([`trim_on_device`]).
+    pub trimmed: Option<usize>,
+    /// Whether the device changed the model's rows or values (the host's moments and
+    /// statistics are then behind).
+    pub changed: bool,
+    /// Whether the host's parameters are the device's afterwards.
+    pub params_current: bool,
 }
 
 impl DoneOnDevice {
-    /// Whether the device changed the model (the host's copy is then behind).
-    pub fn changed(&self) -> bool {
-        self.densified.is_some() || self.opacity_reset
-    }
-
     /// Whether the host has a part of `r` left to run (it needs the model back for it).
     pub fn host_left(&self, r: &crate::plan::RefinePlan) -> bool {
-        (r.densify && self.densified.is_none()) || r.remove_floaters || (r.reset_opacity && !self.opacity_reset) || r.trim
+        (r.densify && self.densified.is_none())
+            || (r.remove_floaters && self.floaters.is_none())
+            || (r.reset_opacity && !self.opacity_reset)
+            || (r.trim && self.trimmed.is_none())
     }
 }
 
 /// The parts of `plan`'s density control that the device holding the model takes, in the
-/// host's order (densification, then the opacity reset) until a part only the host runs
-/// comes first: the floater removal, or a densification the device declined.
-pub(crate) fn on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<DoneOnDevice> {
+/// host's order (densification, floater removal, opacity reset, trim) until a part the
+/// device declines: that part and those after it are left to the host. `params_current`
+/// says whether the host's parameters are the device's now; the floater rule and the trim's
+/// never-empty rule read them back when they need them and are not.
+pub(crate) fn on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan, params_current: bool) -> Result<DoneOnDevice> {
     let r = plan.refine;
-    let mut done = DoneOnDevice::default();
-    if r.densify {
-        done.densified = densify_on_device(rasterizer, run, state, plan)?;
+    let mut done = DoneOnDevice { params_current, ..Default::default() };
+    if !rasterizer.is_resident() {
+        return Ok(done);
     }
-    let host_first = (r.densify && done.densified.is_none()) || r.remove_floaters;
-    if r.reset_opacity && !host_first && rasterizer.is_resident() {
-        reset_on_device(rasterizer, state)?;
-        done.opacity_reset = true;
+    // The device holds only the active SH coefficients: it moves rows only where the others are zero.
+    let rows_move = inactive_sh_zero(state);
+    if r.densify {
+        done.densified = if rows_move { densify_on_device(rasterizer, run, state, plan)? } else { None };
+        if done.densified.is_none() {
+            return Ok(done);
+        }
+        (done.changed, done.params_current) = (true, false);
+    }
+    if r.remove_floaters {
+        done.floaters = if rows_move { floaters_on_device(rasterizer, run, state, &mut done)? } else { None };
+        if done.floaters.is_none() {
+            return Ok(done);
+        }
+    }
+    if r.reset_opacity {
+        reset_on_device(rasterizer, state, done.params_current)?;
+        (done.opacity_reset, done.changed) = (true, true);
+    }
+    if r.trim && rows_move {
+        done.trimmed = trim_on_device(rasterizer, run, state, &mut done)?;
     }
     Ok(done)
 }
@@ -91,14 +117,18 @@ pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &m
         s.capped |= d.capped;
         report.densify = Some(d);
     }
-    if r.remove_floaters {
+    if done.floaters.is_some() {
+        report.floaters = done.floaters;
+    } else if r.remove_floaters {
         report.floaters = Some(remove_floaters(rasterizer, run, state, &config.densify.floaters)?);
     }
     if r.reset_opacity && !done.opacity_reset {
         densify::reset_opacity(&mut state.gaussians, &mut state.adam)?;
     }
     report.opacity_reset = r.reset_opacity;
-    if r.trim {
+    if done.trimmed.is_some() {
+        report.trimmed = done.trimmed;
+    } else if r.trim {
         let counts = views_observed(rasterizer, run, &state.gaussians)?;
         let s = &mut *state;
         report.trimmed = Some(densify::trim_unobserved(&mut s.gaussians, &mut s.adam, &mut s.stats, &counts, config.densify.trim_min_views)?);
@@ -109,13 +139,12 @@ pub(crate) fn refine(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &m
 /// Clone, split and prune on the device that holds the model resident
 /// ([`Rasterizer::densify_resident`]), with the host's rule and its sampled positions
 /// ([`densify::sample_near`], the same random stream): the model the host would make. `None`, with
-/// nothing changed, where it does not apply (no resident model, a growth region, SH
-/// coefficients above the active degree that are not zero, or a step the device declines).
+/// nothing changed, where it does not apply (a growth region, or a step the device declines).
 /// After it the host's Gaussians and moments are placeholders of the new size, behind the
 /// device's until read back; the statistics start again at zero on both.
 pub(crate) fn densify_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<Option<DensifyReport>> {
     let cfg = &run.config.densify;
-    if !rasterizer.is_resident() || cfg.region.is_some() || !inactive_sh_zero(state) {
+    if cfg.region.is_some() {
         return Ok(None);
     }
     let n = state.gaussians.len();
@@ -125,23 +154,91 @@ pub(crate) fn densify_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>
     let Some(c) = rasterizer.densify_resident(&state.gaussians, &rule, &mut |parent| densify::sample_near(parent, &mut rng))? else {
         return Ok(None);
     };
-    let degree = state.gaussians.sh_degree;
-    state.gaussians = Gaussians::with_len(c.len)?;
-    state.gaussians.sh_degree = degree;
-    for group in &mut state.adam.groups {
-        group.m = vec![0.0; c.len * group.row_width];
-        group.v = vec![0.0; c.len * group.row_width];
-    }
-    state.stats = gs_core::DensifyStats::new(c.len);
+    behind_on_host(state, c.len, None)?;
     let limit = growth.limit(c.candidates, rule.room);
     Ok(Some(DensifyReport { cloned: c.cloned, split: c.split, pruned: c.removed - c.split, capped: limit == GrowthLimit::Cap, limit, on_device: true }))
 }
 
 /// The opacity reset ([`densify::reset_opacity`]) on the device that holds the model resident
-/// ([`Rasterizer::reset_opacity_resident`]). The host's copy is then behind the device's.
-fn reset_on_device(rasterizer: &mut Rasterizer, state: &TrainState) -> Result<()> {
+/// ([`Rasterizer::reset_opacity_resident`]); the host's parameters too where they are
+/// `current`, so that they stay so.
+fn reset_on_device(rasterizer: &mut Rasterizer, state: &mut TrainState, current: bool) -> Result<()> {
     let level = densify::RESET_OPACITY;
-    Ok(rasterizer.reset_opacity_resident(&state.gaussians, level, gs_core::gaussians::inverse_sigmoid(level))?)
+    rasterizer.reset_opacity_resident(&state.gaussians, level, gs_core::gaussians::inverse_sigmoid(level))?;
+    if current {
+        densify::cap_opacities(&mut state.gaussians);
+    }
+    Ok(())
+}
+
+/// The floater rule ([`remove_floaters`]) on the device that holds the model resident: the
+/// votes and the capture path read the host's parameters (read back first unless current),
+/// and the device keeps the rows the verdict keeps ([`Rasterizer::retain_resident`]).
+/// `None`, with nothing changed, where the device declines the removal.
+fn floaters_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, done: &mut DoneOnDevice) -> Result<Option<FloaterReport>> {
+    bring_parameters(rasterizer, state, done)?;
+    let rule = &run.config.densify.floaters;
+    let (mut keep, report) = free_space_votes(rasterizer, run, &state.gaussians, rule)?.verdict(rule);
+    densify::keep_one(&mut keep, &state.gaussians.opacity_logits);
+    Ok(retain_on_device(rasterizer, state, &keep, done)?.then_some(report))
+}
+
+/// The multi-view trim ([`densify::trim_unobserved`]) on the device that holds the model
+/// resident: its renders bind the resident model, and the device keeps the rows observed
+/// often enough. The host's parameters are read back only when the trim would leave no
+/// Gaussian (the most opaque stays). `None`, with nothing changed, where the device declines.
+fn trim_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, done: &mut DoneOnDevice) -> Result<Option<usize>> {
+    let counts = views_observed(rasterizer, run, &state.gaussians)?;
+    let mut keep = densify::observed_enough(&counts, run.config.densify.trim_min_views);
+    if !keep.iter().any(|k| *k) {
+        bring_parameters(rasterizer, state, done)?;
+    }
+    densify::keep_one(&mut keep, &state.gaussians.opacity_logits);
+    let removed = keep.iter().filter(|k| !**k).count();
+    Ok(retain_on_device(rasterizer, state, &keep, done)?.then_some(removed))
+}
+
+/// Reads the resident parameters into the host's Gaussians unless they are current there.
+fn bring_parameters(rasterizer: &mut Rasterizer, state: &mut TrainState, done: &mut DoneOnDevice) -> Result<()> {
+    if !done.params_current {
+        rasterizer.read_resident(&mut state.gaussians, None)?;
+        done.params_current = true;
+    }
+    Ok(())
+}
+
+/// Keeps the resident rows where `keep` is true; the host's parameters follow where they are
+/// current, its moments and statistics become placeholders of the new size. `false`, with
+/// nothing changed, where the device declines.
+fn retain_on_device(rasterizer: &mut Rasterizer, state: &mut TrainState, keep: &[bool], done: &mut DoneOnDevice) -> Result<bool> {
+    let Some(kept) = rasterizer.retain_resident(&state.gaussians, keep)? else {
+        return Ok(false);
+    };
+    if kept < keep.len() {
+        behind_on_host(state, kept, done.params_current.then_some(keep))?;
+        done.changed = true;
+    }
+    Ok(true)
+}
+
+/// After the device changed the model's rows: the host's moments and statistics become
+/// placeholders of `len` rows (the statistics at zero), and its Gaussians too unless `kept`
+/// gives the rows to keep of current ones.
+fn behind_on_host(state: &mut TrainState, len: usize, kept: Option<&[bool]>) -> Result<()> {
+    match kept {
+        Some(keep) => state.gaussians.retain(keep)?,
+        None => {
+            let degree = state.gaussians.sh_degree;
+            state.gaussians = Gaussians::with_len(len)?;
+            state.gaussians.sh_degree = degree;
+        }
+    }
+    for group in &mut state.adam.groups {
+        group.m = vec![0.0; len * group.row_width];
+        group.v = vec![0.0; len * group.row_width];
+    }
+    state.stats = gs_core::DensifyStats::new(len);
+    Ok(())
 }
 
 /// Whether every SH coefficient above the active degree is zero, in the Gaussians and in the

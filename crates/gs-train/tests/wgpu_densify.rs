@@ -4,7 +4,8 @@
 //! same rows in the same order, bit for bit, the moments moved with their rows and zero for
 //! born rows, the statistics at zero, and the same report; on the residual, budget and cap limits, the AbsGS
 //! limit, the large-Gaussian prune, SH degrees 3 and 1, and a step that would leave nothing;
-//! and the opacity reset (`reset_opacity_resident` against `reset_opacity`).
+//! the opacity reset (`reset_opacity_resident` against `reset_opacity`); and the removal of rows
+//! by a mask (`retain_resident` against `retain_rows`), statistics kept.
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
 
@@ -158,4 +159,43 @@ fn the_device_resets_opacities_as_the_host_does() {
     assert_eq!(dev_adam, host_adam, "the opacity moments at zero, the others as they were");
     assert_eq!(dev_st, st, "the statistics untouched");
     assert!(host_g.opacity_logits != g.opacity_logits, "the reset changed opacities");
+}
+
+/// Removing rows on the device (`retain_resident`) against the host's `retain_rows` and the
+/// statistics' `retain`: the survivors' parameters, moments and statistics bit for bit.
+#[test]
+fn the_device_removes_rows_as_the_host_does() {
+    let Some(mut wgpu) = wgpu_rasterizer() else { return };
+    for (n, degree) in [(5000, 3), (300, 0)] {
+        let (g, adam, st) = model(n, degree, 11);
+        let mut rng = Rng::new(5);
+        let keep: Vec<bool> = (0..n).map(|_| rng.uniform() < 0.6).collect();
+        let (mut host_g, mut host_adam, mut host_st) = (g.clone(), adam.clone(), st.clone());
+        let removed = gs_train::densify::retain_rows(&mut host_g, &mut host_adam, &mut keep.clone()).unwrap();
+        host_st.retain(&keep);
+        wgpu.make_resident(&g, &adam, &st).unwrap();
+        let kept = wgpu.retain_resident(&g, &keep).unwrap().expect("the device takes the removal");
+        assert_eq!(kept, n - removed);
+        let (mut dev_g, mut dev_adam, mut dev_st) = (Gaussians::with_len(kept).unwrap(), host_adam.clone(), DensifyStats::new(kept));
+        dev_g.sh_degree = degree;
+        for group in &mut dev_adam.groups {
+            group.m.fill(0.0);
+            group.v.fill(0.0);
+        }
+        wgpu.read_resident(&mut dev_g, Some((&mut dev_adam, &mut dev_st))).unwrap();
+        assert_eq!(dev_g, host_g, "every parameter bit for bit");
+        assert_eq!(dev_adam, host_adam, "the moments with their rows");
+        assert_eq!(dev_st, host_st, "the statistics with their rows");
+        // Keeping every row changes nothing; a mask of another length or that keeps nothing is refused.
+        assert_eq!(wgpu.retain_resident(&dev_g, &vec![true; kept]).unwrap(), Some(kept));
+        assert!(wgpu.retain_resident(&dev_g, &vec![true; kept + 1]).is_err());
+        assert!(wgpu.retain_resident(&dev_g, &vec![false; kept]).is_err());
+        let mut again = dev_g.clone();
+        wgpu.read_resident(&mut again, None).unwrap();
+        assert_eq!(again, dev_g, "the refused masks left the model as it was");
+        wgpu.release_resident();
+    }
+    let mut cpu = Rasterizer::new(Backend::Cpu).unwrap();
+    let (g, _, _) = model(10, 0, 1);
+    assert!(cpu.retain_resident(&g, &[true; 10]).is_err(), "the CPU backend has nothing resident");
 }

@@ -112,6 +112,11 @@ fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
             ],
         ),
         (
+            "densify_scatter_stats",
+            include_str!("densify/scatter_stats.wgsl"),
+            vec![B::read("stats", "array<StatRecord>"), B::read("dest", u), B::write("next_stats", "array<StatRecord>")],
+        ),
+        (
             "densify_reset",
             include_str!("densify/reset.wgsl"),
             vec![B::write("params", par), B::write("m_params", par), B::write("v_params", par)],
@@ -125,6 +130,8 @@ fn structs() -> [GeneratedStruct; 4] {
 }
 
 const COMMON: &str = include_str!("densify/common.wgsl");
+
+mod retain;
 
 /// The kernels, their dispatcher and buffers: scratch in the rasterizer's pool, the next
 /// model set in the model's own pool (swapped with the model's after a step).
@@ -142,6 +149,8 @@ pub(super) struct Densify {
     dest: BufId,
     /// params, m_params, v_params, sh, m_sh, v_sh of the next model.
     next: [BufId; 6],
+    /// The next model's statistics (a retain keeps them, gpu/densify/retain.rs).
+    next_stats: BufId,
 }
 
 impl Densify {
@@ -155,8 +164,9 @@ impl Densify {
         let (classes, abs_flags, chosen, clone_ranks) = (b("densify_classes"), b("densify_abs"), b("densify_chosen"), b("densify_clone_ranks"));
         let (split_ranks, parents, means, born, dest) = (b("densify_split_ranks"), b("densify_parents"), b("densify_means"), b("densify_born"), b("densify_dest"));
         let next = ["next_params", "next_m_params", "next_v_params", "next_sh", "next_m_sh", "next_v_sh"].map(|l| model_pool.add_storage(l));
+        let next_stats = model_pool.add_storage("next_stats");
         let disp = Dispatcher::new(ctx, std::mem::size_of::<DensifyUniform>() as u64);
-        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, means, born, dest, next })
+        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, means, born, dest, next, next_stats })
     }
 
     /// Records the copy of the clone and split totals (the scans' last elements, of `n`

@@ -1,0 +1,84 @@
+//! Removing Gaussians from the resident model by a mask (the multi-view trim, the floater
+//! rule; docs/architecture.md §GPU): the twin of gs-train's `retain_rows` with the statistics'
+//! `retain`. The mask goes up (4 bytes a Gaussian), a scan gives each survivor its place, and
+//! the scatters of density control move the survivors' records, SH, moments and statistics
+//! into the next buffer set, which becomes the model's. Nothing is read back.
+
+use super::{Densify, DensifyUniform};
+use crate::gpu::WgpuRasterizer;
+use crate::gpu::kernels::{ParamRecord, ShCoeff};
+use crate::gpu::resident::StatRecord;
+use crate::{RasterError, Result};
+use gs_core::Gaussians;
+use gs_core::sh::coeffs_for_degree;
+use gs_gpu::{PassUniform, bytes_of};
+
+impl WgpuRasterizer {
+    /// Keeps the rows of the resident model (of `g`'s size and degree; `g` itself is not read)
+    /// where `keep` is true, in order, with their parameters, moments and densification
+    /// statistics. Returns the Gaussians left, or `None`, with the model unchanged, where the
+    /// model's buffers do not fit one storage binding each (the host then removes them). A
+    /// mask of another length, or one that keeps nothing, is an error: the caller keeps at
+    /// least one Gaussian, as the host's rule does.
+    pub fn retain_resident(&mut self, g: &Gaussians, keep: &[bool]) -> Result<Option<usize>> {
+        let r = self.resident_to_change(g, "removing Gaussians")?;
+        if keep.len() != r.n {
+            return Err(RasterError::InvalidGaussians(format!("a keep mask of {} rows for a model of {} Gaussians", keep.len(), r.n)));
+        }
+        let kept = keep.iter().filter(|k| **k).count();
+        if kept == 0 && r.n > 0 {
+            return Err(RasterError::InvalidGaussians("a keep mask that keeps no Gaussian".into()));
+        }
+        if kept == r.n {
+            return Ok(Some(kept));
+        }
+        let nc = coeffs_for_degree(r.sh_degree) as u64;
+        let (n, max) = (r.n as u64, self.ctx.max_storage_binding());
+        if n * nc.max(1) * bytes_of::<ShCoeff>(1) > max || n * bytes_of::<ParamRecord>(1) > max || n * bytes_of::<StatRecord>(1) > max {
+            return Ok(None);
+        }
+        self.make_densify()?;
+        self.scoped(|s| s.retain_scoped(keep, nc))?;
+        Ok(Some(kept))
+    }
+
+    fn retain_scoped(&mut self, keep: &[bool], nc: u64) -> Result<()> {
+        let n = keep.len() as u64;
+        let d = self.densify.as_mut().expect("made above");
+        let p = &mut self.pool;
+        // The mask and a last zero, scanned in place into each survivor's row.
+        crate::gpu::upload_with(&self.ctx, p, d.dest, keep.len() + 1, |out: &mut [u32]| {
+            out.iter_mut().zip(keep.iter().chain([&false])).for_each(|(o, k)| *o = *k as u32)
+        });
+        self.sort.prefix_scan().reserve(p, n + 1);
+        // The born rows and parents are not read (no row is born), but are bound.
+        p.ensure(d.born, bytes_of::<ParamRecord>(1));
+        p.ensure(d.parents, 4);
+        let m = &mut self.model;
+        for (k, id) in d.next.iter().enumerate() {
+            let row = if k < 3 { bytes_of::<ParamRecord>(1) } else { nc.max(1) * bytes_of::<ShCoeff>(1) };
+            m.pool.ensure(*id, n.max(1) * row);
+        }
+        m.pool.ensure(d.next_stats, bytes_of::<StatRecord>(n as usize).max(bytes_of::<StatRecord>(1)));
+        d.disp.write_frame(&DensifyUniform { n: n as u32, nc: nc as u32, ..Default::default() });
+        let (p, m, d) = (&self.pool, &self.model, self.densify.as_ref().expect("made above"));
+        let mut enc = d.disp.encoder();
+        self.sort.prefix_scan().encode(&d.disp, &mut enc, p, p.whole(d.dest), n as u32 + 1)?;
+        d.disp.make_room(&mut enc, 3);
+        let pass = PassUniform { n: n as u32, ..Default::default() };
+        let mp = |id| m.pool.whole(id);
+        let binds = [mp(m.params), mp(m.m_params), mp(m.v_params), p.whole(d.born), p.whole(d.dest), mp(d.next[0]), mp(d.next[1]), mp(d.next[2])];
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter"), &binds, pass)?;
+        if nc > 0 {
+            let binds = [mp(m.sh), mp(m.m_sh), mp(m.v_sh), p.whole(d.parents), p.whole(d.dest), mp(d.next[3]), mp(d.next[4]), mp(d.next[5])];
+            d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter_sh"), &binds, pass)?;
+        }
+        d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter_stats"), &[mp(m.stats), p.whole(d.dest), mp(d.next_stats)], pass)?;
+        d.disp.submit(enc);
+        let kept = keep.iter().filter(|k| **k).count();
+        let d: &mut Densify = self.densify.as_mut().expect("made above");
+        self.model.swap_rows(&mut d.next, kept);
+        std::mem::swap(&mut self.model.stats, &mut d.next_stats);
+        Ok(())
+    }
+}
