@@ -248,9 +248,22 @@ impl<'s> Trainer<'s> {
         Ok(&self.state)
     }
 
-    /// The current model (as [`Trainer::state`]).
+    /// The current model, its parameters brought back from the device first where a resident
+    /// model moved on there ([`StepExecutor::pull_parameters`]: not the moments, statistics
+    /// and memo, which [`Trainer::state`] brings too).
     pub fn gaussians(&mut self) -> Result<&Gaussians> {
-        Ok(&self.state()?.gaussians)
+        self.executor.pull_parameters(&mut self.state)?;
+        Ok(&self.state.gaussians)
+    }
+
+    /// Whether the Gaussian cap stopped growth at some point (kept on the host: no readback).
+    pub fn capped(&self) -> bool {
+        self.state.capped
+    }
+
+    /// The learned exposure corrections, with `exposure` on (optimised on the host: no readback).
+    pub fn exposure(&self) -> Option<&Exposure> {
+        self.state.exposure.as_ref()
     }
 
     /// How many Gaussians the model has (current without a readback: only density control
@@ -440,9 +453,6 @@ impl<'s> Trainer<'s> {
         let phase = crate::checkpoint::Elapsed::phase_of(&self.config, plan.iteration);
         self.profile.add(phase, Part::Refine, clock.lap());
         self.state.iteration = plan.iteration;
-        if self.finished() {
-            self.executor.release(&mut self.state)?;
-        }
         self.profile.finish_iteration(phase, whole.lap());
         #[cfg(feature = "wgpu")]
         if let (Some(before), Some(ctx)) = (traffic, self.executor.rasterizer().gpu_context()) {

@@ -452,7 +452,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         iterations: trainer.iteration(),
         interrupted,
         gaussians: trainer.gaussian_count(),
-        capped: trainer.state()?.capped,
+        capped: trainer.capped(),
         train_seconds,
         phase_seconds: elapsed.phase_seconds,
         segment_seconds,
@@ -524,7 +524,7 @@ fn warn_degenerate(report: &TrainReport, config: &TrainConfig) {
 
 /// `OUT/exposure.json`: each training photo's learned gain and bias (with `--exposure`).
 fn write_exposure(out: &Path, run_config: &RunConfig, trainer: &mut Trainer) -> Result<()> {
-    if let Some(e) = &trainer.state()?.exposure {
+    if let Some(e) = trainer.exposure() {
         let per_view: serde_json::Map<String, serde_json::Value> = run_config
             .train_views
             .iter()
