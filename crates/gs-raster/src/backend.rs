@@ -158,6 +158,20 @@ impl Rasterizer {
         }
     }
 
+    /// Brings the resident parameter records alone into `gaussians` (means, log-scales,
+    /// rotations and opacity logits; its SH coefficients stay as they are), as
+    /// [`Rasterizer::read_resident`] does: 44 bytes a Gaussian, for readers of the geometry.
+    pub fn read_resident_records(&mut self, gaussians: &mut Gaussians) -> Result<()> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) if r.is_resident() => r.read_resident_records(gaussians),
+            _ => {
+                let _ = gaussians;
+                Ok(())
+            }
+        }
+    }
+
     /// Clone, split and prune the resident model on its device by `rule`, each born row's
     /// position from `sample` in the host's order ([`crate::WgpuRasterizer::densify_resident`]); `None`,
     /// with nothing changed, where the device does not take the step (the host then runs it).

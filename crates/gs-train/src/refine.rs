@@ -172,14 +172,25 @@ fn reset_on_device(rasterizer: &mut Rasterizer, state: &mut TrainState, current:
 }
 
 /// The floater rule ([`remove_floaters`]) on the device that holds the model resident: the
-/// votes and the capture path read the host's parameters (read back first unless current),
+/// votes and the capture path read the Gaussians' geometry (the host's parameters where
+/// current, else the device's records without the SH, [`Rasterizer::read_resident_records`]),
 /// and the device keeps the rows the verdict keeps ([`Rasterizer::retain_resident`]).
 /// `None`, with nothing changed, where the device declines the removal.
 fn floaters_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, done: &mut DoneOnDevice) -> Result<Option<FloaterReport>> {
-    bring_parameters(rasterizer, state, done)?;
     let rule = &run.config.densify.floaters;
-    let (mut keep, report) = free_space_votes(rasterizer, run, &state.gaussians, rule)?.verdict(rule);
-    densify::keep_one(&mut keep, &state.gaussians.opacity_logits);
+    let records;
+    let geometry = match done.params_current {
+        true => &state.gaussians,
+        false => {
+            let mut g = Gaussians::with_len(state.gaussians.len())?;
+            g.sh_degree = state.gaussians.sh_degree;
+            rasterizer.read_resident_records(&mut g)?;
+            records = g;
+            &records
+        }
+    };
+    let (mut keep, report) = free_space_votes(rasterizer, run, geometry, rule)?.verdict(rule);
+    densify::keep_one(&mut keep, &geometry.opacity_logits);
     Ok(retain_on_device(rasterizer, state, &keep, done)?.then_some(report))
 }
 

@@ -5,7 +5,8 @@
 //! born rows, the statistics at zero, and the same report; on the residual, budget and cap limits, the AbsGS
 //! limit, the large-Gaussian prune, SH degrees 3 and 1, and a step that would leave nothing;
 //! the opacity reset (`reset_opacity_resident` against `reset_opacity`); and the removal of rows
-//! by a mask (`retain_resident` against `retain_rows`), statistics kept.
+//! by a mask (`retain_resident` against `retain_rows`), statistics kept, and the records read
+//! back without the SH (`read_resident_records`).
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
 
@@ -186,6 +187,13 @@ fn the_device_removes_rows_as_the_host_does() {
         assert_eq!(dev_g, host_g, "every parameter bit for bit");
         assert_eq!(dev_adam, host_adam, "the moments with their rows");
         assert_eq!(dev_st, host_st, "the statistics with their rows");
+        // The records alone: the geometry and opacities, the SH left as they were.
+        let mut records = Gaussians::with_len(kept).unwrap();
+        records.sh_degree = degree;
+        wgpu.read_resident_records(&mut records).unwrap();
+        let fields = |g: &Gaussians| (g.means.clone(), g.log_scales.clone(), g.rotations.clone(), g.opacity_logits.clone());
+        assert_eq!(fields(&records), fields(&host_g));
+        assert!(records.sh.iter().all(|c| *c == [[0.0; 3]; 16]), "the SH are not read");
         // Keeping every row changes nothing; a mask of another length or that keeps nothing is refused.
         assert_eq!(wgpu.retain_resident(&dev_g, &vec![true; kept]).unwrap(), Some(kept));
         assert!(wgpu.retain_resident(&dev_g, &vec![true; kept + 1]).is_err());

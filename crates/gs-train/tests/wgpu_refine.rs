@@ -4,7 +4,8 @@
 //! removal, opacity reset, multi-view trim), refined once where the model lives and once by an
 //! executor that refines on the host (its renders on the same device, the model uploaded from
 //! the host's copy). The same report, and the same parameters, moments and statistics bit for
-//! bit; the device's run stays resident throughout. Then a trim that would remove every
+//! bit; the device's run stays resident throughout (its floater votes read the device's
+//! records back, the densification before them having left the host's copy behind). Then a trim that would remove every
 //! Gaussian keeps the most opaque one on both.
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.

@@ -323,6 +323,17 @@ impl WgpuRasterizer {
     /// when given, the resident moments and densification statistics into `optimiser`, in
     /// one readback; the residency goes on.
     pub fn read_resident(&mut self, g: &mut Gaussians, optimiser: Option<(&mut Adam, &mut DensifyStats)>) -> Result<()> {
+        self.read_resident_parts(g, true, optimiser)
+    }
+
+    /// The resident parameter records alone into `g` (means, log-scales, rotations and
+    /// opacity logits; its SH coefficients stay as they are): 44 bytes a Gaussian.
+    pub fn read_resident_records(&mut self, g: &mut Gaussians) -> Result<()> {
+        self.read_resident_parts(g, false, None)
+    }
+
+    fn read_resident_parts(&mut self, g: &mut Gaussians, with_sh: bool, optimiser: Option<(&mut Adam, &mut DensifyStats)>) -> Result<()> {
+        debug_assert!(with_sh || optimiser.is_none(), "the moments come with the SH");
         let Some(r) = self.model.resident else {
             return Err(RasterError::Gpu("no model is resident".into()));
         };
@@ -330,7 +341,7 @@ impl WgpuRasterizer {
             return Err(r.refuses(g, "not the", " given to read it into"));
         }
         let nc = coeffs_for_degree(r.sh_degree);
-        let (pb, sb) = (bytes_of::<ParamRecord>(r.n), bytes_of::<ShCoeff>(r.n * nc));
+        let (pb, sb) = (bytes_of::<ParamRecord>(r.n), bytes_of::<ShCoeff>(if with_sh { r.n * nc } else { 0 }));
         let m = &self.model;
         let stb = bytes_of::<StatRecord>(r.n);
         let mut order = vec![(m.params, pb), (m.sh, sb)];
@@ -343,7 +354,7 @@ impl WgpuRasterizer {
         let staging = self.pool.buffer(self.bufs.staging);
         let mut enc = m.disp.encoder();
         let mut at = 0;
-        for (id, bytes) in order {
+        for (id, bytes) in order.into_iter().filter(|(_, bytes)| *bytes > 0) {
             enc.encoder.copy_buffer_to_buffer(m.pool.buffer(id), 0, staging, at, bytes);
             at += bytes;
         }
