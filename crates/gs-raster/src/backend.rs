@@ -172,6 +172,21 @@ impl Rasterizer {
         }
     }
 
+    /// Raises the resident model's SH degree to `degree`, the new bands' coefficients and
+    /// moments zero ([`crate::WgpuRasterizer::raise_sh_degree_resident`]); `false`, with
+    /// nothing changed, where the device does not take it. The CPU backend has no resident
+    /// model and refuses.
+    pub fn raise_sh_degree_resident(&mut self, gaussians: &Gaussians, degree: u32) -> Result<bool> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.raise_sh_degree_resident(gaussians, degree),
+            _ => {
+                let _ = (gaussians, degree);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to raise the SH degree of".into()))
+            }
+        }
+    }
+
     /// Clone, split and prune the resident model on its device by `rule`, each born row's
     /// position from `sample` in the host's order ([`crate::WgpuRasterizer::densify_resident`]); `None`,
     /// with nothing changed, where the device does not take the step (the host then runs it).

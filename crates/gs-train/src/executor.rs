@@ -75,6 +75,10 @@ pub trait StepExecutor {
     /// state; the next [`StepExecutor::execute`] takes it up again.
     fn release(&mut self, state: &mut TrainState) -> Result<()>;
 
+    /// Before the host raises the SH degree to `degree` by the schedule: a resident model's SH
+    /// rows widen where it lives ([`crate::sh_policy::raise_on_device`]), or the residency ends.
+    fn raise_sh_degree(&mut self, state: &mut TrainState, degree: u32) -> Result<()>;
+
     /// Whether `state` holds everything the executor's device holds (always on the CPU; on a
     /// resident model, until the next step).
     fn host_current(&self) -> bool;
@@ -489,7 +493,7 @@ impl StepExecutor for ReferenceExecutor {
         }
         values.total = plan.weights.total(&values);
         if !values.total.is_finite() {
-            return Err(TrainError::Diverged { iteration: it, problem: format!("the loss is not finite ({})", describe(&values)) });
+            return Err(TrainError::Diverged { iteration: it, problem: format!("the loss is not finite ({})", values.in_words()) });
         }
         drop(sources);
         // L_I's colour gradient: on the host (through the exposure backward when that is on),
@@ -571,6 +575,14 @@ impl StepExecutor for ReferenceExecutor {
         Ok(())
     }
 
+    fn raise_sh_degree(&mut self, state: &mut TrainState, degree: u32) -> Result<()> {
+        self.check_step()?;
+        if self.rasterizer.is_resident() && !crate::sh_policy::raise_on_device(&mut self.rasterizer, state, degree)? {
+            self.release(state)?;
+        }
+        Ok(())
+    }
+
     fn host_current(&self) -> bool {
         self.behind == Behind::default()
     }
@@ -582,15 +594,4 @@ fn devices_of(rasterizer: &Rasterizer, uses: TermsUsed) -> (LossDevices, Option<
         Ok(d) => (d, None),
         Err(e) => (LossDevices::default(), Some(e)),
     }
-}
-
-/// The loss values in words, for an error message.
-fn describe(v: &LossValues) -> String {
-    let mut s = format!("L1 {}, SSIM {}", v.l1, v.ssim);
-    for (name, x) in v.optional_terms() {
-        if let Some(x) = x {
-            s.push_str(&format!(", {name} {x}"));
-        }
-    }
-    s
 }

@@ -254,7 +254,7 @@ fn behind_on_host(state: &mut TrainState, len: usize, kept: Option<&[bool]>) -> 
 
 /// Whether every SH coefficient above the active degree is zero, in the Gaussians and in the
 /// moments: the device holds only the active ones, so it may move rows only then.
-fn inactive_sh_zero(state: &TrainState) -> bool {
+pub(crate) fn inactive_sh_zero(state: &TrainState) -> bool {
     let active = gs_core::sh::coeffs_for_degree(state.gaussians.sh_degree);
     let values = state.gaussians.sh.iter().all(|c| c[active..].iter().all(|v| *v == [0.0; 3]));
     let Some(rest) = state.adam.groups.iter().find(|g| g.name == crate::params::Param::ShRest.name()) else {

@@ -55,6 +55,26 @@ fn sh_move(cfg: &TrainConfig, current: u32, it: u64) -> ShMove {
     ShMove::Judge(current)
 }
 
+/// The degree that [`update_sh_degree`] sets at iteration `it` from degree `current` where it
+/// only raises it by the schedule (no band judged): the new bands start at zero.
+pub(crate) fn plain_rise(cfg: &TrainConfig, current: u32, it: u64) -> Option<u32> {
+    match sh_move(cfg, current, it) {
+        ShMove::Set(degree) if degree > current => Some(degree),
+        _ => None,
+    }
+}
+
+/// A plain rise ([`plain_rise`]) on the device that holds the model resident
+/// ([`Rasterizer::raise_sh_degree_resident`]), before the host sets the degree: exact where
+/// the host's coefficients and moments above the current degree are zero (the new bands'
+/// values on both). `false`, with nothing changed, where they are not or the device declines.
+pub(crate) fn raise_on_device(rasterizer: &mut Rasterizer, state: &crate::trainer::TrainState, degree: u32) -> Result<bool> {
+    if !crate::refine::inactive_sh_zero(state) {
+        return Ok(false);
+    }
+    Ok(rasterizer.raise_sh_degree_resident(&state.gaussians, degree)?)
+}
+
 /// Whether [`update_sh_degree`] changes anything at iteration `it` from degree `current`
 /// (another degree, or a band judged and maybe its moments zeroed).
 pub(crate) fn acts(cfg: &TrainConfig, current: u32, it: u64) -> bool {

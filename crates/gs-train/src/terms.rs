@@ -71,6 +71,17 @@ pub struct LossValues {
 }
 
 impl LossValues {
+    /// The values in words, for an error message.
+    pub fn in_words(&self) -> String {
+        let mut s = format!("L1 {}, SSIM {}", self.l1, self.ssim);
+        for (name, x) in self.optional_terms() {
+            if let Some(x) = x {
+                s.push_str(&format!(", {name} {x}"));
+            }
+        }
+        s
+    }
+
     /// The optional terms' values by name ([`term_name`]), in the order of L.
     pub fn optional_terms(&self) -> [(&'static str, Option<f64>); 7] {
         [

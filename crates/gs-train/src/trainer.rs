@@ -436,8 +436,12 @@ impl<'s> Trainer<'s> {
             raster: &self.raster,
             budget: &self.budget,
         };
-        if sh_policy::acts(run.config, self.state.gaussians.sh_degree, plan.iteration) {
-            // The SH layout and maybe the moments change on the host.
+        let degree = self.state.gaussians.sh_degree;
+        if let Some(higher) = sh_policy::plain_rise(run.config, degree, plan.iteration) {
+            // The SH rows widen where the model lives, the new bands at zero as on the host.
+            self.executor.raise_sh_degree(&mut self.state, higher)?;
+        } else if sh_policy::acts(run.config, degree, plan.iteration) {
+            // A band judged: renders at two degrees and maybe its moments zeroed, on the host.
             self.executor.release(&mut self.state)?;
         }
         let (s, rasterizer) = (&mut self.state, &mut self.executor.rasterizer);

@@ -6,7 +6,8 @@
 //! limit, the large-Gaussian prune, SH degrees 3 and 1, and a step that would leave nothing;
 //! the opacity reset (`reset_opacity_resident` against `reset_opacity`); and the removal of rows
 //! by a mask (`retain_resident` against `retain_rows`), statistics kept, and the records read
-//! back without the SH (`read_resident_records`).
+//! back without the SH (`read_resident_records`); and a rise of the SH degree
+//! (`raise_sh_degree_resident`).
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
 
@@ -206,4 +207,36 @@ fn the_device_removes_rows_as_the_host_does() {
     let mut cpu = Rasterizer::new(Backend::Cpu).unwrap();
     let (g, _, _) = model(10, 0, 1);
     assert!(cpu.retain_resident(&g, &[true; 10]).is_err(), "the CPU backend has nothing resident");
+}
+
+/// A rise of the SH degree on the device (`raise_sh_degree_resident`): the coefficients and
+/// moments kept, the new bands' zero, as the host's model at the new degree.
+#[test]
+fn the_device_raises_the_sh_degree_as_the_host_does() {
+    let Some(mut wgpu) = wgpu_rasterizer() else { return };
+    for (from, to) in [(0, 1), (1, 3)] {
+        let (g, adam, st) = model(700, from, 13);
+        wgpu.make_resident(&g, &adam, &st).unwrap();
+        assert!(wgpu.raise_sh_degree_resident(&g, to).unwrap());
+        let mut host_g = g.clone();
+        host_g.sh_degree = to;
+        let (mut dev_g, mut dev_adam, mut dev_st) = (host_g.clone(), adam.clone(), st.clone());
+        dev_g.sh.iter_mut().for_each(|c| *c = [[9.0; 3]; 16]);
+        for group in &mut dev_adam.groups {
+            group.m.fill(9.0);
+        }
+        wgpu.read_resident(&mut dev_g, Some((&mut dev_adam, &mut dev_st))).unwrap();
+        let active = gs_core::sh::coeffs_for_degree(to);
+        // The device holds the active bands' moments alone: those above were not read.
+        let rest = dev_adam.groups.iter_mut().find(|g| g.name == Param::ShRest.name()).unwrap();
+        let width = rest.row_width;
+        rest.m.chunks_mut(width).for_each(|row| row[3 * (active - 1)..].fill(0.0));
+        let shown = |g: &Gaussians| g.sh.iter().map(|c| c[..active].to_vec()).collect::<Vec<_>>();
+        assert_eq!(shown(&dev_g), shown(&host_g), "the coefficients kept, the new bands zero ({from} to {to})");
+        assert_eq!((&dev_g.means, &dev_g.opacity_logits), (&host_g.means, &host_g.opacity_logits));
+        assert!(dev_adam == adam && dev_st == st, "the moments kept, the new bands' zero ({from} to {to})");
+        // Not a rise: refused, the model as it was.
+        assert!(wgpu.raise_sh_degree_resident(&host_g, to).is_err());
+        wgpu.release_resident();
+    }
 }

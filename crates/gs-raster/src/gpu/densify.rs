@@ -26,6 +26,8 @@ gs_gpu::wgsl_struct! {
         n: u32,
         /// SH coefficients per Gaussian on the device.
         nc: u32,
+        /// SH coefficients per Gaussian after a degree rise (densify/sh_widen.wgsl).
+        nc_next: u32,
         /// How many candidates the budget lets grow.
         room: u32,
         max_abs_splits: u32,
@@ -117,6 +119,11 @@ fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
             vec![B::read("stats", "array<StatRecord>"), B::read("dest", u), B::write("next_stats", "array<StatRecord>")],
         ),
         (
+            "sh_widen",
+            include_str!("densify/sh_widen.wgsl"),
+            vec![B::read("sh", sh), B::read("m_sh", sh), B::read("v_sh", sh), B::write("next_sh", sh), B::write("next_m_sh", sh), B::write("next_v_sh", sh)],
+        ),
+        (
             "densify_reset",
             include_str!("densify/reset.wgsl"),
             vec![B::write("params", par), B::write("m_params", par), B::write("v_params", par)],
@@ -132,6 +139,7 @@ fn structs() -> [GeneratedStruct; 4] {
 const COMMON: &str = include_str!("densify/common.wgsl");
 
 mod retain;
+mod widen;
 
 /// The kernels, their dispatcher and buffers: scratch in the rasterizer's pool, the next
 /// model set in the model's own pool (swapped with the model's after a step).

@@ -241,6 +241,17 @@ impl Model {
         }
     }
 
+    /// Makes `next` (sh, m_sh, v_sh at SH degree `degree`, as densify/sh_widen.wgsl filled
+    /// them) the model's SH buffers, and the model's old ones the next set.
+    pub(super) fn swap_sh(&mut self, next: &mut [BufId], degree: u32) {
+        for (a, b) in [&mut self.sh, &mut self.m_sh, &mut self.v_sh].into_iter().zip(next.iter_mut()) {
+            std::mem::swap(a, b);
+        }
+        if let Some(r) = &mut self.resident {
+            r.sh_degree = degree;
+        }
+    }
+
     /// Whether the resident model is one of `g`'s size and SH degree.
     pub(super) fn holds(&self, g: &Gaussians) -> bool {
         self.resident == Some(Residency::of(g))
