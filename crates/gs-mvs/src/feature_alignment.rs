@@ -401,6 +401,23 @@ pub(crate) fn add_source<T: Real>(
     grad: &[T],
     n_src: usize,
 ) {
+    if let Some(scale) = add_source_sums(out, vis, rows, n_src) {
+        out.grad_plane_depth
+            .par_iter_mut()
+            .zip(grad.par_iter())
+            .for_each(|(o, s)| *o += *s * scale);
+    }
+}
+
+/// [`add_source`] but the gradient: the source's statistics from its rows (pairs in V, the
+/// sums of υω·|1 − cos| and of cos) into `out`'s loss and per-source list. Returns the scale
+/// of its gradient, 1 / (|V|·N), or `None` without pairs in V.
+pub(crate) fn add_source_sums<T: Real>(
+    out: &mut FeatureOutput<T>,
+    vis: &Visibility<T>,
+    rows: impl IntoIterator<Item = (usize, f64, f64)>,
+    n_src: usize,
+) -> Option<T> {
     let mut st = FeatureSourceStats {
         visibility: vis.stats(),
         ..Default::default()
@@ -410,16 +427,13 @@ pub(crate) fn add_source<T: Real>(
         st.weighted_sum += ws;
         st.cos_sum += cs;
     }
-    if st.n_valid > 0 {
+    let scale = (st.n_valid > 0).then(|| {
         st.loss = st.weighted_sum / st.n_valid as f64;
         out.loss += st.loss / n_src as f64;
-        let scale = T::from_f64(1.0 / (st.n_valid as f64 * n_src as f64));
-        out.grad_plane_depth
-            .par_iter_mut()
-            .zip(grad.par_iter())
-            .for_each(|(o, s)| *o += *s * scale);
-    }
+        T::from_f64(1.0 / (st.n_valid as f64 * n_src as f64))
+    });
     out.per_source.push(st);
+    scale
 }
 
 #[inline]

@@ -8,8 +8,9 @@
 //! SKIPPED line (a failure under `CI=true`, where `.ci/run` installs lavapipe).
 //!
 //! Tolerances (f32 on both sides; the device may contract a·b + c into one fused operation,
-//! the host does not): |V| equal; L_f and each source's sums within 1e-5 relative; the
-//! gradient map within 1e-4 relative L2 error.
+//! the host does not; the device sums each row in compensated f32 where the host sums in f64,
+//! and makes each source's scale 1 / (|V|·N) in f32): |V| equal; L_f and each source's sums
+//! within 1e-5 relative; the gradient map within 1e-4 relative L2 error.
 
 use gs_core::Camera;
 use gs_features::FeatureMap;

@@ -1,9 +1,11 @@
 //! L_f on the device (behind the `wgpu` feature), the twin of
 //! [`crate::feature_alignment::feature_loss`] for gs-features' VGG maps: one WGSL kernel
 //! (`align.wgsl`) evaluates every (reference pixel, source) pair — the term υω·|1 − cos| and
-//! its derivative with respect to the reference plane depth — while υ/ω and the sums stay on
-//! the host and use the reference's own code, summed in its order: one input gives one result
-//! on one device (docs/method.md §L_f, docs/architecture.md §GPU).
+//! its derivative with respect to the reference plane depth — and the reduction
+//! (`reduce.wgsl`, [`reduce`]) sums each source's rows and adds its share of the gradient
+//! image, sources in order, so that one record a (source, row) and one value a pixel come
+//! back. υ/ω stay on the host and use the reference's own code. One input gives one result on
+//! one device (docs/method.md §L_f, docs/architecture.md §GPU).
 //!
 //! The feature maps live on the device between calls, in an arena of equal slots keyed by the
 //! caller (a training view's slot), so a view's maps are uploaded once, not every iteration.
@@ -12,14 +14,17 @@
 
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{
-    AlignView, COS_EPS, FeatureOutput, FeatureSource, add_source, check_inputs, feature_loss_with_weights,
+    AlignView, COS_EPS, FeatureOutput, FeatureSource, add_source_sums, check_inputs, feature_loss_with_weights,
 };
 use crate::geometry::PairGeometry;
 use crate::visibility::{Visibility, visibility_unchecked};
 use gs_features::FeatureMap;
-use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy};
+use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, bytes_of};
+use reduce::AlignRowSums;
 use std::borrow::Cow;
 use rayon::prelude::*;
+
+pub mod reduce;
 
 gs_gpu::wgsl_struct! {
     /// Constants of one L_f evaluation (binding 0 of the kernel; WGSL `struct AlignFrame`): the
@@ -38,6 +43,8 @@ gs_gpu::wgsl_struct! {
         ref_inv_stride: f32,
         /// The cosine's norm floor ([`COS_EPS`]).
         eps: f32,
+        /// Sources of the call (N).
+        sources: u32,
     }
 }
 
@@ -73,8 +80,6 @@ gs_gpu::wgsl_struct! {
     }
 }
 
-const STATUS_NOT_IN_V: u32 = 0;
-const STATUS_TERM: u32 = 2;
 
 /// The kernel's storage bindings, by name (slot order).
 const BINDINGS: [Binding<'static>; 5] = [
@@ -107,7 +112,11 @@ struct Buffers {
     pairs: BufId,
     weights: BufId,
     depth: BufId,
+    /// One source's pair results at a time.
     results: BufId,
+    row_sums: BufId,
+    scales: BufId,
+    grads: BufId,
     staging: BufId,
 }
 
@@ -120,6 +129,8 @@ pub struct FeatureGpu {
     pool: BufferPool,
     disp: Dispatcher,
     kernel: Kernel,
+    /// The reduction's passes ([`reduce::PASSES`]).
+    sums: Vec<Kernel>,
     bufs: Buffers,
     arena: Arena,
 }
@@ -142,17 +153,26 @@ impl FeatureGpu {
     pub fn with_arena_bytes(ctx: &GpuContext, arena_bytes: u64) -> Result<Self> {
         let ctx = ctx.clone();
         let kernel = Kernel::new(&ctx, "align_pair", &[&declarations(), include_str!("align.wgsl")], &BINDINGS).map_err(gpu_error)?;
+        let sum_decls = gs_gpu::declarations(&reduce::generated_structs());
+        let sums = reduce::PASSES
+            .iter()
+            .map(|entry| Kernel::new(&ctx, entry, &[&sum_decls, include_str!("reduce.wgsl")], &reduce::BINDINGS))
+            .collect::<gs_gpu::Result<Vec<_>>>()
+            .map_err(gpu_error)?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let bufs = Buffers {
             pairs: pool.add_storage("align pairs"),
             weights: pool.add_storage("align weights"),
             depth: pool.add_storage("align depth"),
             results: pool.add_storage("align results"),
+            row_sums: pool.add_storage("align row sums"),
+            scales: pool.add_storage("align scales"),
+            grads: pool.add_storage("align gradient"),
             staging: pool.add_staging("align readback"),
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<AlignFrame>() as u64);
         let arena = Arena::new(&ctx, "feature arena", arena_bytes);
-        Ok(Self { ctx, pool, disp, kernel, bufs, arena })
+        Ok(Self { ctx, pool, disp, kernel, sums, bufs, arena })
     }
 
     /// The adapter, in words.
@@ -172,12 +192,17 @@ impl FeatureGpu {
             .zip(&geometry)
             .map(|(s, g)| visibility_unchecked(g, &reference.plane_depth, &s.plane_depth))
             .collect();
+        let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
+        // One source's results and all the weights each in one storage binding, or the host.
+        let max = self.ctx.max_storage_binding();
+        if sources.is_empty() || bytes_of::<AlignResult>(w * h) > max || bytes_of::<f32>(sources.len() * w * h) > max {
+            return feature_loss_with_weights(&host_ref, &host_sources, &weights);
+        }
         let maps: Vec<(u64, &FeatureMap)> = std::iter::once(reference).chain(sources).map(|v| (v.key, v.features)).collect();
         let items: Vec<_> = maps.iter().map(|(key, m)| (Some((*key, 0)), m.width() * m.height() * m.channels())).collect();
         let Some(offsets) = self.arena.place(&self.ctx, &items, |i| Cow::Owned(maps[i].1.to_f32_vec())) else {
             return feature_loss_with_weights(&host_ref, &host_sources, &weights);
         };
-        let (w, h) = (reference.camera.width as usize, reference.camera.height as usize);
         let c = reference.features.channels();
         let cam = &reference.camera.intrinsics;
         let frame = AlignFrame {
@@ -193,29 +218,26 @@ impl FeatureGpu {
             r_cy: cam.cy as f32,
             ref_inv_stride: 1.0 / reference.features.stride(),
             eps: COS_EPS as f32,
+            sources: sources.len() as u32,
         };
         let pairs: Vec<AlignPair> = sources.iter().zip(&geometry).zip(&offsets[1..]).map(|((s, g), &o)| pair_record(g, s, o)).collect();
         let mut flat = Vec::with_capacity(sources.len() * w * h);
         for vis in &weights {
             flat.extend((0..w * h).map(|p| vis.weight(p)));
         }
-        let results = self.evaluate(&frame, &pairs, &flat, reference.plane_depth.data)?;
-        let mut out = FeatureOutput { loss: 0.0, per_source: Vec::with_capacity(sources.len()), grad_plane_depth: vec![0.0; w * h], width: w, height: h };
-        for (k, vis) in weights.iter().enumerate() {
-            add_results(&mut out, &results[k * w * h..(k + 1) * w * h], vis, w, sources.len());
+        let (rows, grad) = self.evaluate(&frame, &pairs, &flat, reference.plane_depth.data)?;
+        let mut out = FeatureOutput { loss: 0.0, per_source: Vec::with_capacity(sources.len()), grad_plane_depth: grad, width: w, height: h };
+        for (vis, rows) in weights.iter().zip(rows.chunks(h)) {
+            add_source_sums(&mut out, vis, rows.iter().map(AlignRowSums::row), sources.len());
         }
         Ok(out)
     }
 
-    /// Uploads the pairs, weights and depth, runs the kernel over every (source, pixel) pair
-    /// in chunks that fit one storage binding, and reads the results back.
-    fn evaluate(&mut self, frame: &AlignFrame, pairs: &[AlignPair], weights: &[f32], depth: &[f32]) -> Result<Vec<AlignResult>> {
-        if weights.is_empty() {
-            return Ok(Vec::new());
-        }
-        let b = &self.bufs;
-        let result_bytes = std::mem::size_of::<AlignResult>() as u64;
-        let chunk = (self.ctx.max_storage_binding() / result_bytes).min(1 << 22) as usize;
+    /// Uploads the pairs, weights and depth; for each source in order, runs the pair kernel
+    /// and the reduction's passes (its rows, its scale, its share of the gradient), all in one
+    /// submission; reads back the row sums (source-major) and the gradient image.
+    fn evaluate(&mut self, frame: &AlignFrame, pairs: &[AlignPair], weights: &[f32], depth: &[f32]) -> Result<(Vec<AlignRowSums>, Vec<f32>)> {
+        let (b, npix, rows) = (&self.bufs, (frame.width * frame.height) as u64, (frame.sources * frame.height) as u64);
         self.pool.begin_frame();
         let uploads: [(BufId, &[u8]); 3] =
             [(b.pairs, bytemuck::cast_slice(pairs)), (b.weights, bytemuck::cast_slice(weights)), (b.depth, bytemuck::cast_slice(depth))];
@@ -223,28 +245,42 @@ impl FeatureGpu {
             self.pool.ensure(id, bytes.len() as u64);
             self.ctx.write_buffer(self.pool.buffer(id), 0, bytes);
         }
-        let n = weights.len();
-        self.pool.ensure(b.results, result_bytes * chunk.min(n) as u64);
-        self.pool.ensure(b.staging, result_bytes * chunk.min(n) as u64);
+        let (row_bytes, grad_bytes) = (bytes_of::<AlignRowSums>(rows as usize), bytes_of::<f32>(npix as usize));
+        self.pool.ensure(b.results, bytes_of::<AlignResult>(npix as usize));
+        self.pool.ensure(b.row_sums, row_bytes);
+        self.pool.ensure(b.scales, bytes_of::<f32>(frame.sources as usize));
+        self.pool.ensure(b.grads, grad_bytes);
+        self.pool.ensure(b.staging, row_bytes + grad_bytes);
         self.disp.write_frame(frame);
-        let mut results = Vec::with_capacity(n);
-        for base in (0..n).step_by(chunk) {
-            let m = chunk.min(n - base);
-            let p = &self.pool;
+        let p = &self.pool;
+        let mut enc = self.disp.encoder();
+        enc.encoder.clear_buffer(p.buffer(b.grads), 0, Some(grad_bytes));
+        self.ctx.push_error_scopes();
+        let recorded = (|| {
             let binds = [p.whole(b.pairs), p.whole(b.weights), p.whole(b.depth), self.arena.bind(), p.whole(b.results)];
-            let mut enc = self.disp.encoder();
-            let pass = PassUniform { n: m as u32, base: base as u32, ..Default::default() };
-            self.ctx.push_error_scopes();
-            self.disp.dispatch_1d(&mut enc, &self.kernel, &binds, pass).map_err(gpu_error)?;
-            let bytes = result_bytes * m as u64;
-            enc.encoder.copy_buffer_to_buffer(p.buffer(b.results), 0, p.buffer(b.staging), 0, bytes);
-            self.disp.submit(enc);
-            self.ctx.pop_error_scopes().map_err(gpu_error)?;
-            self.ctx
-                .read_mapped(p.buffer(b.staging), bytes, |r| results.extend_from_slice(bytemuck::cast_slice::<u8, AlignResult>(r)))
-                .map_err(gpu_error)?;
-        }
-        Ok(results)
+            let sum_binds = [p.whole(b.results), p.whole(b.row_sums), p.whole(b.scales), p.whole(b.grads)];
+            for k in 0..frame.sources {
+                self.disp.make_room(&mut enc, 4);
+                let pass = PassUniform { n: npix as u32, base: k * npix as u32, ..Default::default() };
+                self.disp.dispatch_1d(&mut enc, &self.kernel, &binds, pass)?;
+                for (kernel, n) in self.sums.iter().zip([frame.height, 1, npix as u32]) {
+                    self.disp.dispatch_1d(&mut enc, kernel, &sum_binds, PassUniform { n, p1: k, ..Default::default() })?;
+                }
+            }
+            Ok::<_, gs_gpu::GpuError>(())
+        })();
+        let staging = p.buffer(b.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, row_bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes);
+        self.disp.submit(enc);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        recorded.map_err(gpu_error)?;
+        self.ctx
+            .read_mapped(staging, row_bytes + grad_bytes, |r| {
+                let (sums, grad) = r.split_at(row_bytes as usize);
+                (bytemuck::pod_collect_to_vec(sums), bytemuck::pod_collect_to_vec(grad))
+            })
+            .map_err(gpu_error)
     }
 }
 
@@ -267,24 +303,6 @@ fn pair_record(g: &PairGeometry<f32>, source: &AlignView<'_>, offset: u32) -> Al
     }
 }
 
-/// Adds one source's pair results to `out` as the host reference does
-/// ([`crate::feature_alignment`]'s `add_source`, on the same row sums and gradient).
-fn add_results(out: &mut FeatureOutput<f32>, results: &[AlignResult], vis: &Visibility<f32>, w: usize, n_src: usize) {
-    let rows = results.chunks(w).map(|row| {
-        let (mut valid, mut wsum, mut csum) = (0usize, 0.0f64, 0.0f64);
-        for r in row.iter().filter(|r| r.status != STATUS_NOT_IN_V) {
-            valid += 1;
-            if r.status == STATUS_TERM {
-                wsum += r.term as f64;
-                csum += r.cos as f64;
-            }
-        }
-        (valid, wsum, csum)
-    });
-    let grad: Vec<f32> = results.par_iter().map(|r| if r.status == STATUS_TERM { r.grad } else { 0.0 }).collect();
-    add_source(out, vis, rows, &grad, n_src);
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -295,5 +313,9 @@ mod tests {
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
         gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(gs_gpu::bytes_of::<AlignResult>(1), 16);
+        let sums = reduce::reduce_kernel_source();
+        gs_gpu::check_layouts(&reduce::generated_structs(), &sums).unwrap();
+        gs_gpu::validate_kernel(&sums).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(gs_gpu::bytes_of::<AlignRowSums>(1), 16);
     }
 }
