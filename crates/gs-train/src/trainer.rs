@@ -266,8 +266,8 @@ impl<'s> Trainer<'s> {
         self.state.exposure.as_ref()
     }
 
-    /// How many Gaussians the model has (current without a readback: only density control
-    /// changes it, on the host).
+    /// How many Gaussians the model has (current without a readback: density control, on the
+    /// device too, keeps the host's copy at the model's size).
     pub fn gaussian_count(&self) -> usize {
         self.state.gaussians.len()
     }
