@@ -80,7 +80,6 @@ gs_gpu::wgsl_struct! {
     }
 }
 
-
 /// The kernel's storage bindings, by name (slot order).
 const BINDINGS: [Binding<'static>; 5] = [
     Binding::read("pairs", "array<AlignPair>"),

@@ -184,6 +184,15 @@ impl Densify {
         enc.encoder.copy_buffer_to_buffer(pool.buffer(self.split_ranks), n * 4, staging, 4, 4);
     }
 
+    /// Grows the next model set (in the model's `pool`) to hold `rows` Gaussians of `nc` SH
+    /// coefficients each: records and moments, SH and their moments.
+    fn reserve_next(&self, pool: &mut BufferPool, rows: u64, nc: u64) {
+        for (k, id) in self.next.iter().enumerate() {
+            let row = if k < 3 { bytes_of::<ParamRecord>(1) } else { nc.max(1) * bytes_of::<ShCoeff>(1) };
+            pool.ensure(*id, rows.max(1) * row);
+        }
+    }
+
     fn kernel(&self, entry: &str) -> &Kernel {
         &self.kernels.iter().find(|(e, _)| *e == entry).expect("a kernel of specs()").1
     }
@@ -207,8 +216,7 @@ impl WgpuRasterizer {
         let r = self.resident_to_change(g, "density control")?;
         let nc = coeffs_for_degree(r.sh_degree) as u64;
         // The rows at most doubled (every Gaussian split): every set must fit one binding.
-        let most = 3 * r.n as u64;
-        if most * nc.max(1) * bytes_of::<ShCoeff>(1) > self.ctx.max_storage_binding() || most * bytes_of::<ParamRecord>(1) > self.ctx.max_storage_binding() {
+        if !self.rows_fit(3 * r.n as u64, nc) {
             return Ok(None);
         }
         self.make_densify()?;
@@ -226,6 +234,15 @@ impl WgpuRasterizer {
         }
         self.frame = None;
         Ok(r)
+    }
+
+    /// Whether a model set of `rows` Gaussians of `nc` SH coefficients fits one storage
+    /// binding a buffer (records and moments; SH and their moments; the statistics, smaller
+    /// than a record, then fit too).
+    fn rows_fit(&self, rows: u64, nc: u64) -> bool {
+        const { assert!(std::mem::size_of::<StatRecord>() <= std::mem::size_of::<ParamRecord>()) };
+        let max = self.ctx.max_storage_binding();
+        rows * nc.max(1) * bytes_of::<ShCoeff>(1) <= max && rows * bytes_of::<ParamRecord>(1) <= max
     }
 
     /// Compiles the density-control kernels and adds their buffers, the first time.
@@ -394,11 +411,7 @@ impl WgpuRasterizer {
         p.ensure(d.dest, 4 * (rows + 1));
         self.sort.prefix_scan().reserve(p, rows + 1);
         super::upload_with(&self.ctx, p, d.means, means.len().max(1), |out: &mut [f32]| out[..means.len()].copy_from_slice(means));
-        let m = &mut self.model;
-        for (k, id) in d.next.iter().enumerate() {
-            let row = if k < 3 { bytes_of::<ParamRecord>(1) } else { nc.max(1) * bytes_of::<ShCoeff>(1) };
-            m.pool.ensure(*id, rows.max(1) * row);
-        }
+        d.reserve_next(&mut self.model.pool, rows, nc);
         let (p, b, m) = (&self.pool, &self.bufs, &self.model);
         let mut enc = d.disp.encoder();
         let whole = |id| p.whole(id);

@@ -6,7 +6,7 @@
 
 use super::{Densify, DensifyUniform};
 use crate::gpu::WgpuRasterizer;
-use crate::gpu::kernels::{ParamRecord, ShCoeff};
+use crate::gpu::kernels::ParamRecord;
 use crate::gpu::resident::StatRecord;
 use crate::{RasterError, Result};
 use gs_core::Gaussians;
@@ -33,16 +33,16 @@ impl WgpuRasterizer {
             return Ok(Some(kept));
         }
         let nc = coeffs_for_degree(r.sh_degree) as u64;
-        let (n, max) = (r.n as u64, self.ctx.max_storage_binding());
-        if n * nc.max(1) * bytes_of::<ShCoeff>(1) > max || n * bytes_of::<ParamRecord>(1) > max || n * bytes_of::<StatRecord>(1) > max {
+        if !self.rows_fit(r.n as u64, nc) {
             return Ok(None);
         }
         self.make_densify()?;
-        self.scoped(|s| s.retain_scoped(keep, nc))?;
+        self.scoped(|s| s.retain_scoped(keep, kept, nc))?;
         Ok(Some(kept))
     }
 
-    fn retain_scoped(&mut self, keep: &[bool], nc: u64) -> Result<()> {
+    /// The retain of `keep` (keeping `kept` rows) on the made kernels.
+    fn retain_scoped(&mut self, keep: &[bool], kept: usize, nc: u64) -> Result<()> {
         let n = keep.len() as u64;
         let d = self.densify.as_mut().expect("made above");
         let p = &mut self.pool;
@@ -54,11 +54,8 @@ impl WgpuRasterizer {
         // The born rows and parents are not read (no row is born), but are bound.
         p.ensure(d.born, bytes_of::<ParamRecord>(1));
         p.ensure(d.parents, 4);
+        d.reserve_next(&mut self.model.pool, n, nc);
         let m = &mut self.model;
-        for (k, id) in d.next.iter().enumerate() {
-            let row = if k < 3 { bytes_of::<ParamRecord>(1) } else { nc.max(1) * bytes_of::<ShCoeff>(1) };
-            m.pool.ensure(*id, n.max(1) * row);
-        }
         m.pool.ensure(d.next_stats, bytes_of::<StatRecord>(n as usize).max(bytes_of::<StatRecord>(1)));
         d.disp.write_frame(&DensifyUniform { n: n as u32, nc: nc as u32, ..Default::default() });
         let (p, m, d) = (&self.pool, &self.model, self.densify.as_ref().expect("made above"));
@@ -75,7 +72,6 @@ impl WgpuRasterizer {
         }
         d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter_stats"), &[mp(m.stats), p.whole(d.dest), mp(d.next_stats)], pass)?;
         d.disp.submit(enc);
-        let kept = keep.iter().filter(|k| **k).count();
         let d: &mut Densify = self.densify.as_mut().expect("made above");
         self.model.swap_rows(&mut d.next, kept);
         std::mem::swap(&mut self.model.stats, &mut d.next_stats);
