@@ -401,7 +401,11 @@ pub(crate) fn add_source<T: Real>(
     grad: &[T],
     n_src: usize,
 ) {
-    if let Some(scale) = add_source_sums(out, vis, rows, n_src) {
+    let (st, scale) = source_sums(vis.stats(), rows, n_src);
+    out.loss += st.loss / n_src as f64;
+    out.per_source.push(st);
+    if let Some(scale) = scale {
+        let scale = T::from_f64(scale);
         out.grad_plane_depth
             .par_iter_mut()
             .zip(grad.par_iter())
@@ -409,19 +413,15 @@ pub(crate) fn add_source<T: Real>(
     }
 }
 
-/// [`add_source`] but the gradient: the source's statistics from its rows (pairs in V, the
-/// sums of υω·|1 − cos| and of cos) into `out`'s loss and per-source list. Returns the scale
-/// of its gradient, 1 / (|V|·N), or `None` without pairs in V.
-pub(crate) fn add_source_sums<T: Real>(
-    out: &mut FeatureOutput<T>,
-    vis: &Visibility<T>,
+/// [`add_source`] but the gradient: one source's statistics from its υ/ω counts and its rows
+/// (pairs in V, the sums of υω·|1 − cos| and of cos), and the scale of its gradient,
+/// 1 / (|V|·N), or `None` without pairs in V. Its share of L_f is `loss / N`.
+pub(crate) fn source_sums(
+    visibility: VisibilityStats,
     rows: impl IntoIterator<Item = (usize, f64, f64)>,
     n_src: usize,
-) -> Option<T> {
-    let mut st = FeatureSourceStats {
-        visibility: vis.stats(),
-        ..Default::default()
-    };
+) -> (FeatureSourceStats, Option<f64>) {
+    let mut st = FeatureSourceStats { visibility, ..Default::default() };
     for (v, ws, cs) in rows {
         st.n_valid += v;
         st.weighted_sum += ws;
@@ -429,11 +429,9 @@ pub(crate) fn add_source_sums<T: Real>(
     }
     let scale = (st.n_valid > 0).then(|| {
         st.loss = st.weighted_sum / st.n_valid as f64;
-        out.loss += st.loss / n_src as f64;
-        T::from_f64(1.0 / (st.n_valid as f64 * n_src as f64))
+        1.0 / (st.n_valid as f64 * n_src as f64)
     });
-    out.per_source.push(st);
-    scale
+    (st, scale)
 }
 
 #[inline]

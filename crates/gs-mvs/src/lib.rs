@@ -70,6 +70,8 @@ pub use photometric::{
 #[cfg(feature = "wgpu")]
 pub use feature_gpu::FeatureGpu;
 #[cfg(feature = "wgpu")]
-pub use photometric_gpu::{DeviceSource, PendingPhotometric, PhotometricGpu, PhotometricOnDevice, SourceDepth, SurfaceReference, ViewKeys, surface_depth, upload_surface};
+pub use feature_gpu::on_device::{DeviceAlignView, FeaturesOnDevice, PendingFeatures};
+#[cfg(feature = "wgpu")]
+pub use photometric_gpu::{DeviceSource, DeviceVisibility, PendingPhotometric, PhotometricGpu, PhotometricOnDevice, SourceDepth, SurfaceReference, ViewKeys, surface_depth, upload_surface};
 pub use selection::{SourceSelection, SourceViewSelector};
 pub use visibility::{Visibility, VisibilityStats, compute_visibility};

@@ -9,8 +9,9 @@
 //!
 //! Tolerances (f32 on both sides; the device may contract a·b + c into one fused operation,
 //! the host does not; the device sums each row in compensated f32 where the host sums in f64,
-//! and makes each source's scale 1 / (|V|·N) in f32): |V| equal; L_f and each source's sums
-//! within 1e-5 relative; the gradient map within 1e-4 relative L2 error.
+//! and makes each source's scale 1 / (|V|·N) in f32): |V| and the υ/ω counts equal; ω's mean
+//! within 1e-5 relative (equal where the host makes υ/ω); L_f and each source's sums within
+//! 1e-5 relative; the gradient map within 1e-4 relative L2 error.
 
 use gs_core::Camera;
 use gs_features::FeatureMap;
@@ -45,6 +46,7 @@ fn features(maps: &AnalyticMaps, channels: usize) -> FeatureMap {
 
 struct Views {
     cams: Vec<Camera>,
+    maps: Vec<AnalyticMaps>,
     depths: Vec<Vec<f32>>,
     feats: Vec<FeatureMap>,
 }
@@ -59,7 +61,7 @@ fn views(w: u32, h: u32, n: usize, channels: usize) -> Views {
         *z *= 1.0 + 0.01 * ((k as f32) * 0.37).sin();
     }
     let feats = maps.iter().map(|m| features(m, channels)).collect();
-    Views { cams, depths, feats }
+    Views { cams, maps, depths, feats }
 }
 
 fn depth_of<'a>(v: &'a Views, k: usize) -> MapView<'a, f32> {
@@ -84,7 +86,9 @@ fn assert_parity(label: &str, host: &FeatureOutput<f32>, dev: &FeatureOutput<f32
     assert!(host.loss > 0.0, "{label}: the terms are not at a minimum");
     assert!(rel(host.loss, dev.loss) <= 1e-5, "{label}: L_f {} against {}", host.loss, dev.loss);
     for (k, (a, b)) in host.per_source.iter().zip(&dev.per_source).enumerate() {
-        assert_eq!((a.n_valid, a.visibility), (b.n_valid, b.visibility), "{label}: source {k}'s |V| and υ/ω");
+        let (va, vb) = (&a.visibility, &b.visibility);
+        assert_eq!((a.n_valid, va.n_upsilon, va.n_omega_positive), (b.n_valid, vb.n_upsilon, vb.n_omega_positive), "{label}: source {k}'s |V| and υ/ω");
+        assert!(rel(va.mean_omega_over_upsilon, vb.mean_omega_over_upsilon) <= 1e-5, "{label}: source {k}'s mean ω");
         assert!(a.n_valid > 100, "{label}: source {k} sees the reference");
         assert!(rel(a.weighted_sum, b.weighted_sum) <= 1e-5, "{label}: source {k}: {} against {}", a.weighted_sum, b.weighted_sum);
         assert!(rel(a.cos_sum, b.cos_sum) <= 1e-5, "{label}: source {k}'s cosines");
@@ -128,4 +132,74 @@ fn the_feature_arena_evicts_and_falls_back_without_changing_a_value() {
         assert_eq!(on_device(&mut small, &v, r, &s), fresh, "reference {r}, sources {s:?}");
     }
     assert_eq!(on_device(&mut small, &v, 0, &[1, 2, 3]), on_host(&v, 0, &[1, 2, 3]), "four maps in an arena of three");
+}
+
+/// L_f on L_p's visibility (`start_on_device`): L_p evaluated on the device with the
+/// reference's plane on the device leaves its υ/ω there, and L_f of the same views reads them
+/// and the surface's z instead of depths and weights from the host. Against the CPU reference:
+/// the tolerances above (υ/ω's counts equal and ω's mean within 1e-5 relative: the device's
+/// exp). With the maps held, nothing per pixel goes up and only each (source,
+/// row)'s sums and counts come back, at one wait. Another step's versions or another surface
+/// are not lent (`None`). `add_gradient` adds λ·g into a plane-depth gradient on the device as
+/// the host adds it (within one rounding: the device may fuse the multiply-add).
+#[test]
+fn l_f_on_l_ps_visibility_matches_the_host() {
+    let Some(ctx) = context() else { return };
+    let mut lp = gs_mvs::PhotometricGpu::new(&ctx).unwrap();
+    let mut lf = FeatureGpu::new(&ctx).unwrap();
+    let v = views(64, 48, 4, 24);
+    let (w, h) = (64usize, 48usize);
+    let reference = gs_mvs::PhotometricReference {
+        camera: &v.cams[0],
+        normal: (&v.maps[0].normal).into(),
+        distance: (&v.maps[0].distance).into(),
+        plane_depth: depth_of(&v, 0),
+        grey: (&v.maps[0].grey).into(),
+    };
+    let surface = gs_mvs::upload_surface(&ctx, &reference).unwrap();
+    let lp_sources: Vec<gs_mvs::DeviceSource<'_>> = (1..4)
+        .map(|k| gs_mvs::PhotometricSource { camera: &v.cams[k], plane_depth: depth_of(&v, k), grey: (&v.maps[k].grey).into() }.into())
+        .collect();
+    let on_surface = gs_mvs::SurfaceReference { camera: &v.cams[0], surface: &surface, plane_depth: None, grey: reference.grey };
+    let keys: Vec<u64> = (0..4).collect();
+    let versions = [7u64, 7, 7];
+    let view_keys = gs_mvs::ViewKeys { views: &keys, depth_versions: &versions, keep_reference_depth: None };
+    let started = lp.start_on_device(&on_surface, &lp_sources, Some(view_keys), &gs_mvs::PhotometricConfig::default()).unwrap();
+    lp.finish_on_device(started).unwrap();
+    let vis = lp.visibility().expect("L_p made υ/ω on the device").clone();
+    let view = |k: usize| gs_mvs::DeviceAlignView { camera: &v.cams[k], features: &v.feats[k], key: k as u64 };
+    let sources: Vec<_> = (1..4).map(view).collect();
+    let mut call = |versions: &[u64], surface: &gs_gpu::DeviceImage| {
+        let before = ctx.transfers();
+        let started = lf.start_on_device((&view(0), surface), &sources, versions, &vis).unwrap();
+        let out = started.map(|s| lf.finish_on_device(s).unwrap());
+        (out, ctx.transfers() - before)
+    };
+    let (first, _) = call(&versions, &surface);
+    let dev = first.expect("the visibility of these views is lent");
+    let (again, t) = call(&versions, &surface);
+    let again = again.expect("lent again");
+    assert_eq!(again.loss, dev.loss, "a call with the maps held repeats bit for bit");
+    // The uniforms and the pair records alone (a plane would be 12,288 bytes).
+    assert!(t.bytes_up < (2 * w * h) as u64, "{} bytes up: no depth, weight or map", t.bytes_up);
+    assert_eq!((t.syncs, t.bytes_down), (1, 2 * 16 * 3 * h as u64), "the sums and the counts alone come back");
+    let host = on_host(&v, 0, &[1, 2, 3]);
+    let gradient = dev.gradient.read(&ctx).unwrap();
+    let as_output = FeatureOutput { loss: dev.loss, per_source: dev.per_source.clone(), grad_plane_depth: gradient.clone(), width: w, height: h };
+    assert_parity("on L_p's visibility", &host, &as_output);
+    // Not lent: another version of a source's depth, another surface.
+    assert!(call(&[7, 8, 7], &surface).0.is_none(), "another step's depths");
+    let other = gs_mvs::upload_surface(&ctx, &reference).unwrap();
+    assert!(call(&versions, &other).0.is_none(), "another surface");
+    // λ·g added into a plane-depth gradient on the device.
+    let base: Vec<f32> = (0..w * h).map(|k| ((k as f32) * 0.11).sin()).collect();
+    let target = gs_gpu::DeviceImage::upload(&ctx, "target", (w, h, 1), &base).unwrap();
+    lf.add_gradient(&dev.gradient, 0.75, &target).unwrap();
+    for ((t, b), g) in target.read(&ctx).unwrap().iter().zip(&base).zip(&gradient) {
+        let want = b + 0.75 * g;
+        assert!((t - want).abs() <= 1e-6 * (b.abs() + (0.75 * g).abs()), "{t} against {want}");
+    }
+    let wrong = gs_gpu::DeviceImage::new(&ctx, "wrong", w, h, 2).unwrap();
+    let err = lf.add_gradient(&dev.gradient, 1.0, &wrong).err().expect("refused").to_string();
+    assert!(err.contains("64×48×2"), "{err}");
 }

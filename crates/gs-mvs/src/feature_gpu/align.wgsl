@@ -7,7 +7,9 @@
 // Generated before this file: `struct AlignFrame` (binding 0), `struct AlignPair`,
 // `struct AlignResult`, and the storage bindings `pairs`, `weights` (υω per pixel, source after
 // source), `depth` (z_r), `maps` (the feature arena: `[H'][W'][C]` f32 maps at slot offsets)
-// and `results`.
+// and `results`; then `pair_weight(e)` and `ref_depth(p)`, which read `weights` and `depth` as
+// the variant binds them (f32 arrays from the host, or L_p's visibility records and the
+// rendered surface on the device).
 
 @group(0) @binding(0) var<uniform> frame: AlignFrame;
 
@@ -99,7 +101,7 @@ fn align_pair(ids: Ids) {
     let k = e / npix;
     let p = e % npix;
     var r = AlignResult(0.0, 0.0, 0.0, NOT_IN_V);
-    let wt = weights[e];
+    let wt = pair_weight(e);
     if (!(wt > 0.0)) {
         results[t] = r;
         return;
@@ -108,7 +110,7 @@ fn align_pair(ids: Ids) {
     let pr = pairs[k];
     let u = f32(p % frame.width) + 0.5;
     let v = f32(p / frame.width) + 0.5;
-    let z = depth[p];
+    let z = ref_depth(p);
     let ray = vec3<f32>((u - frame.r_cx) / frame.r_fx, (v - frame.r_cy) / frame.r_fy, 1.0);
     let x = vec3<f32>(ray.x * z, ray.y * z, ray.z * z);
     let xs = vec3<f32>(

@@ -4,8 +4,10 @@
 //! its derivative with respect to the reference plane depth — and the reduction
 //! (`reduce.wgsl`, [`reduce`]) sums each source's rows and adds its share of the gradient
 //! image, sources in order, so that one record a (source, row) and one value a pixel come
-//! back. υ/ω stay on the host and use the reference's own code. One input gives one result on
-//! one device (docs/method.md §L_f, docs/architecture.md §GPU).
+//! back. [`FeatureGpu::loss`] takes υ/ω from the host's own code; [`FeatureGpu::start_on_device`]
+//! reads those L_p made on the device for the same views in the same step, and the rendered
+//! surface's plane depth, and keeps the gradient image there ([`on_device`]). One input gives
+//! one result on one device (docs/method.md §L_f, docs/architecture.md §GPU).
 //!
 //! The feature maps live on the device between calls, in an arena of equal slots keyed by the
 //! caller (a training view's slot), so a view's maps are uploaded once, not every iteration.
@@ -14,7 +16,7 @@
 
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{
-    AlignView, COS_EPS, FeatureOutput, FeatureSource, add_source_sums, check_inputs, feature_loss_with_weights,
+    AlignView, COS_EPS, FeatureOutput, FeatureSource, check_inputs, feature_loss_with_weights, source_sums,
 };
 use crate::geometry::PairGeometry;
 use crate::visibility::{Visibility, visibility_unchecked};
@@ -24,6 +26,7 @@ use reduce::AlignRowSums;
 use std::borrow::Cow;
 use rayon::prelude::*;
 
+pub mod on_device;
 pub mod reduce;
 
 gs_gpu::wgsl_struct! {
@@ -45,6 +48,8 @@ gs_gpu::wgsl_struct! {
         eps: f32,
         /// Sources of the call (N).
         sources: u32,
+        /// The weight of the gradient's apply pass (λ4; [`on_device`]).
+        weight: f32,
     }
 }
 
@@ -98,9 +103,13 @@ fn declarations() -> String {
     gs_gpu::declarations(&generated_structs())
 }
 
-/// The kernel's whole WGSL source (generated declarations, then `align.wgsl`).
+/// How the host kernel reads its inputs: υω and z_r as f32 arrays.
+const HOST_ACCESS: &str = "fn pair_weight(e: u32) -> f32 { return weights[e]; }\nfn ref_depth(p: u32) -> f32 { return depth[p]; }\n";
+
+/// The host kernel's whole WGSL source (generated declarations, its accessors, then
+/// `align.wgsl`).
 pub fn align_kernel_source() -> String {
-    gs_gpu::kernel_source(&[&declarations(), include_str!("align.wgsl")], &BINDINGS)
+    gs_gpu::kernel_source(&[&declarations(), HOST_ACCESS, include_str!("align.wgsl")], &BINDINGS)
 }
 
 fn gpu_error(e: gs_gpu::GpuError) -> MvsError {
@@ -130,6 +139,8 @@ pub struct FeatureGpu {
     kernel: Kernel,
     /// The reduction's passes ([`reduce::PASSES`]).
     sums: Vec<Kernel>,
+    /// The pair kernel on L_p's visibility and the surface, and the gradient's apply pass.
+    device: on_device::Kernels,
     bufs: Buffers,
     arena: Arena,
 }
@@ -151,7 +162,8 @@ impl FeatureGpu {
     /// the maps of one call; a call whose maps do not fit is evaluated on the host).
     pub fn with_arena_bytes(ctx: &GpuContext, arena_bytes: u64) -> Result<Self> {
         let ctx = ctx.clone();
-        let kernel = Kernel::new(&ctx, "align_pair", &[&declarations(), include_str!("align.wgsl")], &BINDINGS).map_err(gpu_error)?;
+        let kernel = Kernel::new(&ctx, "align_pair", &[&declarations(), HOST_ACCESS, include_str!("align.wgsl")], &BINDINGS).map_err(gpu_error)?;
+        let device = on_device::Kernels::new(&ctx)?;
         let sum_decls = gs_gpu::declarations(&reduce::generated_structs());
         let sums = reduce::PASSES
             .iter()
@@ -171,7 +183,7 @@ impl FeatureGpu {
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<AlignFrame>() as u64);
         let arena = Arena::new(&ctx, "feature arena", arena_bytes);
-        Ok(Self { ctx, pool, disp, kernel, sums, bufs, arena })
+        Ok(Self { ctx, pool, disp, kernel, sums, device, bufs, arena })
     }
 
     /// The adapter, in words.
@@ -198,28 +210,11 @@ impl FeatureGpu {
             return feature_loss_with_weights(&host_ref, &host_sources, &weights);
         }
         let maps: Vec<(u64, &FeatureMap)> = std::iter::once(reference).chain(sources).map(|v| (v.key, v.features)).collect();
-        let items: Vec<_> = maps.iter().map(|(key, m)| (Some((*key, 0)), m.width() * m.height() * m.channels())).collect();
-        let Some(offsets) = self.arena.place(&self.ctx, &items, |i| Cow::Owned(maps[i].1.to_f32_vec())) else {
+        let Some(offsets) = self.place_maps(&maps) else {
             return feature_loss_with_weights(&host_ref, &host_sources, &weights);
         };
-        let c = reference.features.channels();
-        let cam = &reference.camera.intrinsics;
-        let frame = AlignFrame {
-            width: w as u32,
-            height: h as u32,
-            channels: c as u32,
-            ref_offset: offsets[0],
-            ref_w: reference.features.width() as u32,
-            ref_h: reference.features.height() as u32,
-            r_fx: cam.fx as f32,
-            r_fy: cam.fy as f32,
-            r_cx: cam.cx as f32,
-            r_cy: cam.cy as f32,
-            ref_inv_stride: 1.0 / reference.features.stride(),
-            eps: COS_EPS as f32,
-            sources: sources.len() as u32,
-        };
-        let pairs: Vec<AlignPair> = sources.iter().zip(&geometry).zip(&offsets[1..]).map(|((s, g), &o)| pair_record(g, s, o)).collect();
+        let frame = align_frame(reference.camera, reference.features, offsets[0], sources.len());
+        let pairs: Vec<AlignPair> = sources.iter().zip(&geometry).zip(&offsets[1..]).map(|((s, g), &o)| pair_record(g, s.features, o)).collect();
         let mut flat = Vec::with_capacity(sources.len() * w * h);
         for vis in &weights {
             flat.extend((0..w * h).map(|p| vis.weight(p)));
@@ -227,7 +222,9 @@ impl FeatureGpu {
         let (rows, grad) = self.evaluate(&frame, &pairs, &flat, reference.plane_depth.data)?;
         let mut out = FeatureOutput { loss: 0.0, per_source: Vec::with_capacity(sources.len()), grad_plane_depth: grad, width: w, height: h };
         for (vis, rows) in weights.iter().zip(rows.chunks(h)) {
-            add_source_sums(&mut out, vis, rows.iter().map(AlignRowSums::row), sources.len());
+            let (st, _) = source_sums(vis.stats(), rows.iter().map(AlignRowSums::row), sources.len());
+            out.loss += st.loss / sources.len() as f64;
+            out.per_source.push(st);
         }
         Ok(out)
     }
@@ -255,19 +252,8 @@ impl FeatureGpu {
         let mut enc = self.disp.encoder();
         enc.encoder.clear_buffer(p.buffer(b.grads), 0, Some(grad_bytes));
         self.ctx.push_error_scopes();
-        let recorded = (|| {
-            let binds = [p.whole(b.pairs), p.whole(b.weights), p.whole(b.depth), self.arena.bind(), p.whole(b.results)];
-            let sum_binds = [p.whole(b.results), p.whole(b.row_sums), p.whole(b.scales), p.whole(b.grads)];
-            for k in 0..frame.sources {
-                self.disp.make_room(&mut enc, 4);
-                let pass = PassUniform { n: npix as u32, base: k * npix as u32, ..Default::default() };
-                self.disp.dispatch_1d(&mut enc, &self.kernel, &binds, pass)?;
-                for (kernel, n) in self.sums.iter().zip([frame.height, 1, npix as u32]) {
-                    self.disp.dispatch_1d(&mut enc, kernel, &sum_binds, PassUniform { n, p1: k, ..Default::default() })?;
-                }
-            }
-            Ok::<_, gs_gpu::GpuError>(())
-        })();
+        let binds = [p.whole(b.pairs), p.whole(b.weights), p.whole(b.depth), self.arena.bind(), p.whole(b.results)];
+        let recorded = self.encode_sources(&mut enc, frame, &self.kernel, &binds, p.whole(b.grads));
         let staging = p.buffer(b.staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, row_bytes);
         enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes);
@@ -281,10 +267,55 @@ impl FeatureGpu {
             })
             .map_err(gpu_error)
     }
+
+    /// The arena offsets of `maps` (each under its key), uploading those it does not hold;
+    /// `None` when they do not fit it together.
+    fn place_maps(&mut self, maps: &[(u64, &FeatureMap)]) -> Option<Vec<u32>> {
+        let items: Vec<_> = maps.iter().map(|(key, m)| (Some((*key, 0)), m.width() * m.height() * m.channels())).collect();
+        self.arena.place(&self.ctx, &items, |i| Cow::Owned(maps[i].1.to_f32_vec()))
+    }
+
+    /// Records, for each source in order, the pair kernel `kernel` on `binds` (its pair results
+    /// into the pool's `results`) and the reduction's passes, which add the source's share of
+    /// the gradient into `grads`.
+    fn encode_sources(&self, enc: &mut gs_gpu::Encoder, frame: &AlignFrame, kernel: &Kernel, binds: &[gs_gpu::Bind<'_>], grads: gs_gpu::Bind<'_>) -> gs_gpu::Result<()> {
+        let (p, b, npix) = (&self.pool, &self.bufs, frame.width * frame.height);
+        let sum_binds = [p.whole(b.results), p.whole(b.row_sums), p.whole(b.scales), grads];
+        for k in 0..frame.sources {
+            self.disp.make_room(enc, 4);
+            self.disp.dispatch_1d(enc, kernel, binds, PassUniform { n: npix, base: k * npix, ..Default::default() })?;
+            for (pass, n) in self.sums.iter().zip([frame.height, 1, npix]) {
+                self.disp.dispatch_1d(enc, pass, &sum_binds, PassUniform { n, p1: k, ..Default::default() })?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The frame of an evaluation of `sources` sources against the reference `camera` whose
+/// `features` lie at `ref_offset` in the arena.
+fn align_frame(camera: &gs_core::Camera, features: &FeatureMap, ref_offset: u32, sources: usize) -> AlignFrame {
+    let cam = &camera.intrinsics;
+    AlignFrame {
+        width: camera.width,
+        height: camera.height,
+        channels: features.channels() as u32,
+        ref_offset,
+        ref_w: features.width() as u32,
+        ref_h: features.height() as u32,
+        r_fx: cam.fx as f32,
+        r_fy: cam.fy as f32,
+        r_cx: cam.cx as f32,
+        r_cy: cam.cy as f32,
+        ref_inv_stride: 1.0 / features.stride(),
+        eps: COS_EPS as f32,
+        sources: sources as u32,
+        weight: 0.0,
+    }
 }
 
 /// The pair record of `source` with the pair geometry `g`, its map at `offset` in the arena.
-fn pair_record(g: &PairGeometry<f32>, source: &AlignView<'_>, offset: u32) -> AlignPair {
+fn pair_record(g: &PairGeometry<f32>, features: &FeatureMap, offset: u32) -> AlignPair {
     let [r0, r1, r2] = crate::geometry::padded_rows(&g.rot);
     AlignPair {
         r0,
@@ -296,9 +327,9 @@ fn pair_record(g: &PairGeometry<f32>, source: &AlignView<'_>, offset: u32) -> Al
         s_cx: g.s_cx,
         s_cy: g.s_cy,
         map_offset: offset,
-        map_w: source.features.width() as u32,
-        map_h: source.features.height() as u32,
-        inv_stride: 1.0 / source.features.stride(),
+        map_w: features.width() as u32,
+        map_h: features.height() as u32,
+        inv_stride: 1.0 / features.stride(),
     }
 }
 
@@ -316,5 +347,9 @@ mod tests {
         gs_gpu::check_layouts(&reduce::generated_structs(), &sums).unwrap();
         gs_gpu::validate_kernel(&sums).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(gs_gpu::bytes_of::<AlignRowSums>(1), 16);
+        for src in [on_device::device_kernel_source(), on_device::apply_kernel_source()] {
+            gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
+        }
+        gs_gpu::check_layouts(&[gs_gpu::GeneratedStruct::of::<AlignFrame>()], &on_device::device_kernel_source()).unwrap();
     }
 }

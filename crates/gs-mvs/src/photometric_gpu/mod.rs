@@ -14,6 +14,7 @@
 //! are uploaded once (a depth once a version).
 
 mod depths;
+mod lent;
 mod outcome;
 mod reduce;
 mod reference;
@@ -21,10 +22,12 @@ mod select;
 mod submit;
 
 pub use depths::{DeviceSource, SourceDepth, keep_depth_kernel_source};
+pub use lent::DeviceVisibility;
 pub use outcome::{PendingPhotometric, PhotometricOnDevice};
 pub use reduce::reduce_kernel_source;
 pub use reference::{SurfaceReference, surface_depth, upload_surface};
 pub use select::{selection_kernel_source, visibility_kernel_source};
+pub(crate) use select::{VisRow, VisTexel, visibility_stats};
 use outcome::{Done, Pending};
 use submit::{Inputs, Readback, patch_inputs};
 
@@ -172,6 +175,8 @@ pub struct PhotometricGpu {
     greys: Arena,
     /// Copies a reference's plane depth into the arena ([`ViewKeys::keep_reference_depth`]).
     keep: Kernel,
+    /// The last evaluation's υ/ω, where they were made on the device for keyed views.
+    made: Option<DeviceVisibility>,
 }
 
 /// The keys under which [`PhotometricGpu::start_on_device`] keeps its per-view arrays on the
@@ -271,12 +276,19 @@ impl PhotometricGpu {
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<NccFrame>() as u64);
         let greys = Arena::new(&ctx, "ncc greys", ARENA_BYTES);
         let keep = depths::keep_depth_kernel(&ctx)?;
-        Ok(Self { ctx, pool, disp, kernel, sums, selection, bufs, greys, keep })
+        Ok(Self { ctx, pool, disp, kernel, sums, selection, bufs, greys, keep, made: None })
     }
 
     /// The adapter, in words.
     pub fn adapter_description(&self) -> String {
         self.ctx.description()
+    }
+
+    /// The υ/ω of the last evaluation, where [`PhotometricGpu::start_on_device`] made them on
+    /// the device for views it was given keys of: what L_f of the same step reads
+    /// ([`crate::FeatureGpu::start_on_device`]).
+    pub fn visibility(&self) -> Option<&DeviceVisibility> {
+        self.made.as_ref()
     }
 
     /// [`photometric_loss`] with the patches evaluated on the device: the same selection, υ/ω,
@@ -320,6 +332,7 @@ impl PhotometricGpu {
         if keys.is_some_and(|k| k.len() != sources.len() + 1) {
             return Err(MvsError::InvalidInput(format!("{} grey image keys for a reference and {} sources", keys.map_or(0, <[u64]>::len), sources.len())));
         }
+        self.made = None;
         let view = RefView::of_host(reference);
         view.check(sources, config)?;
         self.start_on_host(view, sources, keys, config, false)
@@ -347,6 +360,7 @@ impl PhotometricGpu {
             let (v, d) = (k.views.len(), k.depth_versions.len());
             return Err(MvsError::InvalidInput(format!("{v} view keys and {d} depth versions for a reference and {} sources", sources.len())));
         }
+        self.made = None;
         self.check_held(sources, keys)?;
         let on_host: Vec<PhotometricSource<'_, f32>> = sources.iter().map(|s| s.on_host(None)).collect();
         let view = RefView::of_device(reference, &self.ctx)?;

@@ -10,7 +10,7 @@
 
 use super::outcome::{Done, Pending, PendingPhotometric};
 use super::reference::{Plane, RefView};
-use super::{DEPTH_PART, Entries, Inputs, NccFrame, NccResult, PhotometricGpu, ViewKeys, gpu_error, patch_inputs};
+use super::{DEPTH_PART, DeviceVisibility, Entries, Inputs, NccFrame, NccResult, PhotometricGpu, ViewKeys, gpu_error, patch_inputs};
 use crate::error::Result;
 use crate::geometry::{PairGeometry, padded, padded_rows};
 use crate::photometric::{PhotometricConfig, PhotometricSource, SourceStats, drawn_candidates, patch_geometry};
@@ -193,6 +193,15 @@ impl PhotometricGpu {
             self.disp.dispatch_1d(&mut enc, &self.selection.pixels, &binds, threads(n * w * h)).map_err(gpu_error)?;
             self.disp.dispatch_1d(&mut enc, &self.selection.rows, &binds, threads(n * h)).map_err(gpu_error)?;
         }
+        self.made = keys.map(|k| DeviceVisibility {
+            texels: self.pool.buffer(b.vis).clone(),
+            rows: self.pool.buffer(b.vis_rows).clone(),
+            surface: surface.buffer().clone(),
+            views: k.views.to_vec(),
+            depth_versions: k.depth_versions.to_vec(),
+            width: w,
+            height: h,
+        });
         let mut counted = None;
         if capped {
             counted = Some(self.draw_from_counts(enc, (n, h), (slot, words), config)?);
@@ -299,22 +308,29 @@ pub(super) fn vis_pair(g: &PairGeometry<f32>, depth_offset: u32, (width, height)
 /// visibility statistics (the rows' ω sums added in order in f64), its candidates and how many
 /// the cap lets through.
 pub(super) fn counted(rows: &[VisRow], config: &PhotometricConfig) -> SourceStats {
-    let mut v = VisibilityStats::default();
-    let (mut omega, mut candidates) = (0.0f64, 0usize);
-    for r in rows {
-        v.n_upsilon += r.upsilon as usize;
-        v.n_omega_positive += r.omega_positive as usize;
-        omega += r.omega_sum as f64;
-        candidates += r.candidates as usize;
-    }
-    if v.n_upsilon > 0 {
-        v.mean_omega_over_upsilon = omega / v.n_upsilon as f64;
-    }
+    let v = visibility_stats(rows);
+    let candidates: usize = rows.iter().map(|r| r.candidates as usize).sum();
     let sampled = match config.max_pixels_per_source {
         Some(cap) => candidates.min(cap),
         _ => candidates,
     };
     SourceStats { visibility: v, n_candidates: candidates, n_sampled: sampled, ..Default::default() }
+}
+
+/// A source's visibility statistics from its rows' counts (the ω sums added in row order in
+/// f64), as [`crate::Visibility::stats`] counts them on the host.
+pub(crate) fn visibility_stats(rows: &[VisRow]) -> VisibilityStats {
+    let mut v = VisibilityStats::default();
+    let mut omega = 0.0f64;
+    for r in rows {
+        v.n_upsilon += r.upsilon as usize;
+        v.n_omega_positive += r.omega_positive as usize;
+        omega += r.omega_sum as f64;
+    }
+    if v.n_upsilon > 0 {
+        v.mean_omega_over_upsilon = omega / v.n_upsilon as f64;
+    }
+    v
 }
 
 /// The host's share of a capped selection, from each source's rows (`rows`: source-major, `h`
