@@ -134,9 +134,10 @@ fn the_feature_arena_evicts_and_falls_back_without_changing_a_value() {
     assert_eq!(on_device(&mut small, &v, 0, &[1, 2, 3]), on_host(&v, 0, &[1, 2, 3]), "four maps in an arena of three");
 }
 
-/// L_f on L_p's visibility (`start_on_device`): L_p evaluated on the device with the
-/// reference's plane on the device leaves its υ/ω there, and L_f of the same views reads them
-/// and the surface's z instead of depths and weights from the host. Against the CPU reference:
+/// L_f on L_p's visibility (`start_on_device`): υ/ω made on the device by L_p's executor
+/// (`visibility_on_device`, or lent by a whole L_p evaluation) from the reference's surface,
+/// and L_f of the same views reads them and the surface's z instead of depths and weights from
+/// the host. Against the CPU reference:
 /// the tolerances above (υ/ω's counts equal and ω's mean within 1e-5 relative: the device's
 /// exp). With the maps held, nothing per pixel goes up and only each (source,
 /// row)'s sums and counts come back, at one wait. Another step's versions or another surface
@@ -164,14 +165,13 @@ fn l_f_on_l_ps_visibility_matches_the_host() {
     let keys: Vec<u64> = (0..4).collect();
     let versions = [7u64, 7, 7];
     let view_keys = gs_mvs::ViewKeys { views: &keys, depth_versions: &versions, keep_reference_depth: None };
-    let started = lp.start_on_device(&on_surface, &lp_sources, Some(view_keys), &gs_mvs::PhotometricConfig::default()).unwrap();
-    lp.finish_on_device(started).unwrap();
-    let vis = lp.visibility().expect("L_p made υ/ω on the device").clone();
+    let config = gs_mvs::PhotometricConfig::default();
+    let vis = lp.visibility_on_device(&on_surface, &lp_sources, view_keys, &config).unwrap().expect("υ/ω made on the device");
     let view = |k: usize| gs_mvs::DeviceAlignView { camera: &v.cams[k], features: &v.feats[k], key: k as u64 };
     let sources: Vec<_> = (1..4).map(view).collect();
     let mut call = |versions: &[u64], surface: &gs_gpu::DeviceImage| {
         let before = ctx.transfers();
-        let started = lf.start_on_device((&view(0), surface), &sources, versions, &vis).unwrap();
+        let started = lf.start_on_device((&view(0), surface), &sources, (&keys, versions), &vis).unwrap();
         let out = started.map(|s| lf.finish_on_device(s).unwrap());
         (out, ctx.transfers() - before)
     };
@@ -187,10 +187,18 @@ fn l_f_on_l_ps_visibility_matches_the_host() {
     let gradient = dev.gradient.read(&ctx).unwrap();
     let as_output = FeatureOutput { loss: dev.loss, per_source: dev.per_source.clone(), grad_plane_depth: gradient.clone(), width: w, height: h };
     assert_parity("on L_p's visibility", &host, &as_output);
-    // Not lent: another version of a source's depth, another surface.
-    assert!(call(&[7, 8, 7], &surface).0.is_none(), "another step's depths");
+    // A whole L_p evaluation lends the same visibility.
+    let started = lp.start_on_device(&on_surface, &lp_sources, Some(view_keys), &config).unwrap();
+    lp.finish_on_device(started).unwrap();
+    let lent = lp.visibility().expect("L_p made υ/ω on the device").clone();
+    let started = lf.start_on_device((&view(0), &surface), &sources, (&keys, &versions), &lent).unwrap().expect("lent");
+    assert_eq!(lf.finish_on_device(started).unwrap().loss, dev.loss, "L_p's own υ/ω give the same bits");
+    // Not lent: another version of a source's depth, another surface, other views.
     let other = gs_mvs::upload_surface(&ctx, &reference).unwrap();
-    assert!(call(&versions, &other).0.is_none(), "another surface");
+    let swapped: Vec<u64> = vec![0, 1, 3, 2];
+    for (what, surface, keys, versions) in [("another step's depths", &surface, &keys, &[7, 8, 7]), ("another surface", &other, &keys, &versions), ("other views", &surface, &swapped, &versions)] {
+        assert!(lf.start_on_device((&view(0), surface), &sources, (keys, versions), &vis).unwrap().is_none(), "{what}");
+    }
     // λ·g added into a plane-depth gradient on the device.
     let base: Vec<f32> = (0..w * h).map(|k| ((k as f32) * 0.11).sin()).collect();
     let target = gs_gpu::DeviceImage::upload(&ctx, "target", (w, h, 1), &base).unwrap();

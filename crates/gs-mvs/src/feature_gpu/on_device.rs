@@ -16,14 +16,14 @@ use gs_features::FeatureMap;
 use gs_gpu::{Bind, Binding, DeviceImage, GeneratedStruct, GpuContext, Kernel, PassUniform, PendingRead, SurfaceTexel, bytes_of};
 
 /// A view of [`FeatureGpu::start_on_device`]: its camera, feature maps and the key they are
-/// kept under on the device (the key L_p's visibility names it by).
+/// kept under on the device.
 #[derive(Clone, Copy)]
 pub struct DeviceAlignView<'a> {
     /// The camera.
     pub camera: &'a Camera,
     /// The feature maps.
     pub features: &'a FeatureMap,
-    /// The key of `features` on the device, and of the view in L_p's visibility.
+    /// The key of `features` on the device.
     pub key: u64,
 }
 
@@ -102,23 +102,22 @@ impl Kernels {
 impl FeatureGpu {
     /// Starts L_f of `reference`, whose rendered surface (gs-gpu `SurfaceTexel`s of its
     /// camera's size) is `surface`, against `sources`, weighing each pair by `visibility`: the
-    /// υ/ω L_p made on the device in this step for these views (the reference's key, then the
-    /// sources', with their depths at `depth_versions`). `None` where it does not apply (another
-    /// step's or views' visibility, maps too large for the arena, a pair result too large for
-    /// one binding): the caller evaluates L_f from depths on the host.
-    /// [`FeatureGpu::finish_on_device`] reads it; the readback shares a wait with others
-    /// started on the device before it.
+    /// υ/ω L_p made on the device from this surface for these views (`lp_views`: the keys L_p
+    /// named them by, the reference's first; `depth_versions`: the sources' depths L_p read).
+    /// `None` where it does not apply (another surface's or views' visibility, maps too large
+    /// for the arena, a pair result too large for one binding): the caller evaluates L_f from
+    /// depths on the host. [`FeatureGpu::finish_on_device`] reads it; the readback shares a
+    /// wait with others started on the device before it.
     pub fn start_on_device(
         &mut self,
         (reference, surface): (&DeviceAlignView<'_>, &DeviceImage),
         sources: &[DeviceAlignView<'_>],
-        depth_versions: &[u64],
+        (lp_views, depth_versions): (&[u64], &[u64]),
         visibility: &DeviceVisibility,
     ) -> Result<Option<PendingFeatures>> {
         check_views(reference, surface, sources, &self.ctx)?;
-        let keys: Vec<u64> = std::iter::once(reference).chain(sources).map(|v| v.key).collect();
         let (w, h, n) = (surface.width(), surface.height(), sources.len());
-        if n == 0 || !visibility.is_of(surface, &keys, depth_versions) || bytes_of::<AlignResult>(w * h) > self.ctx.max_storage_binding() {
+        if n == 0 || !visibility.is_of(surface, lp_views, depth_versions) || bytes_of::<AlignResult>(w * h) > self.ctx.max_storage_binding() {
             return Ok(None);
         }
         let maps: Vec<(u64, &FeatureMap)> = std::iter::once(reference).chain(sources).map(|v| (v.key, v.features)).collect();

@@ -354,18 +354,7 @@ impl PhotometricGpu {
         keys: Option<ViewKeys<'_>>,
         config: &PhotometricConfig,
     ) -> Result<PendingPhotometric> {
-        if let Some(k) = keys
-            && (k.views.len() != sources.len() + 1 || k.depth_versions.len() != sources.len())
-        {
-            let (v, d) = (k.views.len(), k.depth_versions.len());
-            return Err(MvsError::InvalidInput(format!("{v} view keys and {d} depth versions for a reference and {} sources", sources.len())));
-        }
-        self.made = None;
-        self.check_held(sources, keys)?;
-        let on_host: Vec<PhotometricSource<'_, f32>> = sources.iter().map(|s| s.on_host(None)).collect();
-        let view = RefView::of_device(reference, &self.ctx)?;
-        view.check(&on_host, config)?;
-        let held: Vec<bool> = sources.iter().map(DeviceSource::held).collect();
+        let (view, on_host, held) = self.device_inputs(reference, sources, keys, config)?;
         let pending = match self.start_selecting(&view, &on_host, &held, keys, config)? {
             Some(pending) => pending,
             None => {
@@ -385,6 +374,52 @@ impl PhotometricGpu {
             self.keep_depth(reference.surface, k.views[0], version)?;
         }
         Ok(pending)
+    }
+
+    /// υ/ω of `reference` (its plane on the device) against `sources` made on the device
+    /// alone, as [`PhotometricGpu::start_on_device`] makes them, for L_f in a step without L_p
+    /// ([`crate::FeatureGpu::start_on_device`]): the sources' depths go into the arena under
+    /// `keys` as there (a held one is there already), and the visibility is lent until this
+    /// executor's next evaluation. One submission, nothing read back. `None` where the device
+    /// would not select ([`PhotometricGpu::start_on_device`]'s limits).
+    pub fn visibility_on_device(
+        &mut self,
+        reference: &SurfaceReference<'_>,
+        sources: &[DeviceSource<'_>],
+        keys: ViewKeys<'_>,
+        config: &PhotometricConfig,
+    ) -> Result<Option<DeviceVisibility>> {
+        let (view, on_host, held) = self.device_inputs(reference, sources, Some(keys), config)?;
+        let Some(begun) = self.begin_visibility(&view, &on_host, &held, Some(keys), config)? else {
+            return Ok(None);
+        };
+        self.disp.submit(begun.enc);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        Ok(self.made.clone())
+    }
+
+    /// The checked inputs of an evaluation of a reference plane on the device: the reference,
+    /// the sources as the host's code reads them, and which depths are held (no lent visibility
+    /// survives it).
+    fn device_inputs<'a>(
+        &mut self,
+        reference: &SurfaceReference<'a>,
+        sources: &[DeviceSource<'a>],
+        keys: Option<ViewKeys<'_>>,
+        config: &PhotometricConfig,
+    ) -> Result<(RefView<'a>, Vec<PhotometricSource<'a, f32>>, Vec<bool>)> {
+        if let Some(k) = keys
+            && (k.views.len() != sources.len() + 1 || k.depth_versions.len() != sources.len())
+        {
+            let (v, d) = (k.views.len(), k.depth_versions.len());
+            return Err(MvsError::InvalidInput(format!("{v} view keys and {d} depth versions for a reference and {} sources", sources.len())));
+        }
+        self.made = None;
+        self.check_held(sources, keys)?;
+        let on_host: Vec<PhotometricSource<'a, f32>> = sources.iter().map(|s| s.on_host(None)).collect();
+        let view = RefView::of_device(reference, &self.ctx)?;
+        view.check(&on_host, config)?;
+        Ok((view, on_host, sources.iter().map(DeviceSource::held).collect()))
     }
 
     /// An evaluation of `reference` (its inputs checked by the caller) whose υ/ω and selection

@@ -142,6 +142,47 @@ impl PhotometricGpu {
         keys: Option<ViewKeys<'_>>,
         config: &PhotometricConfig,
     ) -> Result<Option<PendingPhotometric>> {
+        let Some(Begun { mut enc, frame, slot, capped, words }) = self.begin_visibility(reference, sources, held, keys, config)? else {
+            return Ok(None);
+        };
+        let (w, h, n) = (reference.camera.width as usize, reference.camera.height as usize, sources.len());
+        let kept = self.kept_gradient(true, w, h)?;
+        let (b, threads) = (&self.bufs, |t: usize| PassUniform { n: t as u32, ..Default::default() });
+        let mut counted = None;
+        if capped {
+            counted = Some(self.draw_from_counts(enc, (n, h), (slot, words), config)?);
+            enc = self.disp.encoder();
+            self.ctx.push_error_scopes();
+        }
+        {
+            let p = &self.pool;
+            let binds = [b.vis_pairs, b.vis, b.vis_rows, b.row_starts, b.cand_starts, b.masks, b.entries, b.weights].map(|id| p.whole(id));
+            self.disp.make_room(&mut enc, 2);
+            if !capped {
+                self.disp.dispatch_1d(&mut enc, &self.selection.starts, &binds, threads(n)).map_err(gpu_error)?;
+            }
+            self.disp.dispatch_1d(&mut enc, &self.selection.select, &binds, threads(n * h)).map_err(gpu_error)?;
+        }
+        let ranges: Vec<(u32, u32)> = (0..n).map(|k| ((k * slot) as u32, slot as u32)).collect();
+        self.encode_patches(&mut enc, &frame, reference.plane, &ranges)?;
+        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), !capped);
+        self.ctx.pop_error_scopes().map_err(gpu_error)?;
+        let done = Done { counted, config: config.clone(), width: w, height: h };
+        Ok(Some(PendingPhotometric(Pending::Device { read, layout, done, kept })))
+    }
+
+    /// The first part of an evaluation whose υ/ω run on the device: the views placed in the
+    /// arena, the inputs staged, and the visibility passes recorded (not submitted, inside an
+    /// error scope the caller pops) with the visibility lent as `made` where `keys` name the
+    /// views; `None` where that does not apply (see [`PhotometricGpu::start_selecting`]).
+    pub(super) fn begin_visibility(
+        &mut self,
+        reference: &RefView<'_>,
+        sources: &[PhotometricSource<'_, f32>],
+        held: &[bool],
+        keys: Option<ViewKeys<'_>>,
+        config: &PhotometricConfig,
+    ) -> Result<Option<Begun>> {
         let Plane::Device(surface) = reference.plane else {
             return Ok(None);
         };
@@ -173,7 +214,6 @@ impl PhotometricGpu {
                 vis_pair(&g, at, (s.plane_depth.width, s.plane_depth.height), (k * words) as u32)
             })
             .collect();
-        let kept = self.kept_gradient(true, w, h)?;
         self.stage(&Inputs { frame: &frame, pairs: &pairs, rays: &rays }, reference.plane, &Entries::Device { slot }, true, !capped);
         let b = &self.bufs;
         self.pool.ensure(b.vis_pairs, bytes_of::<VisPair>(n));
@@ -202,27 +242,7 @@ impl PhotometricGpu {
             width: w,
             height: h,
         });
-        let mut counted = None;
-        if capped {
-            counted = Some(self.draw_from_counts(enc, (n, h), (slot, words), config)?);
-            enc = self.disp.encoder();
-            self.ctx.push_error_scopes();
-        }
-        {
-            let p = &self.pool;
-            let binds = [b.vis_pairs, b.vis, b.vis_rows, b.row_starts, b.cand_starts, b.masks, b.entries, b.weights].map(|id| p.whole(id));
-            self.disp.make_room(&mut enc, 2);
-            if !capped {
-                self.disp.dispatch_1d(&mut enc, &self.selection.starts, &binds, threads(n)).map_err(gpu_error)?;
-            }
-            self.disp.dispatch_1d(&mut enc, &self.selection.select, &binds, threads(n * h)).map_err(gpu_error)?;
-        }
-        let ranges: Vec<(u32, u32)> = (0..n).map(|k| ((k * slot) as u32, slot as u32)).collect();
-        self.encode_patches(&mut enc, &frame, reference.plane, &ranges)?;
-        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), !capped);
-        self.ctx.pop_error_scopes().map_err(gpu_error)?;
-        let done = Done { counted, config: config.clone(), width: w, height: h };
-        Ok(Some(PendingPhotometric(Pending::Device { read, layout, done, kept })))
+        Ok(Some(Begun { enc, frame, slot, capped, words }))
     }
 
     /// The grey images (the reference's first) and then the sources' plane depths in the
@@ -281,6 +301,17 @@ impl PhotometricGpu {
         }
         Ok(rows.chunks_exact(h).map(|r| counted(r, config)).collect())
     }
+}
+
+/// What [`PhotometricGpu::begin_visibility`] leaves for the selection: the encoder holding the
+/// visibility passes, the frame, each source's entry slot, whether the cap applies, and the
+/// bitmask words a source.
+pub(super) struct Begun {
+    pub enc: gs_gpu::Encoder,
+    frame: NccFrame,
+    slot: usize,
+    capped: bool,
+    words: usize,
 }
 
 /// The visibility record of pair `g` with the source's plane depth (`width × height`) at
