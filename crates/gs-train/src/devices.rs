@@ -43,6 +43,9 @@ pub struct LossDevices {
     pub vgg: Option<std::cell::RefCell<gs_features::Vgg16Gpu>>,
     /// The adapter they run on, in words.
     adapter: Option<String>,
+    /// Their device (to read back an image one of them kept there).
+    #[cfg(feature = "wgpu")]
+    context: Option<gs_gpu::GpuContext>,
 }
 
 impl LossDevices {
@@ -73,7 +76,7 @@ impl LossDevices {
             };
             let image = Some(gs_losses::ImageLossGpu::new(ctx).map_err(|e| format!("L_I: {e}"))?.into());
             let normal = Some(gs_losses::NormalGpu::new(ctx).map_err(|e| format!("L_nc and L_ns: {e}"))?.into());
-            return Ok(Self { photometric, features, image, normal, vgg, adapter: Some(ctx.description()) });
+            return Ok(Self { photometric, features, image, normal, vgg, adapter: Some(ctx.description()), context: Some(ctx.clone()) });
         }
         let _ = (rasterizer, uses);
         Ok(Self::default())
@@ -292,6 +295,68 @@ impl LossDevices {
         }
         let sources: Vec<gs_mvs::FeatureSource<'_, f32>> = sources.iter().map(gs_mvs::AlignView::as_source).collect();
         gs_mvs::feature_loss(&reference.as_reference(), &sources)
+    }
+
+    /// L_f of a reference whose rendered surface is on the device (`reference`: its view, its
+    /// surface and its grey image, which names L_p's key) against `sources` (each one's view and
+    /// its depth and grey image as L_p takes them), weighed by υ/ω made on the device by L_p's
+    /// executor: those its evaluation of this step lent, or made for L_f alone; `versions` are
+    /// the sources' depth versions. The gradient stays on the device. `None` where that does
+    /// not apply (no L_f or L_p kernels, or beyond their limits): the caller evaluates L_f from
+    /// depths on the host.
+    #[cfg(feature = "wgpu")]
+    pub fn start_feature_loss_on_device<'d>(
+        &'d self,
+        reference: (&gs_mvs::DeviceAlignView<'_>, &gs_gpu::DeviceImage, &gs_core::Image),
+        sources: (&[gs_mvs::DeviceAlignView<'_>], &[gs_mvs::DeviceSource<'_>]),
+        versions: &[u64],
+    ) -> gs_mvs::Result<Option<Deferred<'d, gs_mvs::FeaturesOnDevice, gs_mvs::MvsError>>> {
+        let (Some(d), Some(lp)) = (&self.features, &self.photometric) else { return Ok(None) };
+        let (view, surface, grey) = reference;
+        let (views, depths) = sources;
+        let mut keys = vec![view_key(view.key as usize, grey.width(), grey.height())];
+        keys.extend(views.iter().zip(depths).map(|(v, s)| view_key(v.key as usize, s.grey.width, s.grey.height)));
+        let lent = lp.borrow().visibility().filter(|v| v.is_of(surface, &keys, versions)).cloned();
+        let visibility = match lent {
+            Some(v) => v,
+            None => {
+                let on_surface = gs_mvs::SurfaceReference { camera: view.camera, surface, plane_depth: None, grey: grey.into() };
+                let view_keys = gs_mvs::ViewKeys { views: &keys, depth_versions: versions, keep_reference_depth: None };
+                // υ/ω do not depend on L_p's settings (its patch size only marks candidates).
+                let made = lp.borrow_mut().visibility_on_device(&on_surface, depths, view_keys, &gs_mvs::PhotometricConfig::default())?;
+                let Some(v) = made else { return Ok(None) };
+                v
+            }
+        };
+        let started = d.borrow_mut().start_on_device((view, surface), views, (&keys, versions), &visibility)?;
+        Ok(started.map(|pending| Deferred::later(move || d.borrow_mut().finish_on_device(pending))))
+    }
+
+    /// `target += weight · gradient` on the device: L_f's gradient image added into the
+    /// plane-depth gradient the backward reads there.
+    #[cfg(feature = "wgpu")]
+    pub fn add_feature_gradient(&self, gradient: &gs_gpu::DeviceImage, weight: f32, target: &gs_gpu::DeviceImage) -> gs_mvs::Result<()> {
+        match &self.features {
+            Some(d) => d.borrow_mut().add_gradient(gradient, weight, target),
+            None => Err(gs_mvs::MvsError::InvalidInput("an L_f gradient on the device but no L_f kernels there".into())),
+        }
+    }
+
+    /// The values of `image`, kept on these executors' device, read back at one wait.
+    #[cfg(feature = "wgpu")]
+    pub fn read_image(&self, image: &gs_gpu::DeviceImage) -> Result<Vec<f32>, String> {
+        match &self.context {
+            Some(ctx) => image.read(ctx).map_err(|e| e.to_string()),
+            None => Err("an image on a device, read without one".into()),
+        }
+    }
+
+    /// Whether L_f runs on the device, where L_p's kernels make its υ/ω.
+    pub fn features_on_device(&self) -> bool {
+        #[cfg(feature = "wgpu")]
+        return self.features.is_some() && self.photometric.is_some();
+        #[cfg(not(feature = "wgpu"))]
+        false
     }
 
     /// The VGG16 feature map of `photo` at `level` (L_f's F, once a view) made on the device

@@ -346,15 +346,16 @@ impl ReferenceExecutor {
     /// L_I runs there and no exposure correction (on the host) reads it; the surface (z, Ñ,
     /// D, A) stays there for L_nc/L_ns and L_p when they run on the device, so Ñ, D and the
     /// alpha need not come back (docs/architecture.md §GPU). The memo's depths may stay on the
-    /// device where L_p reads them there and L_f (on the host) reads none: then this view's
-    /// depth stays there too, kept by L_p under this iteration, and so do the sources rendered
-    /// for the step ([`crate::source_depths`]); elsewhere the sources' depths come back first.
+    /// device where L_p reads them there and L_f, if it runs, runs there too (on L_p's υ/ω):
+    /// then this view's depth stays there too, kept by L_p under this iteration, and so do the
+    /// sources rendered for the step ([`crate::source_depths`]); elsewhere the sources' depths
+    /// come back first.
     fn step_request(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<(RenderRequest, DepthsPlaced)> {
         let color_on_device = self.devices.image_on_device() && state.exposure.is_none();
         let r = &plan.render;
         let surface_on_device = self.devices.normal_on_device() && (r.normal || r.distance || r.plane_depth);
         let plane_stays = surface_on_device && (plan.photometric.is_none() || self.devices.photometric_on_device());
-        let depths_stay = plane_stays && plan.photometric.is_some() && plan.weights.lambda_f == 0.0;
+        let depths_stay = plane_stays && plan.photometric.is_some() && (plan.weights.lambda_f == 0.0 || self.devices.features_on_device());
         let memo_on_device = *self.memo_on_device.get_or_insert_with(|| crate::source_depths::memo_fits_on_device(run, &self.devices));
         let max_age = run.config.source_depth_max_age;
         let keep_depth = (depths_stay && memo_on_device && max_age > 0 && plan.scale == 1).then_some(plan.iteration);
