@@ -208,6 +208,6 @@ fn l_f_on_l_ps_visibility_matches_the_host() {
         assert!((t - want).abs() <= 1e-6 * (b.abs() + (0.75 * g).abs()), "{t} against {want}");
     }
     let wrong = gs_gpu::DeviceImage::new(&ctx, "wrong", w, h, 2).unwrap();
-    let err = lf.add_gradient(&dev.gradient, 1.0, &wrong).err().expect("refused").to_string();
+    let err = lf.add_gradient(&dev.gradient, 1.0, &wrong).expect_err("refused").to_string();
     assert!(err.contains("64×48×2"), "{err}");
 }
