@@ -230,6 +230,44 @@ impl Rasterizer {
         }
     }
 
+    /// Counts, for each Gaussian of the resident model, the `cameras` that observe it, on the
+    /// device ([`crate::WgpuRasterizer::count_views_resident`]), for
+    /// [`Rasterizer::retain_observed_resident`]. The CPU backend has no resident model and
+    /// refuses.
+    pub fn count_views_resident(&mut self, gaussians: &Gaussians, cameras: &[&gs_core::Camera], config: &RasterConfig) -> Result<()> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.count_views_resident(gaussians, cameras, config),
+            _ => {
+                let _ = (gaussians, cameras, config);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to count views of".into()))
+            }
+        }
+    }
+
+    /// The view counts of [`Rasterizer::count_views_resident`], read back.
+    pub fn read_view_counts(&mut self) -> Result<Vec<u32>> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.read_view_counts(),
+            _ => Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no view counts".into())),
+        }
+    }
+
+    /// The multi-view trim of the resident model by the counted views
+    /// ([`crate::WgpuRasterizer::retain_observed_resident`]); `None`, with nothing changed,
+    /// where the device does not take it. The CPU backend refuses.
+    pub fn retain_observed_resident(&mut self, gaussians: &Gaussians, min_views: u32) -> Result<Option<crate::TrimOnDevice>> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.retain_observed_resident(gaussians, min_views),
+            _ => {
+                let _ = (gaussians, min_views);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to trim".into()))
+            }
+        }
+    }
+
     /// Ends a residency: the device's parameters and moments are dropped (read them first,
     /// [`Rasterizer::read_resident`], to keep them) and the next render uploads again.
     /// Nothing to do when no model is resident.

@@ -147,6 +147,10 @@ pub struct RenderRequest {
     /// backend (e.g. a depth that L_p keeps on the device for later steps). The CPU backend
     /// ignores it.
     pub plane_depth_on_device: bool,
+    /// With `observed`: the per-Gaussian counts stay on the device, where a resident step's
+    /// statistics and the trim's view count read them ([`crate::Rasterizer::count_views_resident`]),
+    /// so [`RenderOutput::observed`] is `None` on the wgpu backend. The CPU backend ignores it.
+    pub observed_on_device: bool,
 }
 
 impl Default for RenderRequest {
@@ -166,6 +170,7 @@ impl Default for RenderRequest {
             color_on_device: false,
             surface_on_device: false,
             plane_depth_on_device: false,
+            observed_on_device: false,
         }
     }
 }
@@ -187,7 +192,13 @@ impl RenderRequest {
             color_on_device: false,
             surface_on_device: false,
             plane_depth_on_device: false,
+            observed_on_device: false,
         }
+    }
+    /// Whether the per-Gaussian observed counts come back to the host.
+    #[cfg(feature = "wgpu")]
+    pub(crate) fn observed_back(&self) -> bool {
+        self.observed && !self.observed_on_device
     }
     /// The transmittance cut the geometry accumulators apply ([`Self::geometry_cut`]; 0 when
     /// no geometry is blended).
@@ -446,6 +457,16 @@ pub struct BornParent {
     pub log_scale: [f32; 3],
     /// The parent's quaternion (w, x, y, z), unnormalised.
     pub rotation: [f32; 4],
+}
+
+/// What the device's trim did ([`crate::Rasterizer::retain_observed_resident`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrimOnDevice {
+    /// The Gaussians left (all of them where none was removed).
+    Kept(usize),
+    /// No Gaussian was observed often enough: nothing changed (the caller keeps the most
+    /// opaque one, as the host's rule does, from [`crate::Rasterizer::read_view_counts`]).
+    NoneKept,
 }
 
 /// What density control on a resident model did.

@@ -371,6 +371,8 @@ impl ReferenceExecutor {
             color_on_device,
             surface_on_device,
             plane_depth_on_device: keep_depth.is_some(),
+            // A step on the device gathers its statistics there, from the counts there.
+            observed_on_device: self.adam_on_device,
             ..plan.render
         };
         Ok((request, DepthsPlaced { keep_depth, sources_stay: depths_stay && memo_on_device }))

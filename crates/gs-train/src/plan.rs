@@ -150,6 +150,7 @@ pub fn plan_step(config: &TrainConfig, train_views: &[usize], selector: &SourceV
         color_on_device: false,
         surface_on_device: false,
         plane_depth_on_device: false,
+        observed_on_device: false,
     };
     let w = &config.weights;
     let weights = LossWeights {

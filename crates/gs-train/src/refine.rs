@@ -12,7 +12,7 @@ use crate::executor::RunInputs;
 use crate::plan::StepPlan;
 use crate::trainer::TrainState;
 use gs_core::Gaussians;
-use gs_raster::{Rasterizer, RenderRequest};
+use gs_raster::{Rasterizer, RenderRequest, TrimOnDevice};
 use serde::Serialize;
 
 /// What one refinement did.
@@ -195,18 +195,35 @@ fn floaters_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &
 }
 
 /// The multi-view trim ([`densify::trim_unobserved`]) on the device that holds the model
-/// resident: its renders bind the resident model, and the device keeps the rows observed
-/// often enough. The host's parameters are read back only when the trim would leave no
-/// Gaussian (the most opaque stays). `None`, with nothing changed, where the device declines.
+/// resident: its renders bind the resident model and keep their pixel counts there, the
+/// device counts each Gaussian's observing views, makes the keep mask and keeps those rows;
+/// the survivors' number alone comes back. Where the trim would leave no Gaussian, the counts
+/// and the host's parameters come back and the host's rule keeps the most opaque one. `None`,
+/// with nothing changed, where the device declines.
 fn trim_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, done: &mut DoneOnDevice) -> Result<Option<usize>> {
-    let counts = views_observed(rasterizer, run, &state.gaussians)?;
-    let mut keep = densify::observed_enough(&counts, run.config.densify.trim_min_views);
-    if !keep.iter().any(|k| *k) {
-        bring_parameters(rasterizer, state, done)?;
+    let cameras: Vec<&gs_core::Camera> = run.train_views.iter().map(|&v| &run.scene.views[v].camera).collect();
+    rasterizer.count_views_resident(&state.gaussians, &cameras, run.raster)?;
+    let n = state.gaussians.len();
+    match rasterizer.retain_observed_resident(&state.gaussians, run.config.densify.trim_min_views)? {
+        None => Ok(None),
+        Some(TrimOnDevice::Kept(kept)) => {
+            if kept < n {
+                // The host does not know which rows stayed: its copy becomes placeholders.
+                done.params_current = false;
+                behind_on_host(state, kept, None)?;
+                done.changed = true;
+            }
+            Ok(Some(n - kept))
+        }
+        Some(TrimOnDevice::NoneKept) => {
+            let counts = rasterizer.read_view_counts()?;
+            let mut keep = densify::observed_enough(&counts, run.config.densify.trim_min_views);
+            bring_parameters(rasterizer, state, done)?;
+            densify::keep_one(&mut keep, &state.gaussians.opacity_logits);
+            let removed = keep.iter().filter(|k| !**k).count();
+            Ok(retain_on_device(rasterizer, state, &keep, done)?.then_some(removed))
+        }
     }
-    densify::keep_one(&mut keep, &state.gaussians.opacity_logits);
-    let removed = keep.iter().filter(|k| !**k).count();
-    Ok(retain_on_device(rasterizer, state, &keep, done)?.then_some(removed))
 }
 
 /// Reads the resident parameters into the host's Gaussians unless they are current there.

@@ -6,8 +6,9 @@
 //! limit, the large-Gaussian prune, SH degrees 3 and 1, and a step that would leave nothing;
 //! the opacity reset (`reset_opacity_resident` against `reset_opacity`); and the removal of rows
 //! by a mask (`retain_resident` against `retain_rows`), statistics kept, and the records read
-//! back without the SH (`read_resident_records`); and a rise of the SH degree
-//! (`raise_sh_degree_resident`).
+//! back without the SH (`read_resident_records`); a rise of the SH degree
+//! (`raise_sh_degree_resident`); and the multi-view trim by views counted on the device
+//! (`count_views_resident`, `retain_observed_resident`).
 //!
 //! Without any wgpu adapter the test prints a SKIPPED line and returns, except in CI.
 
@@ -239,4 +240,63 @@ fn the_device_raises_the_sh_degree_as_the_host_does() {
         assert!(wgpu.raise_sh_degree_resident(&host_g, to).is_err());
         wgpu.release_resident();
     }
+}
+
+/// The multi-view trim on the device (`count_views_resident`, `retain_observed_resident`)
+/// against the host's: the view counts of each view's render read back (`views_observed`'s
+/// sum), and the rows a mask of `observed_enough` keeps, bit for bit with their moments and
+/// statistics; counts are used once and are of one model; a trim that would keep nothing
+/// changes nothing and says so (the counts stay for the host's rule).
+#[test]
+fn the_device_trims_as_the_host_does() {
+    use gs_core::glam::DVec3;
+    use gs_core::{Camera, Intrinsics};
+    use gs_raster::{RasterConfig, RenderRequest, TrimOnDevice};
+    let Some(mut wgpu) = wgpu_rasterizer() else { return };
+    let (g, adam, st) = model(3000, 1, 21);
+    let k = Intrinsics::new(60.0, 60.0, 40.0, 30.0);
+    let cams: Vec<Camera> = (0..6)
+        .map(|i| {
+            let a = i as f64;
+            Camera::look_at(80, 60, k, DVec3::new(4.0 * a.cos(), 4.0 * a.sin(), 1.5), DVec3::ZERO, DVec3::Z).unwrap()
+        })
+        .collect();
+    let refs: Vec<&Camera> = cams.iter().collect();
+    let config = RasterConfig::default();
+    let req = RenderRequest { color: false, alpha: false, observed: true, ..RenderRequest::default() };
+    let mut host_counts = vec![0u32; g.len()];
+    for c in &cams {
+        let out = wgpu.render(&g, c, &req, &config).unwrap();
+        host_counts.iter_mut().zip(out.observed.as_ref().unwrap()).for_each(|(h, &o)| *h += (o > 0) as u32);
+    }
+    let min = 3;
+    let mut keep = gs_train::densify::observed_enough(&host_counts, min);
+    let (mut host_g, mut host_adam, mut host_st) = (g.clone(), adam.clone(), st.clone());
+    let removed = gs_train::densify::retain_rows(&mut host_g, &mut host_adam, &mut keep).unwrap();
+    host_st.retain(&keep);
+    assert!(removed > 0 && removed < g.len(), "a trim that removes some: {removed} of {}", g.len());
+
+    wgpu.make_resident(&g, &adam, &st).unwrap();
+    assert!(wgpu.retain_observed_resident(&g, min).is_err(), "no counts yet");
+    wgpu.count_views_resident(&g, &refs, &config).unwrap();
+    assert_eq!(wgpu.read_view_counts().unwrap(), host_counts, "the views counted on the device");
+    let kept = g.len() - removed;
+    assert_eq!(wgpu.retain_observed_resident(&g, min).unwrap(), Some(TrimOnDevice::Kept(kept)));
+    let (mut dev_g, mut dev_adam, mut dev_st) = (Gaussians::with_len(kept).unwrap(), host_adam.clone(), DensifyStats::new(kept));
+    dev_g.sh_degree = 1;
+    wgpu.read_resident(&mut dev_g, Some((&mut dev_adam, &mut dev_st))).unwrap();
+    assert_eq!(dev_g, host_g, "every parameter bit for bit");
+    assert_eq!(dev_adam, host_adam, "the moments with their rows");
+    assert_eq!(dev_st, host_st, "the statistics with their rows");
+    assert!(wgpu.retain_observed_resident(&dev_g, min).is_err(), "the counts were of the model before the trim");
+    // A trim that would keep nothing changes nothing; the counts stay for the host's rule.
+    wgpu.count_views_resident(&dev_g, &refs, &config).unwrap();
+    assert_eq!(wgpu.retain_observed_resident(&dev_g, 1000).unwrap(), Some(TrimOnDevice::NoneKept));
+    assert_eq!(wgpu.read_view_counts().unwrap().len(), kept);
+    let mut again = dev_g.clone();
+    wgpu.read_resident(&mut again, None).unwrap();
+    assert_eq!(again, dev_g, "the model as it was");
+    wgpu.release_resident();
+    let mut cpu = Rasterizer::new(Backend::Cpu).unwrap();
+    assert!(cpu.count_views_resident(&g, &refs, &config).is_err(), "the CPU backend has nothing resident");
 }

@@ -123,6 +123,8 @@ fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
             include_str!("densify/sh_widen.wgsl"),
             vec![B::read("sh", sh), B::read("m_sh", sh), B::read("v_sh", sh), B::write("next_sh", sh), B::write("next_m_sh", sh), B::write("next_v_sh", sh)],
         ),
+        ("densify_count_views", include_str!("densify/views.wgsl"), vec![B::read("observed", u), B::write("views", u), B::write("dest", u)]),
+        ("densify_observed_keep", include_str!("densify/views.wgsl"), vec![B::read("observed", u), B::write("views", u), B::write("dest", u)]),
         (
             "densify_reset",
             include_str!("densify/reset.wgsl"),
@@ -139,6 +141,7 @@ fn structs() -> [GeneratedStruct; 4] {
 const COMMON: &str = include_str!("densify/common.wgsl");
 
 mod retain;
+mod views;
 mod widen;
 
 /// The kernels, their dispatcher and buffers: scratch in the rasterizer's pool, the next
@@ -159,6 +162,10 @@ pub(super) struct Densify {
     next: [BufId; 6],
     /// The next model's statistics (a retain keeps them, gpu/densify/retain.rs).
     next_stats: BufId,
+    /// Each Gaussian's count of training views that observed it (gpu/densify/views.rs).
+    views: BufId,
+    /// The model size the view counts are of, until the model changes.
+    counted: Option<usize>,
 }
 
 impl Densify {
@@ -173,8 +180,11 @@ impl Densify {
         let (split_ranks, parents, means, born, dest) = (b("densify_split_ranks"), b("densify_parents"), b("densify_means"), b("densify_born"), b("densify_dest"));
         let next = ["next_params", "next_m_params", "next_v_params", "next_sh", "next_m_sh", "next_v_sh"].map(|l| model_pool.add_storage(l));
         let next_stats = model_pool.add_storage("next_stats");
+        // In the model's pool, which keeps its buffers while the model is resident: the counts
+        // outlive the renders between which they are made.
+        let views = model_pool.add_storage("densify_views");
         let disp = Dispatcher::new(ctx, std::mem::size_of::<DensifyUniform>() as u64);
-        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, means, born, dest, next, next_stats })
+        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, means, born, dest, next, next_stats, views, counted: None })
     }
 
     /// Records the copy of the clone and split totals (the scans' last elements, of `n`
@@ -233,6 +243,10 @@ impl WgpuRasterizer {
             return Err(r.refuses(g, &format!("{what} was given"), ""));
         }
         self.frame = None;
+        if let Some(d) = self.densify.as_mut() {
+            // The trim's view counts are of the model before the change.
+            d.counted = None;
+        }
         Ok(r)
     }
 

@@ -73,7 +73,7 @@ impl Readback {
         let last = place(request.traversal, npix * 4);
         let counters = at;
         let observed = counters + 64;
-        let obs_bytes = if request.observed { n * 4 } else { 0 };
+        let obs_bytes = if request.observed_back() { n * 4 } else { 0 };
         let planes_at = (observed + obs_bytes).next_multiple_of(8);
         let depth_at = planes_at + planes.len() as u64 * npix * 4;
         let plane_depth = depth_alone.then_some(depth_at);
@@ -125,7 +125,7 @@ impl WgpuRasterizer {
         if let Some(at) = rb.plane_depth {
             e.copy_buffer_to_buffer(p.buffer(b.depth_plane), 0, staging, at, npix * 4);
         }
-        if request.observed && nn > 0 {
+        if request.observed_back() && nn > 0 {
             e.copy_buffer_to_buffer(p.buffer(b.observed), 0, staging, rb.observed, nn * 4);
         }
         self.copy_planes(enc, &rb.planes, bands, npix, (rb.staging, rb.planes_at));
@@ -178,14 +178,14 @@ impl WgpuRasterizer {
                 rb.final_t.map_or_else(Vec::new, |at| f32s(at, npix)),
                 rb.last.map_or_else(Vec::new, |at| u32s(at, npix)),
                 counters_of(bytes, rb),
-                request.observed.then(|| u32s(rb.observed, n)),
+                request.observed_back().then(|| u32s(rb.observed, n)),
             )
         } else {
             (
                 rb.final_t.map_or_else(Vec::new, |_| vec![1.0; npix]),
                 rb.last.map_or_else(Vec::new, |_| vec![0; npix]),
                 vec![0; 16],
-                request.observed.then(|| vec![0; n]),
+                request.observed_back().then(|| vec![0; n]),
             )
         };
         // A colour kept on the device is not assembled here.

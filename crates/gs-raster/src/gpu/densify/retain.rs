@@ -45,36 +45,55 @@ impl WgpuRasterizer {
     fn retain_scoped(&mut self, keep: &[bool], kept: usize, nc: u64) -> Result<()> {
         let n = keep.len() as u64;
         let d = self.densify.as_mut().expect("made above");
-        let p = &mut self.pool;
         // The mask and a last zero, scanned in place into each survivor's row.
-        crate::gpu::upload_with(&self.ctx, p, d.dest, keep.len() + 1, |out: &mut [u32]| {
+        crate::gpu::upload_with(&self.ctx, &mut self.pool, d.dest, keep.len() + 1, |out: &mut [u32]| {
             out.iter_mut().zip(keep.iter().chain([&false])).for_each(|(o, k)| *o = *k as u32)
         });
+        self.reserve_retain(n, nc);
+        let d = self.densify.as_ref().expect("made above");
+        let mut enc = d.disp.encoder();
+        self.sort.prefix_scan().encode(&d.disp, &mut enc, &self.pool, self.pool.whole(d.dest), n as u32 + 1)?;
+        self.encode_scatter_kept(&mut enc, n, nc)?;
+        self.densify.as_ref().expect("made above").disp.submit(enc);
+        self.swap_in_kept(kept);
+        Ok(())
+    }
+
+    /// Sizes the buffers a retain of `n` rows of `nc` SH coefficients binds besides `dest`
+    /// (which the caller fills with the keep mask and a last zero), and writes its frame.
+    pub(super) fn reserve_retain(&mut self, n: u64, nc: u64) {
+        let d = self.densify.as_mut().expect("made by the caller");
+        let p = &mut self.pool;
         self.sort.prefix_scan().reserve(p, n + 1);
         // The born rows and parents are not read (no row is born), but are bound.
         p.ensure(d.born, bytes_of::<ParamRecord>(1));
         p.ensure(d.parents, 4);
         d.reserve_next(&mut self.model.pool, n, nc);
-        let m = &mut self.model;
-        m.pool.ensure(d.next_stats, bytes_of::<StatRecord>(n as usize).max(bytes_of::<StatRecord>(1)));
+        self.model.pool.ensure(d.next_stats, bytes_of::<StatRecord>(n as usize).max(bytes_of::<StatRecord>(1)));
         d.disp.write_frame(&DensifyUniform { n: n as u32, nc: nc as u32, ..Default::default() });
-        let (p, m, d) = (&self.pool, &self.model, self.densify.as_ref().expect("made above"));
-        let mut enc = d.disp.encoder();
-        self.sort.prefix_scan().encode(&d.disp, &mut enc, p, p.whole(d.dest), n as u32 + 1)?;
-        d.disp.make_room(&mut enc, 3);
+    }
+
+    /// Records the scatters of every row whose scanned `dest` says it stays (of `n` rows):
+    /// record, SH, moments and statistics into the next buffer set.
+    pub(super) fn encode_scatter_kept(&self, enc: &mut gs_gpu::Encoder, n: u64, nc: u64) -> Result<()> {
+        let (p, m, d) = (&self.pool, &self.model, self.densify.as_ref().expect("made by the caller"));
+        d.disp.make_room(enc, 3);
         let pass = PassUniform { n: n as u32, ..Default::default() };
         let mp = |id| m.pool.whole(id);
         let binds = [mp(m.params), mp(m.m_params), mp(m.v_params), p.whole(d.born), p.whole(d.dest), mp(d.next[0]), mp(d.next[1]), mp(d.next[2])];
-        d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter"), &binds, pass)?;
+        d.disp.dispatch_1d(enc, d.kernel("densify_scatter"), &binds, pass)?;
         if nc > 0 {
             let binds = [mp(m.sh), mp(m.m_sh), mp(m.v_sh), p.whole(d.parents), p.whole(d.dest), mp(d.next[3]), mp(d.next[4]), mp(d.next[5])];
-            d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter_sh"), &binds, pass)?;
+            d.disp.dispatch_1d(enc, d.kernel("densify_scatter_sh"), &binds, pass)?;
         }
-        d.disp.dispatch_1d(&mut enc, d.kernel("densify_scatter_stats"), &[mp(m.stats), p.whole(d.dest), mp(d.next_stats)], pass)?;
-        d.disp.submit(enc);
-        let d: &mut Densify = self.densify.as_mut().expect("made above");
+        d.disp.dispatch_1d(enc, d.kernel("densify_scatter_stats"), &[mp(m.stats), p.whole(d.dest), mp(d.next_stats)], pass)?;
+        Ok(())
+    }
+
+    /// The next buffer set, holding `kept` rows, becomes the model's.
+    pub(super) fn swap_in_kept(&mut self, kept: usize) {
+        let d: &mut Densify = self.densify.as_mut().expect("made by the caller");
         self.model.swap_rows(&mut d.next, kept);
         std::mem::swap(&mut self.model.stats, &mut d.next_stats);
-        Ok(())
     }
 }
