@@ -153,8 +153,8 @@ impl ReferenceExecutor {
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
     /// term on its device kernel or the CPU, Adam and the densification statistics on the
     /// rasterizer's device when the model is resident there, and so does density control
-    /// (where [`crate::refine::on_device`] applies); the trim's view counts and the floater
-    /// votes, which decide which rows go, are summed on the CPU.
+    /// (where [`crate::refine::on_device`] applies), the trim's view counts with it; the
+    /// floater votes, which decide which rows the floater rule removes, are summed on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
         let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
@@ -164,7 +164,8 @@ impl ReferenceExecutor {
         parts.push(place("Adam", self.adam_on_device));
         parts.push(place("densification statistics", self.adam_on_device));
         parts.push(place("density control (clone, split, prune, opacity reset, trim, floater removal)", self.adam_on_device));
-        parts.push(place("the trim's view counts and the floater votes", false));
+        parts.push(place("the trim's view counts", self.adam_on_device));
+        parts.push(place("the floater votes", false));
         parts
     }
 
