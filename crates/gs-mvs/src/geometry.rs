@@ -144,11 +144,13 @@ pub(crate) struct PairGeometry<T> {
 }
 
 /// The rows of a row-major 3×3 matrix, each padded to four values (a WGSL `vec4` record field).
+#[cfg(feature = "wgpu")]
 pub(crate) fn padded_rows<T: Real>(m: &[T; 9]) -> [[T; 4]; 3] {
     [0, 1, 2].map(|r| [m[3 * r], m[3 * r + 1], m[3 * r + 2], T::ZERO])
 }
 
 /// A 3-vector padded to four values (a WGSL `vec4` record field).
+#[cfg(feature = "wgpu")]
 pub(crate) fn padded<T: Real>(v: &[T; 3]) -> [T; 4] {
     [v[0], v[1], v[2], T::ZERO]
 }
