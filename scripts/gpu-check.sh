@@ -132,6 +132,9 @@ if [ -x "$B/vagsl-baseline" ]; then
   fi
 fi
 step readme_cpu "$readme_need" train_job readme_cpu cpu "$B/vagsl"
+# What `--backend auto` picks for the README job (report.json's backend_choice: the step it
+# timed on each backend), below the training table.
+step readme_auto 40 "$B/vagsl" train -o "$W/readme_auto" --iterations 60 --quiet
 if [ -f "$W/readme_wgpu_1/point_cloud.ply" ] && [ -f "$W/readme_wgpu_2/point_cloud.ply" ]; then
   if cmp -s "$W/readme_wgpu_1/point_cloud.ply" "$W/readme_wgpu_2/point_cloud.ply"; then same="the same bytes"; else same="DIFFERENT bytes"; fi
   note ""; note "two wgpu runs of the README job, one seed: point_cloud.ply has $same"
@@ -189,6 +192,19 @@ if rows:
     print("| run | train | warm-up / L_p / refine | Gaussians | held-out PSNR | worst view | veils | Chamfer / F1 |")
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(rows))
+choices = []
+for tag in sorted(os.listdir(w)):
+    try:
+        c = json.load(open(os.path.join(w, tag, "report.json"))).get("backend_choice")
+    except (OSError, ValueError):
+        continue
+    if c and c.get("probe"):
+        p = c["probe"]
+        choices.append("{}: chose {} ({}); the step of iteration {} on {} Gaussians took {:.1f} ms on wgpu and {:.1f} ms on the CPU".format(
+            tag, c["chosen"], c["device"], p["iteration"], p["gaussians"], p["wgpu_ms"], p["cpu_ms"]))
+if choices:
+    print("\n## --backend auto\n")
+    print("\n".join(choices))
 if prof:
     print("\n## Where an iteration's time goes (ms per iteration, parts of at least 1 %; host-device traffic per iteration)\n")
     print("| run | phase | iterations | ms each | parts | traffic |")

@@ -77,6 +77,12 @@ impl Rasterizer {
         }
     }
 
+    /// A wgpu rasterizer with `options` (e.g. a hardware adapter only).
+    #[cfg(feature = "wgpu")]
+    pub fn with_wgpu_options(options: crate::gpu::WgpuOptions) -> Result<Self> {
+        Ok(Self { inner: Inner::Wgpu(Box::new(crate::gpu::WgpuRasterizer::with_options(options)?)) })
+    }
+
     /// The backend in use (`Cpu` or `Wgpu`, never `Auto`).
     pub fn backend(&self) -> Backend {
         match self.inner {

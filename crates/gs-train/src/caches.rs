@@ -86,6 +86,12 @@ impl ViewCaches {
         self.guides[slot].as_ref()
     }
 
+    /// New caches holding this one's grey images alone (those supplied at a higher
+    /// resolution need a copy; everything else is made again from the photographs).
+    pub fn greys_copy(&self) -> Self {
+        Self { greys: self.greys.clone(), ..Self::new(self.greys.len()) }
+    }
+
     /// Supplies the grey images of L_p (one per slot, already checked for size).
     pub fn set_greys(&mut self, greys: Vec<Image>) {
         self.greys = greys.into_iter().map(Some).collect();

@@ -169,6 +169,12 @@ impl ReferenceExecutor {
         parts
     }
 
+    /// Waits for the last step the device was given, if any (its divergence flag read): what
+    /// a caller timing a step waits for.
+    pub fn finish_device_work(&mut self) -> Result<()> {
+        self.check_step()
+    }
+
     /// The rasterizer.
     pub fn rasterizer(&self) -> &Rasterizer {
         &self.rasterizer

@@ -82,4 +82,4 @@ pub use refine::RefineReport;
 pub use sh_policy::ShBandDecision;
 pub use source_depths::{SourceDepths, StoredDepth};
 pub use terms::{Fold, GradientBuffers, LossTerm, LossValues, TermInputs};
-pub use trainer::{StepReport, TrainState, Trainer};
+pub use trainer::{BackendChoice, BackendProbe, StepReport, TrainState, Trainer};

@@ -28,6 +28,9 @@ use gs_mvs::{SourceSelection, SourceViewSelector};
 use gs_raster::{Backend, RasterConfig, Rasterizer};
 use serde::Serialize;
 
+mod backend_choice;
+pub use backend_choice::{BackendChoice, BackendProbe};
+
 /// What one iteration did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StepReport {

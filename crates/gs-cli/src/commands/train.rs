@@ -18,7 +18,8 @@ pub struct TrainArgs {
     /// `transforms_train.json` + `transforms_test.json`, whose test frames `--eval` holds out).
     /// Omit for the built-in scene.
     pub scene: Option<PathBuf>,
-    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
+    /// Rasterizer backend: cpu, wgpu, or auto (on a hardware GPU, the faster of the two for
+    /// this run, timed on one of its steps; else the CPU).
     #[arg(long, default_value = "auto")]
     pub backend: gs_raster::Backend,
     /// Output folder (created): config.json, point_cloud.ply, report.json, checkpoint.bin.
@@ -280,6 +281,9 @@ pub struct TrainReport {
     /// Where each part of an iteration ran (render and backward, each loss term, Adam,
     /// density control).
     pub parts_on: Vec<gs_train::PartPlace>,
+    /// How `--backend auto` chose (the step it timed on each backend), absent for a named
+    /// backend.
+    pub backend_choice: Option<gs_train::BackendChoice>,
     /// Loss values of the last iteration.
     pub last: Option<StepReport>,
 }
@@ -412,14 +416,24 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         Some(state) => Trainer::with_state(&scene, train_idx.clone(), config.clone(), state)?,
         None => Trainer::new(&scene, train_idx.clone(), config.clone())?,
     };
-    trainer.set_rasterizer(super::rasterizer(args.backend)?)?;
-    eprintln!("loss terms: {}", trainer.loss_executors());
-    eprintln!("{}", gs_run::budget_check::check_train(&trainer, args.max_memory)?);
-    let mesh_track = load_mesh_track(&args.track, gs_run::budget_check::limit(args.max_memory))?;
     if config.ncc_scale > 1 {
         trainer.set_grey_images(gs_run::run_config::high_resolution_greys(&source, &scene, &train_idx, config.ncc_scale)?)?;
         eprintln!("L_p grey images at {}x the training resolution", config.ncc_scale);
     }
+    let backend_choice = match args.backend {
+        gs_raster::Backend::Auto => {
+            let choice = trainer.choose_backend(false)?;
+            eprintln!("rasterizer: {} (--backend auto)", choice.in_words());
+            Some(choice)
+        }
+        named => {
+            trainer.set_rasterizer(super::rasterizer(named)?)?;
+            None
+        }
+    };
+    eprintln!("loss terms: {}", trainer.loss_executors());
+    eprintln!("{}", gs_run::budget_check::check_train(&trainer, args.max_memory)?);
+    let mesh_track = load_mesh_track(&args.track, gs_run::budget_check::limit(args.max_memory))?;
     // Everything that can refuse the run has run: only now is the folder touched.
     let mut folder = gs_run::run_folder::prepare(out, args.force, args.resume.is_some())?;
     if let Some(note) = &folder.resume_note {
@@ -469,6 +483,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         time_by_part: trainer.profile().clone(),
         loss_terms_on: trainer.loss_executors(),
         parts_on: trainer.parts_on(),
+        backend_choice,
         last,
     };
     // The report first, then the model it describes: a run stopped between the two leaves a
