@@ -47,6 +47,9 @@
 mod device;
 pub mod dims;
 pub mod error;
+pub mod exposure;
+#[cfg(feature = "wgpu")]
+pub mod exposure_gpu;
 pub mod flatness;
 pub mod gradient;
 #[cfg(feature = "wgpu")]
@@ -65,6 +68,7 @@ pub mod ssim;
 
 pub use dims::Dims;
 pub use error::{LossError, Result};
+pub use exposure::{ExposureParams, apply_exposure, exposure_backward, exposure_gains};
 pub use flatness::smallest_scale_mean;
 pub use gs_core::float::Real;
 pub use image_loss::{EdgeGuide, ImageLossConfig, ImageLossOutput, image_loss};
@@ -73,6 +77,8 @@ pub use metrics::{masked_on_black, psnr, psnr_masked, ssim_metric, ssim_metric_w
 pub use normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, normal_losses};
 pub use opacity::opacity_entropy;
 pub use ssim::SsimRegion;
+#[cfg(feature = "wgpu")]
+pub use exposure_gpu::ExposureGpu;
 #[cfg(feature = "wgpu")]
 pub use image_gpu::{ImageLossGpu, PendingDeviceImageLoss, PendingImageLoss};
 #[cfg(feature = "wgpu")]

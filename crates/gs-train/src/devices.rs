@@ -14,12 +14,14 @@ pub struct TermsUsed {
     pub photometric: bool,
     /// L_f runs in some phase ([`crate::TrainConfig::has_feature_phase`]).
     pub features: bool,
+    /// Exposure compensation is on ([`crate::TrainConfig::exposure`]).
+    pub exposure: bool,
 }
 
 impl TermsUsed {
     /// The terms `config` uses.
     pub fn of(config: &crate::TrainConfig) -> Self {
-        Self { photometric: config.losses.photometric, features: config.has_feature_phase() }
+        Self { photometric: config.losses.photometric, features: config.has_feature_phase(), exposure: config.exposure }
     }
 }
 
@@ -41,6 +43,9 @@ pub struct LossDevices {
     /// L_f's VGG16 feature maps (once a view), on a hardware adapter only.
     #[cfg(feature = "wgpu")]
     pub vgg: Option<std::cell::RefCell<gs_features::Vgg16Gpu>>,
+    /// The exposure correction before L_I and its backward.
+    #[cfg(feature = "wgpu")]
+    pub exposure: Option<std::cell::RefCell<gs_losses::ExposureGpu>>,
     /// The adapter they run on, in words.
     adapter: Option<String>,
     /// Their device (to read back an image one of them kept there).
@@ -76,7 +81,11 @@ impl LossDevices {
             };
             let image = Some(gs_losses::ImageLossGpu::new(ctx).map_err(|e| format!("L_I: {e}"))?.into());
             let normal = Some(gs_losses::NormalGpu::new(ctx).map_err(|e| format!("L_nc and L_ns: {e}"))?.into());
-            return Ok(Self { photometric, features, image, normal, vgg, adapter: Some(ctx.description()), context: Some(ctx.clone()) });
+            let exposure = match uses.exposure {
+                true => Some(gs_losses::ExposureGpu::new(ctx).map_err(|e| format!("exposure compensation: {e}"))?.into()),
+                false => None,
+            };
+            return Ok(Self { photometric, features, image, normal, vgg, exposure, adapter: Some(ctx.description()), context: Some(ctx.clone()) });
         }
         let _ = (rasterizer, uses);
         Ok(Self::default())
@@ -301,15 +310,16 @@ impl LossDevices {
     /// surface and its grey image, which names L_p's key) against `sources` (each one's view and
     /// its depth and grey image as L_p takes them), weighed by υ/ω made on the device by L_p's
     /// executor: those its evaluation of this step lent, or made for L_f alone; `versions` are
-    /// the sources' depth versions. The gradient stays on the device. `None` where that does
-    /// not apply (no L_f or L_p kernels, or beyond their limits): the caller evaluates L_f from
-    /// depths on the host.
+    /// the sources' depth versions, and with `keep` the reference's depth stays in L_p's arena
+    /// under that version (the depth memo), as L_p keeps it where L_p runs. The gradient stays
+    /// on the device. `None` where that does not apply (no L_f or L_p kernels, or beyond their
+    /// limits): the caller evaluates L_f from depths on the host.
     #[cfg(feature = "wgpu")]
     pub fn start_feature_loss_on_device<'d>(
         &'d self,
         reference: (&gs_mvs::DeviceAlignView<'_>, &gs_gpu::DeviceImage, &gs_core::Image),
         sources: (&[gs_mvs::DeviceAlignView<'_>], &[gs_mvs::DeviceSource<'_>]),
-        versions: &[u64],
+        (versions, keep): (&[u64], Option<u64>),
     ) -> gs_mvs::Result<Option<Deferred<'d, gs_mvs::FeaturesOnDevice, gs_mvs::MvsError>>> {
         let (Some(d), Some(lp)) = (&self.features, &self.photometric) else { return Ok(None) };
         let (view, surface, grey) = reference;
@@ -329,6 +339,13 @@ impl LossDevices {
             }
         };
         let started = d.borrow_mut().start_on_device((view, surface), views, (&keys, versions), &visibility)?;
+        // After L_f's submission, which reads the arena as it was.
+        if let Some(version) = keep.filter(|_| started.is_some()) {
+            let floats = surface.width() * surface.height();
+            if !lp.borrow().holds_depth(keys[0], floats, version) {
+                lp.borrow_mut().keep_depth(surface, keys[0], version)?;
+            }
+        }
         Ok(started.map(|pending| Deferred::later(move || d.borrow_mut().finish_on_device(pending))))
     }
 
@@ -348,6 +365,33 @@ impl LossDevices {
         match &self.context {
             Some(ctx) => image.read(ctx).map_err(|e| e.to_string()),
             None => Err("an image on a device, read without one".into()),
+        }
+    }
+
+    /// Whether the exposure correction runs on the device, so that a render's colour may stay
+    /// there with it on.
+    pub fn exposure_on_device(&self) -> bool {
+        #[cfg(feature = "wgpu")]
+        return self.exposure.is_some();
+        #[cfg(not(feature = "wgpu"))]
+        false
+    }
+
+    /// c' = exp(a)·c + b of a rendered colour kept on the device, into a new image there.
+    #[cfg(feature = "wgpu")]
+    pub fn apply_exposure(&self, colour: &gs_gpu::DeviceImage, e: &gs_losses::ExposureParams) -> gs_losses::Result<gs_gpu::DeviceImage> {
+        match &self.exposure {
+            Some(d) => d.borrow_mut().apply(colour, e),
+            None => Err(gs_losses::LossError::Device("a colour on the device but no exposure kernels there".into())),
+        }
+    }
+
+    /// The exposure's backward on the device: ∂L/∂c from ∂L/∂c' (both there) and ∂L/∂(a, b).
+    #[cfg(feature = "wgpu")]
+    pub fn exposure_backward(&self, colour: &gs_gpu::DeviceImage, e: &gs_losses::ExposureParams, grad: &gs_gpu::DeviceImage) -> gs_losses::Result<(gs_gpu::DeviceImage, gs_losses::ExposureParams)> {
+        match &self.exposure {
+            Some(d) => d.borrow_mut().backward(colour, e, grad),
+            None => Err(gs_losses::LossError::Device("a colour gradient on the device but no exposure kernels there".into())),
         }
     }
 
@@ -378,6 +422,7 @@ impl LossDevices {
             (self.image.is_some(), self.normal.is_some(), self.photometric.is_some(), self.features.is_some(), self.vgg.is_some());
         #[cfg(not(feature = "wgpu"))]
         let (image, normal, photometric, features, vgg) = (false, false, false, false, false);
+        let exposure = self.exposure_on_device();
         [
             ("L_I (L1, D-SSIM, edge term)", image),
             ("L_nc and L_ns", normal),
@@ -385,7 +430,7 @@ impl LossDevices {
             ("L_p: pixel selection, visibility υ and weight ω", photometric && normal),
             ("L_f: feature alignment", features),
             ("L_f: VGG16 features of each view (once a view)", vgg),
-            ("exposure compensation", false),
+            ("exposure compensation", exposure),
         ]
     }
 

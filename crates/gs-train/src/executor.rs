@@ -194,7 +194,10 @@ impl ReferenceExecutor {
             self.caches.guide(plan.slot, photo(scene, views, plan.slot), cfg.losses.delta)?;
         }
         let with_reference = |s: &[usize]| std::iter::once(plan.slot).chain(s.to_vec()).collect::<Vec<usize>>();
-        if plan.photometric.is_some() {
+        // L_f on the device names its views by their grey images, as L_p does (its υ/ω are
+        // L_p's kernels').
+        let lf_on_device = plan.phase.features && self.devices.features_on_device();
+        if plan.photometric.is_some() || lf_on_device {
             for k in with_reference(&plan.sources) {
                 self.caches.ensure_grey(k, photo(scene, views, k), cfg.ncc_scale)?;
             }
@@ -211,9 +214,9 @@ impl ReferenceExecutor {
     /// The plan's source depths that the memo cannot serve ([`crate::source_depths`]), then
     /// the reference view's render `request`. On a rasterizer that renders views together (a
     /// device) they are one call and one wait, timed as the render; on the CPU the sources
-    /// first, timed apart. Renders are pure, so the grouping changes no value. With reuse on,
-    /// the source depths go into the memo (kept on the device where `on_device`: they never
-    /// come back), else they are returned in source order.
+    /// first, timed apart. Renders are pure, so the grouping changes no value. The source
+    /// depths are kept on the device where `on_device` (they never come back); with reuse on
+    /// they go into the memo, else they are returned in source order.
     fn render_views_of_step(
         &mut self,
         run: &RunInputs<'_>,
@@ -221,7 +224,7 @@ impl ReferenceExecutor {
         plan: &StepPlan,
         (camera, request, on_device): (&gs_core::Camera, &RenderRequest, bool),
         (profile, phase, clock): (&mut StepProfile, usize, &mut Clock),
-    ) -> Result<(Vec<Image>, gs_raster::RenderOutput)> {
+    ) -> Result<(Vec<StoredDepth>, gs_raster::RenderOutput)> {
         let (it, max_age) = (plan.iteration, run.config.source_depth_max_age);
         let mut missing: Vec<usize> = Vec::new();
         for &s in &plan.sources {
@@ -235,7 +238,7 @@ impl ReferenceExecutor {
             .iter()
             .map(|&s| downscaled_camera(&run.scene.views[run.train_views[s]].camera, downscale))
             .collect::<Result<Vec<_>>>()?;
-        let on_device = on_device && max_age > 0 && downscale == 1;
+        let on_device = on_device && downscale == 1;
         let depth_only = RenderRequest {
             color: false,
             alpha: false,
@@ -262,7 +265,10 @@ impl ReferenceExecutor {
         for (&s, source) in missing.iter().zip(outs) {
             if on_device {
                 let kept = crate::source_depths::keep_source_depth((&self.devices, &self.caches, &self.rasterizer), s, &source, it)?;
-                state.source_depths.store(s, it, kept);
+                match max_age {
+                    0 => rendered.push(kept),
+                    _ => state.source_depths.store(s, it, kept),
+                }
                 continue;
             }
             let mut depth = source.plane_depth.expect("requested");
@@ -273,7 +279,7 @@ impl ReferenceExecutor {
             if max_age > 0 {
                 state.source_depths.store(s, it, StoredDepth::Host(depth));
             } else {
-                rendered.push(depth);
+                rendered.push(StoredDepth::Host(depth));
             }
         }
         profile.add(phase, Part::SourceDepths, clock.lap());
@@ -350,7 +356,7 @@ impl ReferenceExecutor {
 
 impl ReferenceExecutor {
     /// The step's render request, and where its depths go: the colour stays on the device when
-    /// L_I runs there and no exposure correction (on the host) reads it; the surface (z, Ñ,
+    /// L_I runs there and no exposure correction on the host reads it; the surface (z, Ñ,
     /// D, A) stays there for L_nc/L_ns and L_p when they run on the device, so Ñ, D and the
     /// alpha need not come back (docs/architecture.md §GPU). The memo's depths may stay on the
     /// device where L_p reads them there and L_f, if it runs, runs there too (on L_p's υ/ω):
@@ -358,11 +364,12 @@ impl ReferenceExecutor {
     /// sources rendered for the step ([`crate::source_depths`]); elsewhere the sources' depths
     /// come back first.
     fn step_request(&mut self, run: &RunInputs<'_>, state: &mut TrainState, plan: &StepPlan) -> Result<(RenderRequest, DepthsPlaced)> {
-        let color_on_device = self.devices.image_on_device() && state.exposure.is_none();
+        let color_on_device = self.devices.image_on_device() && (state.exposure.is_none() || self.devices.exposure_on_device());
         let r = &plan.render;
         let surface_on_device = self.devices.normal_on_device() && (r.normal || r.distance || r.plane_depth);
         let plane_stays = surface_on_device && (plan.photometric.is_none() || self.devices.photometric_on_device());
-        let depths_stay = plane_stays && plan.photometric.is_some() && (plan.weights.lambda_f == 0.0 || self.devices.features_on_device());
+        let multiview = plan.photometric.is_some() || plan.weights.lambda_f > 0.0;
+        let depths_stay = plane_stays && multiview && (plan.weights.lambda_f == 0.0 || self.devices.features_on_device());
         let memo_on_device = *self.memo_on_device.get_or_insert_with(|| crate::source_depths::memo_fits_on_device(run, &self.devices));
         let max_age = run.config.source_depth_max_age;
         let keep_depth = (depths_stay && memo_on_device && max_age > 0 && plan.scale == 1).then_some(plan.iteration);
@@ -377,7 +384,9 @@ impl ReferenceExecutor {
             distance: r.distance && !plane_stays,
             color_on_device,
             surface_on_device,
-            plane_depth_on_device: keep_depth.is_some(),
+            // The plane depth stays in the surface where the memo keeps it there, or where no
+            // memo reads it and every term reads it there.
+            plane_depth_on_device: keep_depth.is_some() || (depths_stay && max_age == 0),
             // A step on the device gathers its statistics there, from the counts there.
             observed_on_device: self.adam_on_device,
             ..plan.render
@@ -438,13 +447,15 @@ impl StepExecutor for ReferenceExecutor {
         let rendered = out.color.as_ref();
         // Exposure compensation: the loss sees exp(a)·c + b of this view.
         let corrected = match (&state.exposure, rendered) {
-            (Some(e), Some(c)) => Some(crate::exposure::apply(c, &e.params[plan.slot])?),
+            (Some(e), Some(c)) => Some(gs_losses::apply_exposure(c, &e.params[plan.slot])?),
             _ => None,
         };
+        #[cfg(feature = "wgpu")]
+        let corrected_on_device = crate::exposure::correct_on_device(&self.devices, state.exposure.as_ref(), plan.slot, out.device_color.as_ref())?;
         let color = match (&corrected, rendered) {
             (Some(c), _) | (None, Some(c)) => Colour::Host(c),
             #[cfg(feature = "wgpu")]
-            (None, None) if out.device_color.is_some() => Colour::Device(out.device_color.as_ref().expect("checked")),
+            (None, None) if out.device_color.is_some() => Colour::Device(corrected_on_device.as_ref().or(out.device_color.as_ref()).expect("checked")),
             _ => return Err(TrainError::InvalidConfig("the render has no colour for L_I".into())),
         };
         profile.add(phase, Part::Render, clock.lap());
@@ -454,7 +465,6 @@ impl StepExecutor for ReferenceExecutor {
         }
         // Each depth with the iteration that rendered it (its version on a device).
         let memo = &state.source_depths;
-        let rendered_depths: Vec<StoredDepth> = rendered_depths.into_iter().map(StoredDepth::Host).collect();
         let depths: Vec<(&StoredDepth, u64)> = match max_age {
             0 => rendered_depths.iter().map(|d| (d, it)).collect(),
             _ => plan.sources.iter().map(|&s| memo.fresh(s, it, max_age).expect("stored above")).collect(),
@@ -510,12 +520,14 @@ impl StepExecutor for ReferenceExecutor {
         // or on the device beside the rendered colour.
         let grad_color = match (grads.color.take(), &mut state.exposure, rendered) {
             (Some(gc), Some(e), Some(c)) => {
-                let (gc, ge) = crate::exposure::backward(c, &e.params[plan.slot], &gc)?;
+                let (gc, ge) = gs_losses::exposure_backward(c, &e.params[plan.slot], &gc)?;
                 e.step(plan.slot, &ge, it, run.config.iterations)?;
                 Some(gc)
             }
             (gc, ..) => gc,
         };
+        #[cfg(feature = "wgpu")]
+        crate::exposure::backward_on_device(&self.devices, state.exposure.as_mut(), (plan.slot, it, run.config.iterations), out.device_color.as_ref(), &mut grads)?;
         let output_grads = grads.as_output(grad_color.as_ref());
         if self.adam_on_device {
             // Backward and Adam in one device submission: their time is the backward's.

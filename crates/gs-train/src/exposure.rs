@@ -4,13 +4,13 @@
 //! for photos whose exposure or white balance varies; here per-channel gain and bias rather than
 //! a full 3×4 matrix). The Gaussians then model the scene under one reference exposure: held-out
 //! views and `vagsl render` use the identity (a = b = 0). Off by default (`--exposure` turns it
-//! on); the learned values are written to `OUT/exposure.json`.
+//! on); the learned values are written to `OUT/exposure.json`. The colour map and its backward
+//! are gs-losses' (`apply_exposure`, `exposure_backward`; on the device `ExposureGpu`).
 
 use crate::error::Result;
-use gs_core::{Adam, AdamConfig, ExponentialLr, Image};
+use gs_core::{Adam, AdamConfig, ExponentialLr};
 
-/// Parameters of one view: log-gains (R, G, B) then biases (R, G, B).
-pub type ExposureParams = [f32; 6];
+pub use gs_losses::ExposureParams;
 
 /// Learning rate at the first iteration. 1e-3 (→ 1e-4) learned the gains too slowly in short
 /// runs: on the test of `tests/tests/exposure.rs` it gained 0.9 dB of held-out PSNR where
@@ -48,60 +48,50 @@ impl Exposure {
     }
 }
 
-/// c' = exp(a)·c + b per channel of an RGB image.
-pub fn apply(color: &Image, e: &ExposureParams) -> Result<Image> {
-    let gain = [e[0].exp(), e[1].exp(), e[2].exp()];
-    let data = color.data().iter().enumerate().map(|(k, &c)| gain[k % 3] * c + e[3 + k % 3]).collect();
-    Ok(Image::from_vec(color.width(), color.height(), 3, data)?)
+/// The corrected colour of a render whose colour stayed on the device (`colour`), made there
+/// by `devices` for training slot `slot`; `None` without exposure compensation or a device
+/// colour.
+#[cfg(feature = "wgpu")]
+pub(crate) fn correct_on_device(
+    devices: &crate::devices::LossDevices,
+    exposure: Option<&Exposure>,
+    slot: usize,
+    colour: Option<&gs_gpu::DeviceImage>,
+) -> Result<Option<gs_gpu::DeviceImage>> {
+    match (exposure, colour) {
+        (Some(e), Some(c)) => Ok(Some(devices.apply_exposure(c, &e.params[slot])?)),
+        _ => Ok(None),
+    }
 }
 
-/// Backward of [`apply`]: from ∂L/∂c' to ∂L/∂c (returned image) and ∂L/∂(a, b).
-pub fn backward(color: &Image, e: &ExposureParams, grad_out: &Image) -> Result<(Image, ExposureParams)> {
-    let gain = [e[0].exp(), e[1].exp(), e[2].exp()];
-    let mut ge = [0.0f64; 6];
-    let mut gc = Vec::with_capacity(color.data().len());
-    for (k, (&c, &g)) in color.data().iter().zip(grad_out.data()).enumerate() {
-        let ch = k % 3;
-        gc.push(g * gain[ch]);
-        ge[ch] += (g * gain[ch] * c) as f64;
-        ge[3 + ch] += g as f64;
+/// The exposure's backward on the device, where the colour and L_I's gradient stayed there:
+/// `grads`' device colour gradient becomes ∂L/∂c, and view `slot`'s (a, b) take their Adam
+/// step of iteration `it` of `total` (on the host, as [`Exposure::step`]).
+#[cfg(feature = "wgpu")]
+pub(crate) fn backward_on_device(
+    devices: &crate::devices::LossDevices,
+    exposure: Option<&mut Exposure>,
+    (slot, it, total): (usize, u64, u64),
+    colour: Option<&gs_gpu::DeviceImage>,
+    grads: &mut crate::terms::GradientBuffers,
+) -> Result<()> {
+    if let (Some(e), Some(c), Some(g)) = (exposure, colour, grads.device_color.as_ref()) {
+        let (gc, ge) = devices.exposure_backward(c, &e.params[slot], g)?;
+        e.step(slot, &ge, it, total)?;
+        grads.device_color = Some(gc);
     }
-    Ok((Image::from_vec(color.width(), color.height(), 3, gc)?, ge.map(|v| v as f32)))
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gs_core::Rng;
-    use gs_core::gradcheck::{GradCheck, check_gradient};
-
-    #[test]
-    fn backward_matches_finite_differences() {
-        let mut rng = Rng::new(7);
-        let (w, h) = (5, 4);
-        let color: Vec<f32> = (0..w * h * 3).map(|_| rng.uniform_f64() as f32).collect();
-        let weights: Vec<f32> = (0..w * h * 3).map(|_| rng.uniform_f64() as f32 - 0.5).collect();
-        let e0: ExposureParams = [0.1, -0.2, 0.05, 0.02, -0.01, 0.03];
-        // L = Σ w ⊙ c' as a function of (c, a, b).
-        let loss = |x: &[f64]| -> f64 {
-            let c = Image::from_vec(w, h, 3, x[..w * h * 3].iter().map(|&v| v as f32).collect()).unwrap();
-            let e: ExposureParams = std::array::from_fn(|k| x[w * h * 3 + k] as f32);
-            apply(&c, &e).unwrap().data().iter().zip(&weights).map(|(a, b)| (*a * *b) as f64).sum()
-        };
-        let img = Image::from_vec(w, h, 3, color.clone()).unwrap();
-        let (gc, ge) = backward(&img, &e0, &Image::from_vec(w, h, 3, weights.clone()).unwrap()).unwrap();
-        let mut x: Vec<f64> = color.iter().map(|&v| v as f64).collect();
-        x.extend(e0.iter().map(|&v| v as f64));
-        let mut analytic: Vec<f64> = gc.data().iter().map(|&v| v as f64).collect();
-        analytic.extend(ge.iter().map(|&v| v as f64));
-        let rep = check_gradient(loss, &x, &analytic, &GradCheck { eps: 1e-3, rtol: 2e-3, atol: 1e-4, indices: None });
-        assert!(rep.is_ok(), "{rep:?}");
-    }
+    use gs_core::Image;
 
     #[test]
     fn identity_at_zero_and_only_the_stepped_view_moves_first() {
         let img = Image::from_vec(2, 1, 3, vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6]).unwrap();
-        assert_eq!(apply(&img, &[0.0; 6]).unwrap(), img);
+        assert_eq!(gs_losses::apply_exposure(&img, &[0.0; 6]).unwrap(), img);
         let mut e = Exposure::new(3).unwrap();
         e.step(1, &[1.0, -1.0, 0.5, 0.2, 0.0, -0.3], 1, 100).unwrap();
         assert_eq!(e.params[0], [0.0; 6]);

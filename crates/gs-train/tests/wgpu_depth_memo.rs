@@ -1,8 +1,8 @@
 #![cfg(feature = "wgpu")]
 //! The source-depth memo on the device (docs/architecture.md §GPU): in the L_p phase of a wgpu
 //! run each step's reference depth, and every source depth rendered for a step, stays in L_p's
-//! arena (`StoredDepth::Device`) and serves later steps there; L_f's steps, which read their
-//! sources' depths on the host, read them back first; `StepExecutor::pull` brings every one
+//! arena (`StoredDepth::Device`) and serves later steps there; so do L_f's steps, whose υ/ω are
+//! made there from those depths (stop 68; they read them back before); `StepExecutor::pull` brings every one
 //! back, with the values a render of the same model reads back. The run's values do not move
 //! with the memo's place: gs-raster tests/wgpu_device_images.rs and gs-mvs tests/held_depths.rs
 //! prove the bits, and wgpu_resume.rs a resume across a checkpoint taken in this phase.
@@ -64,14 +64,14 @@ fn the_depth_memo_stays_on_the_device_until_the_host_reads_it() {
         }
         executor.refine(&run, &mut state, &plan).unwrap();
         state.iteration = plan.iteration;
-        // (Where L_f runs too, it reads the depth on the host.)
-        if losses.photometric.is_some() && losses.features.is_none() && plan.scale == 1 {
+        if losses.photometric.is_some() && plan.scale == 1 {
             assert!(on_device.contains(&plan.slot), "iteration {}: the reference's depth stays on the device", plan.iteration);
             kept += 1;
         }
         if losses.features.is_some() {
-            // L_f read its sources' depths on the host: they came back.
-            assert!(plan.sources.iter().all(|s| !on_device.contains(s)), "iteration {}", plan.iteration);
+            // L_f's υ/ω were made on the device from its sources' depths there: they stayed.
+            assert!(plan.sources.iter().all(|s| on_device.contains(s)), "iteration {}", plan.iteration);
+            assert!(on_device.contains(&plan.slot), "iteration {}: the reference's depth stays on the device", plan.iteration);
             read_for_features += 1;
         }
         most = most.max(on_device.len());

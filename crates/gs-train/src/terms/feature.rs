@@ -62,7 +62,7 @@ impl FeatureTerm {
             depths.push(gs_mvs::DeviceSource { camera: s.camera, plane_depth, grey: grey.into() });
         }
         let versions: Vec<u64> = x.sources.iter().map(|s| s.depth_version).collect();
-        Ok(x.devices.start_feature_loss_on_device((&reference, surface, grey), (&views, &depths), &versions)?)
+        Ok(x.devices.start_feature_loss_on_device((&reference, surface, grey), (&views, &depths), (&versions, x.keep_depth))?)
     }
 
     /// L_f (on its device executor where there is one) from depths on the host, made when the
