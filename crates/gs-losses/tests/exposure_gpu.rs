@@ -13,7 +13,7 @@ use gs_losses::{ExposureGpu, apply_exposure, exposure_backward};
 
 fn image(w: usize, h: usize, seed: u64, lo: f32, hi: f32) -> Image {
     let mut rng = Rng::new(seed);
-    let data = (0..w * h * 3).map(|_| lo + (hi - lo) * rng.uniform() as f32).collect();
+    let data = (0..w * h * 3).map(|_| lo + (hi - lo) * rng.uniform()).collect();
     Image::from_vec(w, h, 3, data).unwrap()
 }
 
