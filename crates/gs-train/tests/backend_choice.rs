@@ -22,7 +22,7 @@ fn auto_times_a_step_on_each_backend_and_keeps_the_faster() {
     let mut auto = Trainer::new(&scene, train.clone(), cfg.clone()).unwrap();
     let choice = auto.choose_backend(true).unwrap();
     let Some(probe) = choice.probe else {
-        gs_testdata::skip_or_fail!("no wgpu adapter to time a step on", "install mesa-vulkan-drivers for lavapipe");
+        gs_testdata::skip_or_fail!(&format!("no step timed on a wgpu adapter ({})", choice.in_words()), "install mesa-vulkan-drivers for lavapipe");
         return;
     };
     eprintln!("{}", choice.in_words());

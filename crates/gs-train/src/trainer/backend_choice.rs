@@ -24,6 +24,8 @@ pub struct BackendChoice {
     pub device: String,
     /// The step timed on each backend, where a GPU could run (none without one).
     pub probe: Option<BackendProbe>,
+    /// Why the GPU was not timed although one is at hand (its step failed), in words.
+    pub gpu_failed: Option<String>,
 }
 
 /// One training step timed on each backend by [`Trainer::choose_backend`].
@@ -43,9 +45,10 @@ pub struct BackendProbe {
 impl BackendChoice {
     /// The choice in one sentence.
     pub fn in_words(&self) -> String {
-        match &self.probe {
-            None => format!("{}: no GPU to compare with", self.device),
-            Some(p) => format!(
+        match (&self.probe, &self.gpu_failed) {
+            (None, Some(why)) => format!("{}: the step failed on the GPU ({why})", self.device),
+            (None, None) => format!("{}: no GPU to compare with", self.device),
+            (Some(p), _) => format!(
                 "{}: the step of iteration {} on {} Gaussians took {:.1} ms on wgpu and {:.1} ms on the CPU",
                 self.device, p.iteration, p.gaussians, p.wgpu_ms, p.cpu_ms
             ),
@@ -56,25 +59,31 @@ impl BackendChoice {
 impl Trainer<'_> {
     /// Uses the faster of the CPU and the GPU for this run: where a wgpu adapter is at hand
     /// (a hardware one, or with `software` a CPU adapter such as lavapipe, which tests use),
-    /// times one step on each ([`BackendProbe`]) and keeps the faster; without one, the CPU.
-    /// The run's state is not changed by the timing.
+    /// times one step on each ([`BackendProbe`]) and keeps the faster; without one, or where
+    /// the GPU's step fails, the CPU. The run's state is not changed by the timing.
     pub fn choose_backend(&mut self, software: bool) -> Result<BackendChoice> {
+        // The state as the current executor holds it (a resident model comes back first).
+        self.executor.pull(&mut self.state)?;
         let Some(gpu) = gpu_rasterizer(software) else {
-            return self.use_backend(Rasterizer::new(Backend::Cpu)?, None);
+            return self.use_backend(Rasterizer::new(Backend::Cpu)?, None, None);
         };
         let iteration = self.probe_iteration();
         let cpu_ms = self.time_step(Rasterizer::new(Backend::Cpu)?, iteration)?;
-        let wgpu_ms = self.time_step(gpu, iteration)?;
+        // A GPU whose step fails leaves the run to the CPU, and says why.
+        let wgpu_ms = match self.time_step(gpu, iteration) {
+            Ok(ms) => ms,
+            Err(e) => return self.use_backend(Rasterizer::new(Backend::Cpu)?, None, Some(e.to_string())),
+        };
         let probe = BackendProbe { iteration, gaussians: self.state.gaussians.len(), cpu_ms, wgpu_ms };
         let chosen = match (wgpu_ms < cpu_ms).then(|| gpu_rasterizer(software)).flatten() {
             Some(gpu) => gpu,
             None => Rasterizer::new(Backend::Cpu)?,
         };
-        self.use_backend(chosen, Some(probe))
+        self.use_backend(chosen, Some(probe), None)
     }
 
-    fn use_backend(&mut self, rasterizer: Rasterizer, probe: Option<BackendProbe>) -> Result<BackendChoice> {
-        let choice = BackendChoice { chosen: rasterizer.backend_name().into(), device: rasterizer.description(), probe };
+    fn use_backend(&mut self, rasterizer: Rasterizer, probe: Option<BackendProbe>, gpu_failed: Option<String>) -> Result<BackendChoice> {
+        let choice = BackendChoice { chosen: rasterizer.backend_name().into(), device: rasterizer.description(), probe, gpu_failed };
         self.set_rasterizer(rasterizer)?;
         Ok(choice)
     }
