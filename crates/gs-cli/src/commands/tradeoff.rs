@@ -21,7 +21,8 @@ use std::time::Instant;
 pub struct TradeoffArgs {
     /// Scene folder. Omit for the built-in scene (its exact object mesh is the default GT).
     pub scene: Option<PathBuf>,
-    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU).
+    /// Rasterizer backend: cpu, wgpu, or auto (wgpu on a hardware GPU, else the CPU; unlike
+    /// `train`'s, not chosen by timing a step, so that every rung runs on one backend).
     #[arg(long, default_value = "auto")]
     pub backend: gs_raster::Backend,
     /// Ground-truth mesh (PLY/OBJ) the meshes are scored against.
