@@ -91,6 +91,9 @@ impl Trainer<'_> {
     /// The first iteration from here whose plan runs L_p or L_f, or the next one.
     fn probe_iteration(&self) -> u64 {
         let next = self.state.iteration + 1;
+        if !self.config.losses.photometric && !self.config.has_feature_phase() {
+            return next;
+        }
         let first_mv = next.max(self.config.warmup_end + 1);
         let multiview = |it: &u64| {
             let plan = plan_step(&self.config, &self.train_views, &self.selector, self.extent, *it);
