@@ -284,9 +284,9 @@ impl PhotometricGpu {
         self.ctx.description()
     }
 
-    /// The υ/ω of the last evaluation, where [`PhotometricGpu::start_on_device`] made them on
-    /// the device for views it was given keys of: what L_f of the same step reads
-    /// ([`crate::FeatureGpu::start_on_device`]).
+    /// The υ/ω of the last evaluation, where [`PhotometricGpu::start_on_device`] or
+    /// [`PhotometricGpu::visibility_on_device`] made them on the device for views it was given
+    /// keys of: what L_f of the same step reads ([`crate::FeatureGpu::start_on_device`]).
     pub fn visibility(&self) -> Option<&DeviceVisibility> {
         self.made.as_ref()
     }
