@@ -393,7 +393,7 @@ pub fn feature_loss_with_weights<T: Real>(
 
 /// Adds one source to `out`: its rows' (|V|, Σ υω·|1 − cos|, Σ cos), summed in row order, give
 /// L_f,s = Σ / |V|, averaged over the `n_src` sources, and its per-pixel gradient `grad` is
-/// added scaled by 1 / (|V|·n_src). Shared by the host and the device evaluation.
+/// added scaled by 1 / (|V|·n_src).
 pub(crate) fn add_source<T: Real>(
     out: &mut FeatureOutput<T>,
     vis: &Visibility<T>,
@@ -401,10 +401,7 @@ pub(crate) fn add_source<T: Real>(
     grad: &[T],
     n_src: usize,
 ) {
-    let (st, scale) = source_sums(vis.stats(), rows, n_src);
-    out.loss += st.loss / n_src as f64;
-    out.per_source.push(st);
-    if let Some(scale) = scale {
+    if let Some(scale) = add_source_sums((&mut out.loss, &mut out.per_source), vis.stats(), rows, n_src) {
         let scale = T::from_f64(scale);
         out.grad_plane_depth
             .par_iter_mut()
@@ -414,13 +411,15 @@ pub(crate) fn add_source<T: Real>(
 }
 
 /// [`add_source`] but the gradient: one source's statistics from its υ/ω counts and its rows
-/// (pairs in V, the sums of υω·|1 − cos| and of cos), and the scale of its gradient,
-/// 1 / (|V|·N), or `None` without pairs in V. Its share of L_f is `loss / N`.
-pub(crate) fn source_sums(
+/// (pairs in V, the sums of υω·|1 − cos| and of cos), pushed onto `per_source`, its share
+/// L_f,s / N added to `loss`; returns the scale of its gradient, 1 / (|V|·N), or `None`
+/// without pairs in V. Shared by the host and the device evaluations.
+pub(crate) fn add_source_sums(
+    (loss, per_source): (&mut f64, &mut Vec<FeatureSourceStats>),
     visibility: VisibilityStats,
     rows: impl IntoIterator<Item = (usize, f64, f64)>,
     n_src: usize,
-) -> (FeatureSourceStats, Option<f64>) {
+) -> Option<f64> {
     let mut st = FeatureSourceStats { visibility, ..Default::default() };
     for (v, ws, cs) in rows {
         st.n_valid += v;
@@ -431,7 +430,9 @@ pub(crate) fn source_sums(
         st.loss = st.weighted_sum / st.n_valid as f64;
         1.0 / (st.n_valid as f64 * n_src as f64)
     });
-    (st, scale)
+    *loss += st.loss / n_src as f64;
+    per_source.push(st);
+    scale
 }
 
 #[inline]

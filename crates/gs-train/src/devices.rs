@@ -361,11 +361,21 @@ impl LossDevices {
 
     /// The values of `image`, kept on these executors' device, read back at one wait.
     #[cfg(feature = "wgpu")]
-    pub fn read_image(&self, image: &gs_gpu::DeviceImage) -> Result<Vec<f32>, String> {
-        match &self.context {
-            Some(ctx) => image.read(ctx).map_err(|e| e.to_string()),
-            None => Err("an image on a device, read without one".into()),
-        }
+    pub fn read_image(&self, image: &gs_gpu::DeviceImage) -> gs_mvs::Result<Vec<f32>> {
+        image.read(self.device()?).map_err(|e| gs_mvs::MvsError::Device(e.to_string()))
+    }
+
+    /// The plane depth (each texel's z) of a rendered surface on these executors' device, read
+    /// back ([`gs_mvs::surface_depth`]).
+    #[cfg(feature = "wgpu")]
+    pub fn surface_depth(&self, surface: &gs_gpu::DeviceImage) -> gs_mvs::Result<Vec<f32>> {
+        gs_mvs::surface_depth(self.device()?, surface)
+    }
+
+    /// Their device, or the error of a read without one.
+    #[cfg(feature = "wgpu")]
+    fn device(&self) -> gs_mvs::Result<&gs_gpu::GpuContext> {
+        self.context.as_ref().ok_or_else(|| gs_mvs::MvsError::Device("an image on a device, read without one".into()))
     }
 
     /// Whether the exposure correction runs on the device, so that a render's colour may stay

@@ -45,6 +45,12 @@ const BINDINGS: [Binding<'static>; 4] = [
 /// The passes, in `BINDINGS`' kernel order.
 const PASSES: [&str; 3] = ["exposure_apply", "exposure_chain", "exposure_rows"];
 
+/// The passes' indices in [`PASSES`]: the correction and the chained gradient (a thread a
+/// value), the row sums (a thread a row).
+const APPLY: usize = 0;
+const CHAIN: usize = 1;
+const ROWS: usize = 2;
+
 fn generated_structs() -> [GeneratedStruct; 2] {
     [GeneratedStruct::of::<ExposureFrame>(), GeneratedStruct::of::<ExposureRow>()]
 }
@@ -78,7 +84,7 @@ impl ExposureGpu {
         self.check(color, "the colour to correct")?;
         let out = DeviceImage::new(&self.k.ctx, "exposure-corrected colour", color.width(), color.height(), 3).map_err(gpu_error)?;
         self.k.begin([4, 4, 4, 4], 4);
-        self.run(color, e, &[(0, color, &out)], None)?;
+        self.run(color, e, &[(APPLY, color, &out)], None)?;
         Ok(out)
     }
 
@@ -101,7 +107,7 @@ impl ExposureGpu {
         let h = color.height();
         let row_bytes = bytes_of::<ExposureRow>(h);
         self.k.begin([4, 4, 4, row_bytes], row_bytes);
-        let rows: Vec<ExposureRow> = self.run(color, e, &[(1, grad_out, &chained), (2, grad_out, &chained)], Some(row_bytes))?.unwrap_or_default();
+        let rows: Vec<ExposureRow> = self.run(color, e, &[(CHAIN, grad_out, &chained), (ROWS, grad_out, &chained)], Some(row_bytes))?.unwrap_or_default();
         let mut ge = [0.0f64; 6];
         for r in &rows {
             for ch in 0..3 {
@@ -131,7 +137,7 @@ impl ExposureGpu {
         let recorded = (|| {
             for &(pass, grad, out) in passes {
                 let binds = [Bind::whole(color.buffer()), Bind::whole(grad.buffer()), Bind::whole(out.buffer()), k.pool.whole(k.bufs[3])];
-                let n = if pass == 2 { color.height() } else { color.len() } as u32;
+                let n = if pass == ROWS { color.height() } else { color.len() } as u32;
                 k.disp.dispatch_1d(&mut enc, &k.kernels[pass], &binds, PassUniform { n, ..Default::default() })?;
             }
             Ok::<_, gs_gpu::GpuError>(())

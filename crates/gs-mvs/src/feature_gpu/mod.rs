@@ -16,7 +16,7 @@
 
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{
-    AlignView, COS_EPS, FeatureOutput, FeatureSource, check_inputs, feature_loss_with_weights, source_sums,
+    AlignView, COS_EPS, FeatureOutput, FeatureSource, add_source_sums, check_inputs, feature_loss_with_weights,
 };
 use crate::geometry::PairGeometry;
 use crate::visibility::{Visibility, visibility_unchecked};
@@ -222,9 +222,7 @@ impl FeatureGpu {
         let (rows, grad) = self.evaluate(&frame, &pairs, &flat, reference.plane_depth.data)?;
         let mut out = FeatureOutput { loss: 0.0, per_source: Vec::with_capacity(sources.len()), grad_plane_depth: grad, width: w, height: h };
         for (vis, rows) in weights.iter().zip(rows.chunks(h)) {
-            let (st, _) = source_sums(vis.stats(), rows.iter().map(AlignRowSums::row), sources.len());
-            out.loss += st.loss / sources.len() as f64;
-            out.per_source.push(st);
+            add_source_sums((&mut out.loss, &mut out.per_source), vis.stats(), rows.iter().map(AlignRowSums::row), sources.len());
         }
         Ok(out)
     }
@@ -233,21 +231,15 @@ impl FeatureGpu {
     /// and the reduction's passes (its rows, its scale, its share of the gradient), all in one
     /// submission; reads back the row sums (source-major) and the gradient image.
     fn evaluate(&mut self, frame: &AlignFrame, pairs: &[AlignPair], weights: &[f32], depth: &[f32]) -> Result<(Vec<AlignRowSums>, Vec<f32>)> {
-        let (b, npix, rows) = (&self.bufs, (frame.width * frame.height) as u64, (frame.sources * frame.height) as u64);
-        self.pool.begin_frame();
-        let uploads: [(BufId, &[u8]); 3] =
-            [(b.pairs, bytemuck::cast_slice(pairs)), (b.weights, bytemuck::cast_slice(weights)), (b.depth, bytemuck::cast_slice(depth))];
-        for (id, bytes) in uploads {
+        let row_bytes = self.begin(frame, pairs);
+        let (b, npix) = (&self.bufs, (frame.width * frame.height) as u64);
+        for (id, bytes) in [(b.weights, bytemuck::cast_slice(weights)), (b.depth, bytemuck::cast_slice(depth))] {
             self.pool.ensure(id, bytes.len() as u64);
             self.ctx.write_buffer(self.pool.buffer(id), 0, bytes);
         }
-        let (row_bytes, grad_bytes) = (bytes_of::<AlignRowSums>(rows as usize), bytes_of::<f32>(npix as usize));
-        self.pool.ensure(b.results, bytes_of::<AlignResult>(npix as usize));
-        self.pool.ensure(b.row_sums, row_bytes);
-        self.pool.ensure(b.scales, bytes_of::<f32>(frame.sources as usize));
+        let grad_bytes = bytes_of::<f32>(npix as usize);
         self.pool.ensure(b.grads, grad_bytes);
         self.pool.ensure(b.staging, row_bytes + grad_bytes);
-        self.disp.write_frame(frame);
         let p = &self.pool;
         let mut enc = self.disp.encoder();
         enc.encoder.clear_buffer(p.buffer(b.grads), 0, Some(grad_bytes));
@@ -266,6 +258,21 @@ impl FeatureGpu {
                 (bytemuck::pod_collect_to_vec(sums), bytemuck::pod_collect_to_vec(grad))
             })
             .map_err(gpu_error)
+    }
+
+    /// Starts an evaluation of `frame`: its pairs uploaded, its frame written, and the pair
+    /// results, row sums and scales sized; returns the row sums' bytes.
+    fn begin(&mut self, frame: &AlignFrame, pairs: &[AlignPair]) -> u64 {
+        let b = &self.bufs;
+        self.pool.begin_frame();
+        self.pool.ensure(b.pairs, bytes_of::<AlignPair>(pairs.len()));
+        self.ctx.write_buffer(self.pool.buffer(b.pairs), 0, bytemuck::cast_slice(pairs));
+        let row_bytes = bytes_of::<AlignRowSums>((frame.sources * frame.height) as usize);
+        self.pool.ensure(b.results, bytes_of::<AlignResult>((frame.width * frame.height) as usize));
+        self.pool.ensure(b.row_sums, row_bytes);
+        self.pool.ensure(b.scales, bytes_of::<f32>(frame.sources as usize));
+        self.disp.write_frame(frame);
+        row_bytes
     }
 
     /// The arena offsets of `maps` (each under its key), uploading those it does not hold;

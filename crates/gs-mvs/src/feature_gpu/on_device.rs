@@ -8,7 +8,7 @@
 use super::reduce::AlignRowSums;
 use super::{AlignFrame, AlignPair, AlignResult, FeatureGpu, align_frame, gpu_error, pair_record};
 use crate::error::{MvsError, Result};
-use crate::feature_alignment::{FeatureSourceStats, source_sums};
+use crate::feature_alignment::{FeatureSourceStats, add_source_sums};
 use crate::geometry::PairGeometry;
 use crate::photometric_gpu::{DeviceVisibility, VisRow, VisTexel, visibility_stats};
 use gs_core::Camera;
@@ -128,16 +128,9 @@ impl FeatureGpu {
         let pairs: Vec<AlignPair> =
             sources.iter().zip(&offsets[1..]).map(|(s, &o)| pair_record(&PairGeometry::new(reference.camera, s.camera), s.features, o)).collect();
         let gradient = DeviceImage::new(&self.ctx, "L_f gradient", w, h, 1).map_err(gpu_error)?;
-        let b = &self.bufs;
-        self.pool.begin_frame();
-        self.pool.ensure(b.pairs, bytes_of::<AlignPair>(n));
-        self.ctx.write_buffer(self.pool.buffer(b.pairs), 0, bytemuck::cast_slice(&pairs));
-        let (row_bytes, vis_bytes) = (bytes_of::<AlignRowSums>(n * h), bytes_of::<VisRow>(n * h));
-        self.pool.ensure(b.results, bytes_of::<AlignResult>(w * h));
-        self.pool.ensure(b.row_sums, row_bytes);
-        self.pool.ensure(b.scales, bytes_of::<f32>(n));
+        let row_bytes = self.begin(&frame, &pairs);
+        let (b, vis_bytes) = (&self.bufs, bytes_of::<VisRow>(n * h));
         self.pool.ensure(b.staging, row_bytes + vis_bytes);
-        self.disp.write_frame(&frame);
         let p = &self.pool;
         let mut enc = self.disp.encoder();
         enc.encoder.clear_buffer(gradient.buffer(), 0, None);
@@ -168,9 +161,7 @@ impl FeatureGpu {
         let h = height.max(1);
         let mut out = FeaturesOnDevice { loss: 0.0, per_source: Vec::with_capacity(sources), gradient };
         for (rows, vis) in rows.chunks_exact(h).zip(vis.chunks_exact(h)) {
-            let (st, _) = source_sums(visibility_stats(vis), rows.iter().map(AlignRowSums::row), sources);
-            out.loss += st.loss / sources as f64;
-            out.per_source.push(st);
+            add_source_sums((&mut out.loss, &mut out.per_source), visibility_stats(vis), rows.iter().map(AlignRowSums::row), sources);
         }
         Ok(out)
     }

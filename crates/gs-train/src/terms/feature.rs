@@ -29,7 +29,7 @@ impl LossTerm for FeatureTerm {
                 match &grads.device_geometry {
                     Some((_, plane_depth)) => Ok(x.devices.add_feature_gradient(&lf.gradient, w.lambda_f, plane_depth)?),
                     None => {
-                        let g = x.devices.read_image(&lf.gradient).map_err(TrainError::InvalidConfig)?;
+                        let g = x.devices.read_image(&lf.gradient)?;
                         GradientBuffers::add(&mut grads.plane_depth, Image::from_vec(lf.gradient.width(), lf.gradient.height(), 1, g)?, w.lambda_f);
                         Ok(())
                     }
@@ -97,9 +97,7 @@ impl FeatureTerm {
 fn surface_depth(x: &TermInputs<'_>) -> Result<Image> {
     #[cfg(feature = "wgpu")]
     if let Some(surface) = &x.render.device_surface {
-        let texels = x.devices.read_image(surface).map_err(TrainError::InvalidConfig)?;
-        let z = texels.chunks_exact(gs_gpu::SURFACE_CHANNELS).map(|t| t[0]).collect();
-        return Ok(Image::from_vec(surface.width(), surface.height(), 1, z)?);
+        return Ok(Image::from_vec(surface.width(), surface.height(), 1, x.devices.surface_depth(surface)?)?);
     }
     let _ = x;
     Err(TrainError::InvalidConfig("the step plan did not request the plane depth channel".into()))
