@@ -43,17 +43,18 @@ fn builtin_scene_end_to_end() {
     assert!(on.starts_with("every loss term on the CPU") || on.starts_with("L_p, L_I and L_nc/L_ns on wgpu"), "{on}");
     // And each part of the iteration, by name: Adam and the densification statistics where the
     // rasterizer runs (the model is resident on wgpu), and density control and the trim's view
-    // counts too; the floater votes on the CPU either way.
+    // counts and the capture path's test too; the training views' floater votes on the CPU either way.
     let parts = report["parts_on"].as_array().unwrap();
     let on_of = |part: &str| parts.iter().find(|p| p["part"] == part).map(|p| p["on"].as_str().unwrap().to_string());
     let raster = on_of("render and backward").unwrap();
     assert!(raster.starts_with("cpu (") || raster.starts_with("wgpu on "), "{raster}");
-    assert!(on_of("Adam").unwrap() == raster && on_of("the floater votes").unwrap().starts_with("cpu ("));
+    assert!(on_of("Adam").unwrap() == raster && on_of("the training views' floater votes").unwrap().starts_with("cpu ("));
     assert_eq!(on_of("the trim's view counts").unwrap(), raster);
+    assert_eq!(on_of("the capture path's floater test").unwrap(), raster);
     assert_eq!(on_of("density control (clone, split, prune, opacity reset, trim, floater removal)").unwrap(), raster);
     assert_eq!(on_of("densification statistics").unwrap(), raster);
     assert_eq!(on_of("L_I (L1, D-SSIM, edge term)").unwrap(), raster);
-    assert_eq!(parts.len(), 13, "{parts:?}");
+    assert_eq!(parts.len(), 14, "{parts:?}");
     let prof = report["time_by_part"].as_object().unwrap();
     let iterations: u64 = prof.values().map(|p| p["iterations"].as_u64().unwrap()).sum();
     assert_eq!(iterations, 40, "{prof:?}");

@@ -57,14 +57,15 @@ fn two_wgpu_runs_with_one_seed_write_the_same_model() {
     let model = read(&a.join("point_cloud.ply"));
     assert!(model.len() > 1000, "a model of {} bytes", model.len());
     assert!(model == read(&b.join("point_cloud.ply")), "point_cloud.ply differs between the two wgpu runs");
-    // The loss kernels, Adam and density control with the trim's counts (but the floater votes) ran on the
+    // The loss kernels, Adam and density control with the trim's counts and the capture path's
+    // test (but the training views' floater votes) ran on the
     // device in these runs, and L_p and the normal terms ran at all.
     let report: serde_json::Value = serde_json::from_slice(&read(&a.join("report.json"))).unwrap();
     let on = report["loss_terms_on"].as_str().unwrap();
     assert!(on.starts_with("L_p, L_I and L_nc/L_ns on wgpu"), "{on}");
     let parts = report["parts_on"].as_array().unwrap();
     let on_device: Vec<&str> = parts.iter().filter(|p| p["on"].as_str().unwrap().starts_with("wgpu on ")).map(|p| p["part"].as_str().unwrap()).collect();
-    assert_eq!(on_device, ["render and backward", "L_I (L1, D-SSIM, edge term)", "L_nc and L_ns", "L_p: NCC of the patches", "L_p: pixel selection, visibility υ and weight ω", "Adam", "densification statistics", "density control (clone, split, prune, opacity reset, trim, floater removal)", "the trim's view counts"], "{parts:?}");
+    assert_eq!(on_device, ["render and backward", "L_I (L1, D-SSIM, edge term)", "L_nc and L_ns", "L_p: NCC of the patches", "L_p: pixel selection, visibility υ and weight ω", "Adam", "densification statistics", "density control (clone, split, prune, opacity reset, trim, floater removal)", "the trim's view counts", "the capture path's floater test"], "{parts:?}");
     let lp_phase = &report["time_by_part"]["photometric"]["ms_per_iteration"];
     assert!(lp_phase["photometric"].as_f64().unwrap() > 0.0, "{report}");
     assert!(lp_phase["normal_losses"].as_f64().unwrap() > 0.0, "{report}");

@@ -16,6 +16,7 @@
 //! ```
 
 pub mod camera;
+pub mod capsule;
 pub mod densify_stats;
 pub mod error;
 pub mod extent;
@@ -33,6 +34,7 @@ pub mod scene;
 pub mod sh;
 
 pub use camera::{Camera, Intrinsics};
+pub use capsule::Capsule;
 pub use densify_stats::{DensifyStats, screen_norm};
 pub use error::{CoreError, Result};
 pub use gaussians::Gaussians;

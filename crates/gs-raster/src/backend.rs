@@ -274,6 +274,35 @@ impl Rasterizer {
         }
     }
 
+    /// Marks each Gaussian of the resident model inside or outside `capsules` on the device
+    /// ([`crate::WgpuRasterizer::mark_capsules_resident`]) and returns the rows f32 could not
+    /// settle, with their means, for the host's test; `None`, with nothing marked, where the
+    /// device does not take it. The CPU backend refuses.
+    pub fn mark_capsules_resident(&mut self, gaussians: &Gaussians, capsules: &[gs_core::Capsule]) -> Result<Option<Vec<(usize, [f32; 3])>>> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.mark_capsules_resident(gaussians, capsules),
+            _ => {
+                let _ = (gaussians, capsules);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to mark".into()))
+            }
+        }
+    }
+
+    /// Removes the resident rows marked inside the capsules, and the unsure rows listed in
+    /// `inside` ([`crate::WgpuRasterizer::retain_outside_resident`]); `None`, with nothing
+    /// changed, where the device does not take it. The CPU backend refuses.
+    pub fn retain_outside_resident(&mut self, gaussians: &Gaussians, inside: &[usize]) -> Result<Option<crate::TrimOnDevice>> {
+        match &mut self.inner {
+            #[cfg(feature = "wgpu")]
+            Inner::Wgpu(r) => r.retain_outside_resident(gaussians, inside),
+            _ => {
+                let _ = (gaussians, inside);
+                Err(crate::RasterError::BackendUnavailable("the CPU backend keeps no model resident to remove rows from".into()))
+            }
+        }
+    }
+
     /// Ends a residency: the device's parameters and moments are dropped (read them first,
     /// [`Rasterizer::read_resident`], to keep them) and the next render uploads again.
     /// Nothing to do when no model is resident.

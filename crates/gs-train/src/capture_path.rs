@@ -21,7 +21,7 @@
 //! ~12,000 Gaussians in one pass, held-out PSNR 14.7 → 6.6 dB).
 
 use gs_core::glam::DVec3;
-use gs_core::Camera;
+use gs_core::{Camera, Capsule};
 
 /// Links reach at most this multiple of a camera's spacing: 2 spans a left-out view on a ring;
 /// 3 also where the nearest camera is on the other ring of a sparse capture (pillars: spacing
@@ -33,34 +33,6 @@ pub const LINKS_PER_CAMERA: usize = 8;
 pub const SURFACE_MARGIN: f64 = 0.5;
 /// Sparse points a capsule's bound is measured against, at most (evenly strided).
 const SURFACE_SAMPLES: usize = 20_000;
-/// One capsule of the path: the segment a–b swept by a ball of `radius`; `fa` and `fb` are the
-/// viewing directions of the cameras at a and b.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Capsule {
-    a: DVec3,
-    b: DVec3,
-    radius: f64,
-    fa: DVec3,
-    fb: DVec3,
-}
-
-impl Capsule {
-    /// Distance from `p` to the capsule's segment.
-    fn distance_to_axis(&self, p: DVec3) -> f64 {
-        let ab = self.b - self.a;
-        let len2 = ab.length_squared();
-        let t = if len2 > 0.0 { ((p - self.a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-        (p - (self.a + t * ab)).length()
-    }
-
-    fn contains(&self, p: DVec3) -> bool {
-        if (p - self.a).dot(self.fa) <= 0.0 || (p - self.b).dot(self.fb) <= 0.0 {
-            return false; // behind a camera of the link
-        }
-        self.distance_to_axis(p) < self.radius
-    }
-}
-
 /// The free space in front of the training cameras' path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CapturePath {
@@ -117,6 +89,11 @@ impl CapturePath {
     /// Whether point `p` lies in the free space in front of the path.
     pub fn contains(&self, p: DVec3) -> bool {
         self.capsules.iter().any(|c| c.contains(p))
+    }
+
+    /// The capsules (camera balls, then links), for a device that tests them itself.
+    pub fn capsules(&self) -> &[Capsule] {
+        &self.capsules
     }
 
     /// Capsules (camera balls and links) of the path.

@@ -50,7 +50,7 @@ pub struct RunInputs<'a> {
 /// Where one part of an iteration runs (report.json `parts_on`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PartPlace {
-    /// The part, in words ("render and backward", a loss term, "Adam", "the floater votes").
+    /// The part, in words ("render and backward", a loss term, "Adam", "the training views' floater votes").
     pub part: String,
     /// Where it runs: `cpu (N threads)` or `wgpu on ADAPTER`.
     pub on: String,
@@ -155,8 +155,9 @@ impl ReferenceExecutor {
     /// Where each part of the step runs: render and backward on the rasterizer, each loss
     /// term on its device kernel or the CPU, Adam and the densification statistics on the
     /// rasterizer's device when the model is resident there, and so does density control
-    /// (where [`crate::refine::on_device`] applies), the trim's view counts with it; the
-    /// floater votes, which decide which rows the floater rule removes, are summed on the CPU.
+    /// (where [`crate::refine::on_device`] applies), the trim's view counts and the capture
+    /// path's test (the default floater rule) with it; the training views' floater votes (the
+    /// full floater rule, off by default) are summed on the CPU.
     pub fn parts_on(&self) -> Vec<PartPlace> {
         let cpu = gs_raster::cpu_description();
         let device = self.rasterizer.description();
@@ -167,7 +168,8 @@ impl ReferenceExecutor {
         parts.push(place("densification statistics", self.adam_on_device));
         parts.push(place("density control (clone, split, prune, opacity reset, trim, floater removal)", self.adam_on_device));
         parts.push(place("the trim's view counts", self.adam_on_device));
-        parts.push(place("the floater votes", false));
+        parts.push(place("the capture path's floater test", self.adam_on_device));
+        parts.push(place("the training views' floater votes", false));
         parts
     }
 

@@ -171,13 +171,19 @@ fn reset_on_device(rasterizer: &mut Rasterizer, state: &mut TrainState, current:
     Ok(())
 }
 
-/// The floater rule ([`remove_floaters`]) on the device that holds the model resident: the
-/// votes and the capture path read the Gaussians' geometry (the host's parameters where
-/// current, else the device's records without the SH, [`Rasterizer::read_resident_records`]),
-/// and the device keeps the rows the verdict keeps ([`Rasterizer::retain_resident`]).
-/// `None`, with nothing changed, where the device declines the removal.
+/// The floater rule ([`remove_floaters`]) on the device that holds the model resident. The
+/// capture path alone (the default rule) is tested there ([`path_on_device`]). The view
+/// votes read the Gaussians' geometry (the host's parameters where current, else the device's
+/// records without the SH, [`Rasterizer::read_resident_records`]), and the device keeps the
+/// rows the verdict keeps ([`Rasterizer::retain_resident`]). `None`, with nothing changed,
+/// where the device declines the removal.
 fn floaters_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, done: &mut DoneOnDevice) -> Result<Option<FloaterReport>> {
     let rule = &run.config.densify.floaters;
+    if !rule.enabled
+        && let Some(removed) = path_on_device(rasterizer, run, state, done)?
+    {
+        return Ok(Some(FloaterReport { on_capture_path: removed, ..FloaterReport::default() }));
+    }
     let records;
     let geometry = match done.params_current {
         true => &state.gaussians,
@@ -194,6 +200,27 @@ fn floaters_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &
     Ok(retain_on_device(rasterizer, state, &keep, done)?.then_some(report))
 }
 
+/// The capture-path rule alone on the device: each mean is tested against the path's capsules
+/// there, the host tests the few f32 cannot settle with its own rule, and the rows in front of
+/// the path go on the device; no parameter crosses. Returns how many went, or `None`, with
+/// nothing changed, where the device declines or would keep none (the host's rule then keeps
+/// the most opaque one).
+fn path_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut TrainState, done: &mut DoneOnDevice) -> Result<Option<usize>> {
+    let path = capture_path(run, &run.config.densify.floaters);
+    let Some(unsure) = rasterizer.mark_capsules_resident(&state.gaussians, path.capsules())? else {
+        return Ok(None);
+    };
+    let inside: Vec<usize> = unsure.into_iter().filter(|(_, m)| path.contains(gs_core::glam::DVec3::from(m.map(f64::from)))).map(|(i, _)| i).collect();
+    let n = state.gaussians.len();
+    match rasterizer.retain_outside_resident(&state.gaussians, &inside)? {
+        Some(TrimOnDevice::Kept(kept)) => {
+            kept_on_device(state, n, kept, done)?;
+            Ok(Some(n - kept))
+        }
+        Some(TrimOnDevice::NoneKept) | None => Ok(None),
+    }
+}
+
 /// The multi-view trim ([`densify::trim_unobserved`]) on the device that holds the model
 /// resident: its renders bind the resident model and keep their pixel counts there, the
 /// device counts each Gaussian's observing views, makes the keep mask and keeps those rows;
@@ -207,12 +234,7 @@ fn trim_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut 
     match rasterizer.retain_observed_resident(&state.gaussians, run.config.densify.trim_min_views)? {
         None => Ok(None),
         Some(TrimOnDevice::Kept(kept)) => {
-            if kept < n {
-                // The host does not know which rows stayed: its copy becomes placeholders.
-                done.params_current = false;
-                behind_on_host(state, kept, None)?;
-                done.changed = true;
-            }
+            kept_on_device(state, n, kept, done)?;
             Ok(Some(n - kept))
         }
         Some(TrimOnDevice::NoneKept) => {
@@ -224,6 +246,17 @@ fn trim_on_device(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, state: &mut 
             Ok(retain_on_device(rasterizer, state, &keep, done)?.then_some(removed))
         }
     }
+}
+
+/// After the device kept `kept` of `n` rows by a mask the host does not know: the host's copy
+/// becomes placeholders of the new size.
+fn kept_on_device(state: &mut TrainState, n: usize, kept: usize, done: &mut DoneOnDevice) -> Result<()> {
+    if kept < n {
+        done.params_current = false;
+        behind_on_host(state, kept, None)?;
+        done.changed = true;
+    }
+    Ok(())
 }
 
 /// Reads the resident parameters into the host's Gaussians unless they are current there.
@@ -316,10 +349,16 @@ pub fn free_space_votes(rasterizer: &mut Rasterizer, run: &RunInputs<'_>, gaussi
             votes.add_view(gaussians, camera, &depth, &alpha, run.raster.near, rule)?;
         }
     }
+    votes.mark_capture_path(gaussians, &capture_path(run, rule));
+    Ok(votes)
+}
+
+/// The free space in front of the training cameras' path, bounded by the scene's sparse
+/// points ([`CapturePath::new`] with `rule`'s clearance).
+fn capture_path(run: &RunInputs<'_>, rule: &FloaterRule) -> CapturePath {
     let cameras = run.scene.cameras_of(run.train_views);
     let surface: Vec<gs_core::glam::DVec3> = run.scene.points.iter().map(|p| p.position).collect();
-    votes.mark_capture_path(gaussians, &CapturePath::new(&cameras, rule.path_clearance as f64, &surface));
-    Ok(votes)
+    CapturePath::new(&cameras, rule.path_clearance as f64, &surface)
 }
 
 /// Removes the floaters of `rule` from `state` (Gaussians, optimiser rows and statistics together).

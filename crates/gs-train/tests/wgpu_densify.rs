@@ -300,3 +300,104 @@ fn the_device_trims_as_the_host_does() {
     let mut cpu = Rasterizer::new(Backend::Cpu).unwrap();
     assert!(cpu.count_views_resident(&g, &refs, &config).is_err(), "the CPU backend has nothing resident");
 }
+
+/// The capture path's floater rule on the device (`mark_capsules_resident`,
+/// `retain_outside_resident`) against the host's `CapturePath::contains` and `retain_rows`:
+/// a ring of 16 cameras around a model, with rows placed within rounding of a capsule's side
+/// and of its cameras' image planes, which f32 cannot settle: they come back, the host tests
+/// them, and the rows kept are the host's, bit for bit with their moments and statistics.
+/// Marks are used once and are of one model; a rule that would keep nothing changes nothing.
+#[test]
+fn the_device_removes_what_lies_in_front_of_the_path_as_the_host_does() {
+    use gs_core::glam::DVec3;
+    use gs_core::{Camera, Capsule, Intrinsics};
+    use gs_raster::TrimOnDevice;
+    use gs_train::capture_path::CapturePath;
+    let Some(mut wgpu) = wgpu_rasterizer() else { return };
+    let cams: Vec<Camera> = (0..16)
+        .map(|k| {
+            let a = k as f64 / 16.0 * std::f64::consts::TAU;
+            let c = DVec3::new(2.5 * a.cos(), 2.5 * a.sin(), 0.0);
+            Camera::look_at(64, 48, Intrinsics::new(60.0, 60.0, 32.0, 24.0), c, DVec3::ZERO, DVec3::Z).unwrap()
+        })
+        .collect();
+    let refs: Vec<&Camera> = cams.iter().collect();
+    let path = CapturePath::new(&refs, 1.0, &[]);
+    let (mut g, adam, mut st) = model(3000, 1, 31);
+    // Rows on the boundaries, each within 1e-6 of the capsule's size from it: a link's side
+    // (half of them just inside), and a camera's image plane.
+    let mut edges = Vec::new();
+    for (k, c) in path.capsules().iter().enumerate().filter(|(_, c)| c.a != c.b).take(24) {
+        let (mid, side) = ((c.a + c.b) / 2.0, (c.b - c.a).cross(DVec3::Z).normalize());
+        let side = if side.dot(c.fa) > 0.0 { side } else { -side };
+        let at = mid + side * c.radius * (1.0 + if k % 2 == 0 { 1e-6 } else { -1e-6 });
+        edges.push(at);
+    }
+    for c in path.capsules().iter().filter(|c| c.a == c.b).take(8) {
+        edges.push(c.a + c.fa.cross(DVec3::Z).normalize() * 0.3 * c.radius + c.fa * 1e-7);
+    }
+    let first_edge = g.len();
+    let mut sh = [[0.0; 3]; 16];
+    sh[..4].fill([0.1; 3]); // degree 1: the inactive coefficients zero, as training keeps them
+    for p in &edges {
+        g.push(p.as_vec3().to_array(), [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 0.5, sh);
+    }
+    let n = g.len();
+    let adam = {
+        let mut a = Adam::new(AdamConfig::default());
+        for p in Param::ALL {
+            a.add_group(p.name(), 1e-3, n, p.row_width()).unwrap();
+        }
+        for (group, old) in a.groups.iter_mut().zip(&adam.groups) {
+            group.m[..old.m.len()].copy_from_slice(&old.m);
+            group.v[..old.v.len()].copy_from_slice(&old.v);
+        }
+        a
+    };
+    st.visible_count.resize(n, 2);
+    st.grad_sum.resize(n, 1e-4);
+    st.abs_grad_sum.resize(n, 2e-4);
+    st.max_radius.resize(n, 3.0);
+    let inside_host = |g: &Gaussians, i: usize| path.contains(DVec3::from(g.means[i].map(f64::from)));
+    let keep: Vec<bool> = (0..n).map(|i| !inside_host(&g, i)).collect();
+    let (mut host_g, mut host_adam, mut host_st) = (g.clone(), adam.clone(), st.clone());
+    let removed = gs_train::densify::retain_rows(&mut host_g, &mut host_adam, &mut keep.clone()).unwrap();
+    host_st.retain(&keep);
+    assert!(removed > 100 && removed < n, "the path holds some of the model: {removed} of {n}");
+
+    wgpu.make_resident(&g, &adam, &st).unwrap();
+    assert!(wgpu.retain_outside_resident(&g, &[]).is_err(), "no marks yet");
+    let unsure = wgpu.mark_capsules_resident(&g, path.capsules()).unwrap().expect("the device takes the marks");
+    let rows: Vec<usize> = unsure.iter().map(|(i, _)| *i).collect();
+    // A boundary row another capsule surely holds is settled there; the others come back.
+    assert!(rows.iter().filter(|&&i| i >= first_edge).count() >= 4, "rows on a boundary are left to the host: {rows:?}");
+    assert!(unsure.iter().all(|(i, m)| g.means[*i] == *m), "with its mean");
+    let inside: Vec<usize> = rows.iter().copied().filter(|&i| inside_host(&g, i)).collect();
+    assert!(!inside.is_empty() && inside.len() < rows.len(), "boundary rows on both sides: {} of {}", inside.len(), rows.len());
+    assert!(wgpu.retain_outside_resident(&g, &[n]).is_err(), "a row beyond the model");
+    let unsure = wgpu.mark_capsules_resident(&g, path.capsules()).unwrap().expect("marked again");
+    assert_eq!(unsure.len(), rows.len());
+    let kept = n - removed;
+    assert_eq!(wgpu.retain_outside_resident(&g, &inside).unwrap(), Some(TrimOnDevice::Kept(kept)));
+    let (mut dev_g, mut dev_adam, mut dev_st) = (Gaussians::with_len(kept).unwrap(), host_adam.clone(), DensifyStats::new(kept));
+    dev_g.sh_degree = 1;
+    wgpu.read_resident(&mut dev_g, Some((&mut dev_adam, &mut dev_st))).unwrap();
+    assert!(dev_g == host_g, "every parameter bit for bit");
+    assert!(dev_adam == host_adam, "the moments with their rows");
+    assert!(dev_st == host_st, "the statistics with their rows");
+    assert!(wgpu.retain_outside_resident(&dev_g, &[]).is_err(), "the marks were of the model before");
+    // Nothing left in front of the path (the unsure rows left are outside): everything stays.
+    let unsure = wgpu.mark_capsules_resident(&dev_g, path.capsules()).unwrap().unwrap();
+    assert!(!unsure.is_empty() && unsure.iter().all(|&(i, _)| !inside_host(&dev_g, i)));
+    assert_eq!(wgpu.retain_outside_resident(&dev_g, &[]).unwrap(), Some(TrimOnDevice::Kept(kept)));
+    // A capsule holding everything: nothing changes, and the caller is told.
+    let all = Capsule { a: DVec3::new(0.0, 0.0, -50.0), b: DVec3::new(0.0, 0.0, -50.0), radius: 100.0, fa: DVec3::Z, fb: DVec3::Z };
+    assert!(wgpu.mark_capsules_resident(&dev_g, &[all]).unwrap().unwrap().is_empty());
+    assert_eq!(wgpu.retain_outside_resident(&dev_g, &[]).unwrap(), Some(TrimOnDevice::NoneKept));
+    let mut again = dev_g.clone();
+    wgpu.read_resident(&mut again, None).unwrap();
+    assert_eq!(again, dev_g, "the model as it was");
+    wgpu.release_resident();
+    let mut cpu = Rasterizer::new(Backend::Cpu).unwrap();
+    assert!(cpu.mark_capsules_resident(&g, path.capsules()).is_err(), "the CPU backend has nothing resident");
+}

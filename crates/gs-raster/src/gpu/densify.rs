@@ -125,6 +125,10 @@ fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
         ),
         ("densify_count_views", include_str!("densify/views.wgsl"), vec![B::read("observed", u), B::write("views", u), B::write("dest", u)]),
         ("densify_observed_keep", include_str!("densify/views.wgsl"), vec![B::read("observed", u), B::write("views", u), B::write("dest", u)]),
+        ("densify_mark_capsules", include_str!("densify/region.wgsl"), region_bindings()),
+        ("densify_unsure_list", include_str!("densify/region.wgsl"), region_bindings()),
+        ("densify_settle_marks", include_str!("densify/region.wgsl"), region_bindings()),
+        ("densify_outside_keep", include_str!("densify/region.wgsl"), region_bindings()),
         (
             "densify_reset",
             include_str!("densify/reset.wgsl"),
@@ -133,15 +137,34 @@ fn specs() -> Vec<(&'static str, &'static str, Vec<Binding<'static>>)> {
     ]
 }
 
+/// The storage bindings of densify/region.wgsl (every entry point declares them all).
+fn region_bindings() -> Vec<Binding<'static>> {
+    use Binding as B;
+    let u = "array<u32>";
+    vec![
+        B::read("params", "array<ParamRecord>"),
+        B::read("capsules", "array<CapsuleRecord>"),
+        B::write("marks", u),
+        B::write("ranks", u),
+        B::write("unsure", "array<UnsurePoint>"),
+        B::read("settled", u),
+        B::write("dest", u),
+    ]
+}
+
 /// The structs the kernels declare.
-fn structs() -> [GeneratedStruct; 4] {
-    [GeneratedStruct::of::<DensifyUniform>(), GeneratedStruct::of::<ParamRecord>(), GeneratedStruct::of::<ShCoeff>(), GeneratedStruct::of::<StatRecord>()]
+fn structs() -> [GeneratedStruct; 6] {
+    use GeneratedStruct as G;
+    [G::of::<DensifyUniform>(), G::of::<ParamRecord>(), G::of::<ShCoeff>(), G::of::<StatRecord>(), G::of::<CapsuleRecord>(), G::of::<UnsurePoint>()]
 }
 
 const COMMON: &str = include_str!("densify/common.wgsl");
 
+mod region;
 mod retain;
 mod views;
+
+use region::{CapsuleRecord, UnsurePoint};
 mod widen;
 
 /// The kernels, their dispatcher and buffers: scratch in the rasterizer's pool, the next
@@ -166,6 +189,16 @@ pub(super) struct Densify {
     views: BufId,
     /// The model size the view counts are of, until the model changes.
     counted: Option<usize>,
+    /// The capture path's capsules, each Gaussian's mark against them (in the model's pool,
+    /// like `views`), the scan of the unsure marks, the unsure rows' list and the host's list
+    /// of those inside (gpu/densify/region.rs).
+    capsules: BufId,
+    marks: BufId,
+    ranks: BufId,
+    unsure: BufId,
+    settled: BufId,
+    /// The model size the marks are of, until the model changes.
+    marked: Option<usize>,
 }
 
 impl Densify {
@@ -183,8 +216,32 @@ impl Densify {
         // In the model's pool, which keeps its buffers while the model is resident: the counts
         // outlive the renders between which they are made.
         let views = model_pool.add_storage("densify_views");
+        let marks = model_pool.add_storage("densify_marks");
+        let (capsules, ranks, unsure, settled) = (b("densify_capsules"), b("densify_unsure_ranks"), b("densify_unsure"), b("densify_settled"));
         let disp = Dispatcher::new(ctx, std::mem::size_of::<DensifyUniform>() as u64);
-        Ok(Self { disp, kernels, classes, abs_flags, chosen, clone_ranks, split_ranks, parents, means, born, dest, next, next_stats, views, counted: None })
+        Ok(Self {
+            disp,
+            kernels,
+            classes,
+            abs_flags,
+            chosen,
+            clone_ranks,
+            split_ranks,
+            parents,
+            means,
+            born,
+            dest,
+            next,
+            next_stats,
+            views,
+            counted: None,
+            capsules,
+            marks,
+            ranks,
+            unsure,
+            settled,
+            marked: None,
+        })
     }
 
     /// Records the copy of the clone and split totals (the scans' last elements, of `n`
@@ -244,8 +301,8 @@ impl WgpuRasterizer {
         }
         self.frame = None;
         if let Some(d) = self.densify.as_mut() {
-            // The trim's view counts are of the model before the change.
-            d.counted = None;
+            // The trim's view counts and the path's marks are of the model before the change.
+            (d.counted, d.marked) = (None, None);
         }
         Ok(r)
     }

@@ -8,7 +8,7 @@ use super::{Densify, DensifyUniform};
 use crate::gpu::WgpuRasterizer;
 use crate::gpu::kernels::ParamRecord;
 use crate::gpu::resident::StatRecord;
-use crate::{RasterError, Result};
+use crate::{RasterError, Result, TrimOnDevice};
 use gs_core::Gaussians;
 use gs_core::sh::coeffs_for_degree;
 use gs_gpu::{PassUniform, bytes_of};
@@ -57,6 +57,42 @@ impl WgpuRasterizer {
         self.densify.as_ref().expect("made above").disp.submit(enc);
         self.swap_in_kept(kept);
         Ok(())
+    }
+
+    /// Makes the keep mask of `n` rows (of `nc` SH coefficients) in `dest` with `make_mask`
+    /// (kernels that write 1 for each survivor and a last zero), scans it into each survivor's
+    /// row and returns the survivors' number (the scan's total, read back: 4 bytes).
+    pub(super) fn scan_mask(&mut self, n: u64, nc: u64, make_mask: impl FnOnce(&Self, &mut gs_gpu::Encoder) -> Result<()>) -> Result<usize> {
+        let d = self.densify.as_ref().expect("made by the caller");
+        self.pool.ensure(d.dest, 4 * (n + 1));
+        self.pool.ensure(self.bufs.staging, 16);
+        self.reserve_retain(n, nc);
+        let d = self.densify.as_ref().expect("made by the caller");
+        let mut enc = d.disp.encoder();
+        make_mask(self, &mut enc)?;
+        let p = &self.pool;
+        self.sort.prefix_scan().encode(&d.disp, &mut enc, p, p.whole(d.dest), n as u32 + 1)?;
+        let staging = p.buffer(self.bufs.staging);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(d.dest), 4 * n, staging, 0, 4);
+        d.disp.submit(enc);
+        Ok(self.ctx.read_mapped(staging, 4, |b| bytemuck::pod_read_unaligned::<u32>(b))? as usize)
+    }
+
+    /// After [`Self::scan_mask`] found `kept` survivors of `n` rows: where none survives,
+    /// nothing changes (`NoneKept`: the caller keeps the most opaque one, as the host's rule
+    /// does); else the survivors move into the next buffer set, which becomes the model's.
+    pub(super) fn keep_scanned(&mut self, n: u64, nc: u64, kept: usize) -> Result<TrimOnDevice> {
+        if kept == 0 && n > 0 {
+            return Ok(TrimOnDevice::NoneKept);
+        }
+        if kept < n as usize {
+            let d: &Densify = self.densify.as_ref().expect("made by the caller");
+            let mut enc = d.disp.encoder();
+            self.encode_scatter_kept(&mut enc, n, nc)?;
+            self.densify.as_ref().expect("made by the caller").disp.submit(enc);
+            self.swap_in_kept(kept);
+        }
+        Ok(TrimOnDevice::Kept(kept))
     }
 
     /// Sizes the buffers a retain of `n` rows of `nc` SH coefficients binds besides `dest`

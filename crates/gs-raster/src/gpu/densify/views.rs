@@ -6,7 +6,6 @@
 //! reads back the survivors' number alone (4 bytes), where it would read 4 bytes a Gaussian a
 //! view.
 
-use super::Densify;
 use crate::gpu::WgpuRasterizer;
 use crate::{RasterConfig, RasterError, RenderRequest, Result, TrimOnDevice};
 use gs_core::sh::coeffs_for_degree;
@@ -77,41 +76,17 @@ impl WgpuRasterizer {
         if !self.rows_fit(n, nc) {
             return Ok(None);
         }
-        let kept = self.scoped(|s| s.scan_observed(n, nc, min_views))?;
-        if kept == 0 && n > 0 {
+        let kept = self.scoped(|s| {
+            s.scan_mask(n, nc, |s, enc| {
+                let d = s.densify.as_ref().expect("made above");
+                let binds = [s.pool.whole(s.bufs.observed), s.model.pool.whole(d.views), s.pool.whole(d.dest)];
+                Ok(d.disp.dispatch_1d(enc, d.kernel("densify_observed_keep"), &binds, PassUniform { n: n as u32, p1: min_views, ..Default::default() })?)
+            })
+        })?;
+        let done = self.scoped(|s| s.keep_scanned(n, nc, kept))?;
+        if done == TrimOnDevice::NoneKept {
             self.densify.as_mut().expect("made above").counted = Some(r.n);
-            return Ok(Some(TrimOnDevice::NoneKept));
         }
-        if kept < r.n {
-            self.scoped(|s| {
-                let d: &Densify = s.densify.as_ref().expect("made above");
-                let mut enc = d.disp.encoder();
-                s.encode_scatter_kept(&mut enc, n, nc)?;
-                s.densify.as_ref().expect("made above").disp.submit(enc);
-                s.swap_in_kept(kept);
-                Ok(())
-            })?;
-        }
-        Ok(Some(TrimOnDevice::Kept(kept)))
-    }
-
-    /// The keep mask from the view counts (of `n` rows of `nc` coefficients), scanned into
-    /// `dest`; returns the survivors' number (the scan's total, read back).
-    fn scan_observed(&mut self, n: u64, nc: u64, min_views: u32) -> Result<usize> {
-        let d = self.densify.as_ref().expect("made by the caller");
-        self.pool.ensure(d.dest, 4 * (n + 1));
-        self.pool.ensure(self.bufs.staging, 16);
-        self.reserve_retain(n, nc);
-        let d = self.densify.as_ref().expect("made by the caller");
-        let p = &self.pool;
-        let mut enc = d.disp.encoder();
-        let binds = [p.whole(self.bufs.observed), self.model.pool.whole(d.views), p.whole(d.dest)];
-        d.disp.dispatch_1d(&mut enc, d.kernel("densify_observed_keep"), &binds, PassUniform { n: n as u32, p1: min_views, ..Default::default() })?;
-        self.sort.prefix_scan().encode(&d.disp, &mut enc, p, p.whole(d.dest), n as u32 + 1)?;
-        let staging = p.buffer(self.bufs.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(d.dest), 4 * n, staging, 0, 4);
-        d.disp.submit(enc);
-        let total: Vec<u32> = self.ctx.read_mapped(staging, 4, bytemuck::pod_collect_to_vec)?;
-        Ok(total[0] as usize)
+        Ok(Some(done))
     }
 }
