@@ -98,7 +98,7 @@ impl Dispatcher {
             return Err(GpuError::TooManyDispatches(MAX_SLOTS));
         }
         let slot = enc.slots.len();
-        enc.slots.push(pass);
+        enc.slots.push(PassUniform { unit: 1.0, ..pass });
         let mut entries = vec![
             wgpu::BindGroupEntry {
                 binding: 0,

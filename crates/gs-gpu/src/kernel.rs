@@ -23,6 +23,10 @@ crate::wgsl_struct! {
         p2: u32,
         /// Free for the kernel.
         p3: u32,
+        /// 1.0, written by the dispatcher whatever the caller gives: a value the shader
+        /// compiler cannot know, which the prelude's compensated sums multiply their terms by
+        /// so that no optimiser cancels their error terms as algebra (Mesa's does).
+        unit: f32,
     }
 }
 

@@ -73,6 +73,13 @@ pub use sort::RadixSort;
 /// The wgpu version gs-gpu is built on (callers use its types through this).
 pub use wgpu;
 
+/// The f64 value of a double-f32 pair `(hi, lo)` made on the device by the prelude's
+/// `wide_add` (a total of row sums added in order there): exact, the pair holding no more
+/// significant bits than an f64.
+pub fn wide_value([hi, lo]: [f32; 2]) -> f64 {
+    hi as f64 + lo as f64
+}
+
 use thiserror::Error;
 
 /// Errors of the GPU layer.

@@ -37,6 +37,15 @@ pub struct VisibilityStats {
     pub mean_omega_over_upsilon: f64,
 }
 
+impl VisibilityStats {
+    /// The statistics of `n_upsilon` pixels with υ = 1 whose ω add up to `omega_sum` and
+    /// `n_omega_positive` pixels with ω > 0.
+    pub fn of_counts(n_upsilon: usize, n_omega_positive: usize, omega_sum: f64) -> Self {
+        let mean_omega_over_upsilon = if n_upsilon > 0 { omega_sum / n_upsilon as f64 } else { 0.0 };
+        Self { n_upsilon, n_omega_positive, mean_omega_over_upsilon }
+    }
+}
+
 impl<T: Real> Visibility<T> {
     /// The weight υ·ω of pixel index `k` (row-major).
     #[inline]
@@ -50,23 +59,17 @@ impl<T: Real> Visibility<T> {
 
     /// Counts of υ = 1 and ω > 0 and the mean ω over υ = 1 (summed in f64, row order).
     pub fn stats(&self) -> VisibilityStats {
-        let mut s = VisibilityStats::default();
-        let mut sum = 0.0f64;
+        let (mut upsilon, mut positive, mut sum) = (0, 0, 0.0f64);
         for (u, w) in self.upsilon.iter().zip(&self.omega) {
             if *u != 0 {
-                s.n_upsilon += 1;
+                upsilon += 1;
                 sum += w.to_f64();
             }
             if *w > T::ZERO {
-                s.n_omega_positive += 1;
+                positive += 1;
             }
         }
-        s.mean_omega_over_upsilon = if s.n_upsilon > 0 {
-            sum / s.n_upsilon as f64
-        } else {
-            0.0
-        };
-        s
+        VisibilityStats::of_counts(upsilon, positive, sum)
     }
 
     /// A copy with every weight replaced by `f(weight)`; lets tests freeze or edit weights.

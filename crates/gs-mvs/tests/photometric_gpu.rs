@@ -124,13 +124,13 @@ fn device_results_repeat_bit_for_bit() {
     let b = g.loss(&reference, &sources, &config).unwrap();
     assert_eq!(a, b);
     drop(g);
-    // What comes back: one 16-byte record of sums a (source, row) and one a pixel, in one round
-    // trip (not one 32-byte result a patch).
+    // What comes back: one 48-byte record of totals a source and one 16-byte gradient record a
+    // pixel, in one round trip (not one 32-byte result a patch, nor a record a row).
     let Some((mut g, ctx)) = gpu_and_context() else { return };
     let before = ctx.transfers();
     g.loss(&reference, &sources, &config).unwrap();
     let t = ctx.transfers() - before;
-    assert_eq!((t.syncs, t.bytes_down), (1, 16 * (sources.len() as u64 * 48 + 64 * 48)));
+    assert_eq!((t.syncs, t.bytes_down), (1, 48 * sources.len() as u64 + 16 * 64 * 48));
     // No source, no pixel: zero loss and gradients, as on the CPU.
     let none = g.loss(&reference, &[], &config).unwrap();
     assert_eq!(none.loss, 0.0);
@@ -250,7 +250,7 @@ fn a_gradient_kept_on_the_device_is_the_one_read_back() {
     let depth_bytes = 4 * 64 * 48;
     assert_eq!(first.bytes_up - held.bytes_up, 2 * depth_bytes + 3 * depth_bytes, "grey images and depths go up once");
     assert!(held.bytes_up < depth_bytes, "{} bytes up: no per-pixel array", held.bytes_up);
-    assert_eq!((held.syncs, held.bytes_down), (1, 2 * 16 * sources.len() as u64 * 48), "the sums and the counts alone come back");
+    assert_eq!((held.syncs, held.bytes_down), (1, 48 * sources.len() as u64), "each source's totals alone come back");
     let (newer, loss2, per_source2, gradient2) = call(&[5, 6]);
     assert_eq!(newer.bytes_up - held.bytes_up, depth_bytes, "a new version of one depth goes up");
     assert_eq!((loss, &per_source, &gradient), (loss2, &per_source2, &gradient2));

@@ -22,7 +22,7 @@ use crate::geometry::PairGeometry;
 use crate::visibility::{Visibility, visibility_unchecked};
 use gs_features::FeatureMap;
 use gs_gpu::{Arena, Binding, BufId, BufferPool, Dispatcher, GpuContext, Kernel, PassUniform, ShrinkPolicy, bytes_of};
-use reduce::AlignRowSums;
+use reduce::{AlignRowSums, AlignTotals};
 use std::borrow::Cow;
 use rayon::prelude::*;
 
@@ -123,6 +123,8 @@ struct Buffers {
     /// One source's pair results at a time.
     results: BufId,
     row_sums: BufId,
+    /// Each source's totals (read back).
+    totals: BufId,
     scales: BufId,
     grads: BufId,
     staging: BufId,
@@ -139,6 +141,8 @@ pub struct FeatureGpu {
     kernel: Kernel,
     /// The reduction's passes ([`reduce::PASSES`]).
     sums: Vec<Kernel>,
+    /// Each source's totals of its rows (totals.wgsl).
+    totals: Kernel,
     /// The pair kernel on L_p's visibility and the surface, and the gradient's apply pass.
     device: on_device::Kernels,
     bufs: Buffers,
@@ -170,6 +174,7 @@ impl FeatureGpu {
             .map(|entry| Kernel::new(&ctx, entry, &[&sum_decls, include_str!("reduce.wgsl")], &reduce::BINDINGS))
             .collect::<gs_gpu::Result<Vec<_>>>()
             .map_err(gpu_error)?;
+        let totals = Kernel::new(&ctx, "align_totals", &[&sum_decls, include_str!("totals.wgsl")], &reduce::TOTALS_BINDINGS).map_err(gpu_error)?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let bufs = Buffers {
             pairs: pool.add_storage("align pairs"),
@@ -177,13 +182,14 @@ impl FeatureGpu {
             depth: pool.add_storage("align depth"),
             results: pool.add_storage("align results"),
             row_sums: pool.add_storage("align row sums"),
+            totals: pool.add_storage("align totals"),
             scales: pool.add_storage("align scales"),
             grads: pool.add_storage("align gradient"),
             staging: pool.add_staging("align readback"),
         };
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<AlignFrame>() as u64);
         let arena = Arena::new(&ctx, "feature arena", arena_bytes);
-        Ok(Self { ctx, pool, disp, kernel, sums, device, bufs, arena })
+        Ok(Self { ctx, pool, disp, kernel, sums, totals, device, bufs, arena })
     }
 
     /// The adapter, in words.
@@ -219,19 +225,19 @@ impl FeatureGpu {
         for vis in &weights {
             flat.extend((0..w * h).map(|p| vis.weight(p)));
         }
-        let (rows, grad) = self.evaluate(&frame, &pairs, &flat, reference.plane_depth.data)?;
+        let (totals, grad) = self.evaluate(&frame, &pairs, &flat, reference.plane_depth.data)?;
         let mut out = FeatureOutput { loss: 0.0, per_source: Vec::with_capacity(sources.len()), grad_plane_depth: grad, width: w, height: h };
-        for (vis, rows) in weights.iter().zip(rows.chunks(h)) {
-            add_source_sums((&mut out.loss, &mut out.per_source), vis.stats(), rows.iter().map(AlignRowSums::row), sources.len());
+        for (vis, t) in weights.iter().zip(&totals) {
+            add_source_sums((&mut out.loss, &mut out.per_source), vis.stats(), [t.sums()], sources.len());
         }
         Ok(out)
     }
 
     /// Uploads the pairs, weights and depth; for each source in order, runs the pair kernel
-    /// and the reduction's passes (its rows, its scale, its share of the gradient), all in one
-    /// submission; reads back the row sums (source-major) and the gradient image.
-    fn evaluate(&mut self, frame: &AlignFrame, pairs: &[AlignPair], weights: &[f32], depth: &[f32]) -> Result<(Vec<AlignRowSums>, Vec<f32>)> {
-        let row_bytes = self.begin(frame, pairs);
+    /// and the reduction's passes (its rows, its scale, its share of the gradient), then each
+    /// source's totals, all in one submission; reads back the totals and the gradient image.
+    fn evaluate(&mut self, frame: &AlignFrame, pairs: &[AlignPair], weights: &[f32], depth: &[f32]) -> Result<(Vec<AlignTotals>, Vec<f32>)> {
+        let total_bytes = self.begin(frame, pairs);
         let (b, npix) = (&self.bufs, (frame.width * frame.height) as u64);
         for (id, bytes) in [(b.weights, bytemuck::cast_slice(weights)), (b.depth, bytemuck::cast_slice(depth))] {
             self.pool.ensure(id, bytes.len() as u64);
@@ -239,40 +245,41 @@ impl FeatureGpu {
         }
         let grad_bytes = bytes_of::<f32>(npix as usize);
         self.pool.ensure(b.grads, grad_bytes);
-        self.pool.ensure(b.staging, row_bytes + grad_bytes);
+        self.pool.ensure(b.staging, total_bytes + grad_bytes);
         let p = &self.pool;
         let mut enc = self.disp.encoder();
         enc.encoder.clear_buffer(p.buffer(b.grads), 0, Some(grad_bytes));
         self.ctx.push_error_scopes();
         let binds = [p.whole(b.pairs), p.whole(b.weights), p.whole(b.depth), self.arena.bind(), p.whole(b.results)];
-        let recorded = self.encode_sources(&mut enc, frame, &self.kernel, &binds, p.whole(b.grads));
+        let recorded = self.encode_sources(&mut enc, frame, &self.kernel, &binds, p.whole(b.grads)).and_then(|_| self.encode_totals(&mut enc, frame, None));
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, row_bytes);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, row_bytes, grad_bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.totals), 0, staging, 0, total_bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, total_bytes, grad_bytes);
         self.disp.submit(enc);
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
         recorded.map_err(gpu_error)?;
         self.ctx
-            .read_mapped(staging, row_bytes + grad_bytes, |r| {
-                let (sums, grad) = r.split_at(row_bytes as usize);
-                (bytemuck::pod_collect_to_vec(sums), bytemuck::pod_collect_to_vec(grad))
+            .read_mapped(staging, total_bytes + grad_bytes, |r| {
+                let (totals, grad) = r.split_at(total_bytes as usize);
+                (bytemuck::pod_collect_to_vec(totals), bytemuck::pod_collect_to_vec(grad))
             })
             .map_err(gpu_error)
     }
 
     /// Starts an evaluation of `frame`: its pairs uploaded, its frame written, and the pair
-    /// results, row sums and scales sized; returns the row sums' bytes.
+    /// results, row sums, totals and scales sized; returns the totals' bytes.
     fn begin(&mut self, frame: &AlignFrame, pairs: &[AlignPair]) -> u64 {
         let b = &self.bufs;
         self.pool.begin_frame();
         self.pool.ensure(b.pairs, bytes_of::<AlignPair>(pairs.len()));
         self.ctx.write_buffer(self.pool.buffer(b.pairs), 0, bytemuck::cast_slice(pairs));
-        let row_bytes = bytes_of::<AlignRowSums>((frame.sources * frame.height) as usize);
+        let total_bytes = bytes_of::<AlignTotals>(frame.sources as usize);
         self.pool.ensure(b.results, bytes_of::<AlignResult>((frame.width * frame.height) as usize));
-        self.pool.ensure(b.row_sums, row_bytes);
+        self.pool.ensure(b.row_sums, bytes_of::<AlignRowSums>((frame.sources * frame.height) as usize));
+        self.pool.ensure(b.totals, total_bytes);
         self.pool.ensure(b.scales, bytes_of::<f32>(frame.sources as usize));
         self.disp.write_frame(frame);
-        row_bytes
+        total_bytes
     }
 
     /// The arena offsets of `maps` (each under its key), uploading those it does not hold;
@@ -280,6 +287,16 @@ impl FeatureGpu {
     fn place_maps(&mut self, maps: &[(u64, &FeatureMap)]) -> Option<Vec<u32>> {
         let items: Vec<_> = maps.iter().map(|(key, m)| (Some((*key, 0)), m.width() * m.height() * m.channels())).collect();
         self.arena.place(&self.ctx, &items, |i| Cow::Owned(maps[i].1.to_f32_vec()))
+    }
+
+    /// Records each source's totals of its rows (and, given the visibility's rows `vis_rows`,
+    /// of their counts).
+    fn encode_totals(&self, enc: &mut gs_gpu::Encoder, frame: &AlignFrame, vis_rows: Option<gs_gpu::Bind<'_>>) -> gs_gpu::Result<()> {
+        let (p, b) = (&self.pool, &self.bufs);
+        // Without visibility rows the kernel reads none; the row sums stand in for the binding.
+        let binds = [p.whole(b.row_sums), vis_rows.unwrap_or(p.whole(b.row_sums)), p.whole(b.totals)];
+        self.disp.make_room(enc, 1);
+        self.disp.dispatch_1d(enc, &self.totals, &binds, PassUniform { n: frame.sources, p1: vis_rows.is_some() as u32, ..Default::default() })
     }
 
     /// Records, for each source in order, the pair kernel `kernel` on `binds` (its pair results
@@ -350,10 +367,11 @@ mod tests {
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
         gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(gs_gpu::bytes_of::<AlignResult>(1), 16);
-        let sums = reduce::reduce_kernel_source();
-        gs_gpu::check_layouts(&reduce::generated_structs(), &sums).unwrap();
-        gs_gpu::validate_kernel(&sums).unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(gs_gpu::bytes_of::<AlignRowSums>(1), 16);
+        for sums in [reduce::reduce_kernel_source(), reduce::totals_kernel_source()] {
+            gs_gpu::check_layouts(&reduce::generated_structs(), &sums).unwrap();
+            gs_gpu::validate_kernel(&sums).unwrap_or_else(|e| panic!("{e}"));
+        }
+        assert_eq!([gs_gpu::bytes_of::<AlignRowSums>(1), gs_gpu::bytes_of::<AlignTotals>(1)], [16, 40]);
         for src in [on_device::device_kernel_source(), on_device::apply_kernel_source()] {
             gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
         }

@@ -5,12 +5,12 @@
 //! reads ([`FeatureGpu::add_gradient`]). Only each (source, row)'s sums and L_p's row counts
 //! (for the visibility statistics) come back: no depth goes to the host, no weight comes up.
 
-use super::reduce::AlignRowSums;
+use super::reduce::AlignTotals;
 use super::{AlignFrame, AlignPair, AlignResult, FeatureGpu, align_frame, gpu_error, pair_record};
 use crate::error::{MvsError, Result};
 use crate::feature_alignment::{FeatureSourceStats, add_source_sums};
 use crate::geometry::PairGeometry;
-use crate::photometric_gpu::{DeviceVisibility, VisRow, VisTexel, visibility_stats};
+use crate::photometric_gpu::{DeviceVisibility, VisTexel};
 use gs_core::Camera;
 use gs_features::FeatureMap;
 use gs_gpu::{Bind, Binding, DeviceImage, GeneratedStruct, GpuContext, Kernel, PassUniform, PendingRead, SurfaceTexel, bytes_of};
@@ -30,9 +30,7 @@ pub struct DeviceAlignView<'a> {
 /// L_f started on the device: its readback and the gradient image the passes write.
 pub struct PendingFeatures {
     read: PendingRead,
-    row_bytes: u64,
     sources: usize,
-    height: usize,
     gradient: DeviceImage,
 }
 
@@ -128,40 +126,34 @@ impl FeatureGpu {
         let pairs: Vec<AlignPair> =
             sources.iter().zip(&offsets[1..]).map(|(s, &o)| pair_record(&PairGeometry::new(reference.camera, s.camera), s.features, o)).collect();
         let gradient = DeviceImage::new(&self.ctx, "L_f gradient", w, h, 1).map_err(gpu_error)?;
-        let row_bytes = self.begin(&frame, &pairs);
-        let (b, vis_bytes) = (&self.bufs, bytes_of::<VisRow>(n * h));
-        self.pool.ensure(b.staging, row_bytes + vis_bytes);
+        let total_bytes = self.begin(&frame, &pairs);
+        let b = &self.bufs;
+        self.pool.ensure(b.staging, total_bytes);
         let p = &self.pool;
         let mut enc = self.disp.encoder();
         enc.encoder.clear_buffer(gradient.buffer(), 0, None);
         self.ctx.push_error_scopes();
         let binds = [p.whole(b.pairs), Bind::whole(&visibility.texels), Bind::whole(surface.buffer()), self.arena.bind(), p.whole(b.results)];
-        let recorded = self.encode_sources(&mut enc, &frame, &self.device.pair, &binds, Bind::whole(gradient.buffer()));
+        let recorded = self
+            .encode_sources(&mut enc, &frame, &self.device.pair, &binds, Bind::whole(gradient.buffer()))
+            .and_then(|_| self.encode_totals(&mut enc, &frame, Some(Bind::whole(&visibility.rows))));
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, row_bytes);
-        enc.encoder.copy_buffer_to_buffer(&visibility.rows, 0, staging, row_bytes, vis_bytes);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.totals), 0, staging, 0, total_bytes);
         self.disp.submit(enc);
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
         recorded.map_err(gpu_error)?;
-        let read = self.ctx.request_read(staging, row_bytes + vis_bytes);
-        Ok(Some(PendingFeatures { read, row_bytes, sources: n, height: h, gradient }))
+        let read = self.ctx.request_read(staging, total_bytes);
+        Ok(Some(PendingFeatures { read, sources: n, gradient }))
     }
 
     /// The values of an evaluation started by [`FeatureGpu::start_on_device`] (one wait,
     /// unless an earlier wait brought them), its gradient image on the device.
     pub fn finish_on_device(&mut self, pending: PendingFeatures) -> Result<FeaturesOnDevice> {
-        let PendingFeatures { read, row_bytes, sources, height, gradient } = pending;
-        let (rows, vis): (Vec<AlignRowSums>, Vec<VisRow>) = self
-            .ctx
-            .finish_read(read, |r| {
-                let (rows, vis) = r.split_at(row_bytes as usize);
-                (bytemuck::pod_collect_to_vec(rows), bytemuck::pod_collect_to_vec(vis))
-            })
-            .map_err(gpu_error)?;
-        let h = height.max(1);
+        let PendingFeatures { read, sources, gradient } = pending;
+        let totals: Vec<AlignTotals> = self.ctx.finish_read(read, bytemuck::pod_collect_to_vec).map_err(gpu_error)?;
         let mut out = FeaturesOnDevice { loss: 0.0, per_source: Vec::with_capacity(sources), gradient };
-        for (rows, vis) in rows.chunks_exact(h).zip(vis.chunks_exact(h)) {
-            add_source_sums((&mut out.loss, &mut out.per_source), visibility_stats(vis), rows.iter().map(AlignRowSums::row), sources);
+        for t in &totals {
+            add_source_sums((&mut out.loss, &mut out.per_source), t.visibility(), [t.sums()], sources);
         }
         Ok(out)
     }

@@ -27,7 +27,7 @@ pub use outcome::{PendingPhotometric, PhotometricOnDevice};
 pub use reduce::reduce_kernel_source;
 pub use reference::{SurfaceReference, surface_depth, upload_surface};
 pub use select::{selection_kernel_source, visibility_kernel_source};
-pub(crate) use select::{VisRow, VisTexel, visibility_stats};
+pub(crate) use select::{VisRow, VisTexel};
 use outcome::{Done, Pending};
 use submit::{Inputs, Readback, patch_inputs};
 
@@ -144,6 +144,8 @@ struct Buffers {
     row_starts: BufId,
     /// The reduction's outputs: per (source, row), per source, per pixel.
     row_sums: BufId,
+    /// Each source's totals (read back).
+    totals: BufId,
     scales: BufId,
     grads: BufId,
     /// The readback of the sums (pooled: a mappable buffer per call is costly to create).
@@ -167,6 +169,8 @@ pub struct PhotometricGpu {
     kernel: Kernel,
     /// The reduction's passes ([`reduce::PASSES`]).
     sums: Vec<Kernel>,
+    /// Each source's totals of its rows (totals.wgsl).
+    totals: Kernel,
     /// The device selection's passes.
     selection: select::SelectionKernels,
     bufs: Buffers,
@@ -253,6 +257,7 @@ impl PhotometricGpu {
             .map(|entry| Kernel::new(&ctx, entry, &[&sum_decls, include_str!("reduce.wgsl")], &reduce::BINDINGS))
             .collect::<std::result::Result<Vec<_>, _>>()
             .map_err(gpu_error)?;
+        let totals = Kernel::new(&ctx, "ncc_totals", &[&sum_decls, include_str!("totals.wgsl")], &reduce::TOTALS_BINDINGS).map_err(gpu_error)?;
         let mut pool = BufferPool::new(&ctx, ShrinkPolicy::default());
         let bufs = Buffers {
             pairs: pool.add_storage("ncc pairs"),
@@ -263,6 +268,7 @@ impl PhotometricGpu {
             weights: pool.add_storage("ncc weights"),
             row_starts: pool.add_storage("ncc row starts"),
             row_sums: pool.add_storage("ncc row sums"),
+            totals: pool.add_storage("ncc totals"),
             scales: pool.add_storage("ncc scales"),
             grads: pool.add_storage("ncc gradient"),
             staging: pool.add_staging("ncc readback"),
@@ -276,7 +282,7 @@ impl PhotometricGpu {
         let disp = Dispatcher::new(&ctx, std::mem::size_of::<NccFrame>() as u64);
         let greys = Arena::new(&ctx, "ncc greys", ARENA_BYTES);
         let keep = depths::keep_depth_kernel(&ctx)?;
-        Ok(Self { ctx, pool, disp, kernel, sums, selection, bufs, greys, keep, made: None })
+        Ok(Self { ctx, pool, disp, kernel, sums, totals, selection, bufs, greys, keep, made: None })
     }
 
     /// The adapter, in words.
@@ -483,17 +489,17 @@ impl PhotometricGpu {
             .collect();
         let done = Done { counted: Some(counted), config: config.clone(), width: w, height: h };
         if entries.is_empty() {
-            return host(done.output(&vec![reduce::NccRowSums::default(); sources.len() * h], &[], &[]));
+            return host(done.output(&vec![reduce::NccTotals::default(); sources.len()], &[]));
         }
         let ranges_of: Vec<std::ops::Range<usize>> = ranges.iter().map(|&(b, n)| b as usize..(b + n) as usize).collect();
         let row_starts = reduce::row_starts(&entries, &ranges_of, w, h);
         let kept = self.kept_gradient(keep, w, h)?;
         let inputs = Inputs { frame: &frame, pairs: &pairs, rays: &rays };
-        self.stage(&inputs, reference.plane, &Entries::Host { entries: &entries, weights: &weights, row_starts: &row_starts }, kept.is_some(), false);
+        self.stage(&inputs, reference.plane, &Entries::Host { entries: &entries, weights: &weights, row_starts: &row_starts }, kept.is_some());
         let mut enc = self.disp.encoder();
         self.ctx.push_error_scopes();
         self.encode_patches(&mut enc, &frame, reference.plane, &ranges)?;
-        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), false);
+        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), false)?;
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
         Ok(PendingPhotometric(Pending::Device { read, layout, done, kept }))
     }
@@ -519,8 +525,8 @@ impl PhotometricGpu {
             Pending::Device { kept: Some(_), .. } => return Err(MvsError::InvalidInput("an evaluation whose gradient stays on the device, finished for the host".into())),
             Pending::Device { read, layout, done, kept: None } => (read, layout, done),
         };
-        let (rows, vis, grads) = self.ctx.finish_read(read, |m| layout.split(m)).map_err(gpu_error)?;
-        Ok(done.output(&rows, &vis, &grads))
+        let (totals, grads) = self.ctx.finish_read(read, |m| layout.split(m)).map_err(gpu_error)?;
+        Ok(done.output(&totals, &grads))
     }
 
     /// The result of an evaluation started by [`PhotometricGpu::start_on_device`]: the values
@@ -533,8 +539,8 @@ impl PhotometricGpu {
             Pending::Device { kept: None, .. } => return Err(MvsError::InvalidInput("an evaluation for the host, finished on the device".into())),
             Pending::Device { read, layout, done, kept: Some(gradient) } => (read, layout, done, gradient),
         };
-        let (rows, vis, _) = self.ctx.finish_read(read, |m| layout.split(m)).map_err(gpu_error)?;
-        let (loss, per_source) = done.stats(&rows, &vis);
+        let (totals, _) = self.ctx.finish_read(read, |m| layout.split(m)).map_err(gpu_error)?;
+        let (loss, per_source) = done.stats(&totals);
         Ok(PhotometricOnDevice::Device { loss, per_source, gradient })
     }
 }

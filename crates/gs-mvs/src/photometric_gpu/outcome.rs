@@ -1,8 +1,7 @@
 //! What a device L_p evaluation gives back: pending on the device or made on the host, and how
 //! its statistics and gradient come together from the device's sums.
 
-use super::reduce::{self, NccRowSums, PlaneGrad};
-use super::select::{self, VisRow};
+use super::reduce::{self, NccTotals, PlaneGrad};
 use super::Readback;
 use crate::photometric::{PhotometricConfig, PhotometricOutput, SourceStats};
 use gs_gpu::{DeviceImage, PendingRead};
@@ -33,9 +32,9 @@ pub(super) enum Pending {
     Ready(PhotometricOutput<f32>),
 }
 
-/// What the output needs besides the device's sums: what the host counted of each source
-/// (`None` when the device selected the patches: then from the rows' visibility counts, with
-/// `config`'s cap) and the size.
+/// What the output needs besides the device's totals: what the host counted of each source
+/// (`None` when the device selected the patches: then from the totals' visibility counts,
+/// with `config`'s cap) and the size.
 pub(super) struct Done {
     pub counted: Option<Vec<SourceStats>>,
     pub config: PhotometricConfig,
@@ -44,22 +43,21 @@ pub(super) struct Done {
 }
 
 impl Done {
-    /// The output from each (source, row)'s sums and visibility counts and the gradient image.
-    pub fn output(self, rows: &[NccRowSums], vis: &[VisRow], grads: &[PlaneGrad]) -> PhotometricOutput<f32> {
+    /// The output from each source's totals and the gradient image.
+    pub fn output(self, totals: &[NccTotals], grads: &[PlaneGrad]) -> PhotometricOutput<f32> {
         let (w, h) = (self.width, self.height);
-        let (loss, per_source) = self.stats(rows, vis);
+        let (loss, per_source) = self.stats(totals);
         let mut out = PhotometricOutput { loss, per_source, grad_normal: vec![0.0; w * h * 3], grad_distance: vec![0.0; w * h], width: w, height: h };
         reduce::unpack_gradient(&mut out, grads);
         out
     }
 
-    /// L_p and each source's statistics from each (source, row)'s sums (and visibility counts
-    /// where the host has not counted).
-    pub fn stats(self, rows: &[NccRowSums], vis: &[VisRow]) -> (f64, Vec<SourceStats>) {
-        let h = self.height.max(1);
-        let config = self.config;
-        let counted = self.counted.unwrap_or_else(|| vis.chunks_exact(h).map(|r| select::counted(r, &config)).collect());
-        let per_source: Vec<SourceStats> = counted.into_iter().zip(rows.chunks_exact(h)).map(|(counted, rows)| reduce::source_stats(counted, rows)).collect();
+    /// L_p and each source's statistics from each source's totals (and their visibility
+    /// counts where the host has not counted).
+    pub fn stats(self, totals: &[NccTotals]) -> (f64, Vec<SourceStats>) {
+        let cap = self.config.max_pixels_per_source;
+        let mut counted = self.counted.map(Vec::into_iter);
+        let per_source: Vec<SourceStats> = totals.iter().map(|t| reduce::source_stats(counted.as_mut().and_then(Iterator::next), t, cap)).collect();
         (per_source.iter().fold(0.0, |sum, s| sum + s.loss), per_source)
     }
 }

@@ -2,6 +2,7 @@
 //! the gradient image, from the patch results that stay on the device. The host reads one
 //! record a (source, row) and one a pixel instead of one a patch (docs/architecture.md §GPU).
 
+use super::select::VisRow;
 use super::{Entry, NccFrame, NccResult};
 use crate::photometric::{PhotometricOutput, SourceStats};
 use gs_gpu::{Binding, GeneratedStruct};
@@ -15,6 +16,24 @@ gs_gpu::wgsl_struct! {
         cost: f32,
         inside: u32,
         valid: u32,
+    }
+}
+
+gs_gpu::wgsl_struct! {
+    /// One source's totals (WGSL `struct NccTotals`, totals.wgsl): its rows' sums of υω·cost,
+    /// of cost and (where the device selected the patches) of ω over υ, each added in row order
+    /// as a double-f32 pair (hi, lo; `gs_gpu::wide_value`), and its rows' patch and visibility
+    /// counts. 48 bytes (WGSL `vec2<f32>` pairs, 8-byte aligned).
+    pub(crate) struct NccTotals as "NccTotals" {
+        weighted: [f32; 2],
+        cost: [f32; 2],
+        omega_sum: [f32; 2],
+        inside: u32,
+        valid: u32,
+        upsilon: u32,
+        omega_positive: u32,
+        candidates: u32,
+        pad0: u32,
     }
 }
 
@@ -36,15 +55,25 @@ pub(super) const BINDINGS: [Binding<'static>; 7] = [
 /// The passes in order.
 pub(super) const PASSES: [&str; 3] = ["ncc_rows", "ncc_scales", "ncc_gradient"];
 
-/// The frame uniform and the records the reduction reads or writes.
-pub(super) fn generated_structs() -> [GeneratedStruct; 4] {
+/// The totals kernel's storage bindings, by name (slot order).
+pub(super) const TOTALS_BINDINGS: [Binding<'static>; 3] =
+    [Binding::read("row_sums", "array<NccRowSums>"), Binding::read("vis_rows", "array<VisRow>"), Binding::write("totals", "array<NccTotals>")];
+
+/// The frame uniform and the records the reduction and the totals read or write.
+pub(super) fn generated_structs() -> [GeneratedStruct; 6] {
     use gs_gpu::GeneratedStruct as G;
-    [G::of::<NccFrame>(), G::of::<NccResult>(), G::of::<NccRowSums>(), G::of::<PlaneGrad>()]
+    [G::of::<NccFrame>(), G::of::<NccResult>(), G::of::<NccRowSums>(), G::of::<PlaneGrad>(), G::of::<VisRow>(), G::of::<NccTotals>()]
 }
 
 /// The reduction's whole WGSL source.
 pub fn reduce_kernel_source() -> String {
     gs_gpu::kernel_source(&[&gs_gpu::declarations(&generated_structs()), include_str!("reduce.wgsl")], &BINDINGS)
+}
+
+/// The totals kernel's whole WGSL source.
+#[cfg(test)]
+pub(super) fn totals_kernel_source() -> String {
+    gs_gpu::kernel_source(&[&gs_gpu::declarations(&generated_structs()), include_str!("totals.wgsl")], &TOTALS_BINDINGS)
 }
 
 /// For each source's entries (`ranges` into `entries`, each row-major), the first entry of
@@ -63,15 +92,18 @@ pub(super) fn row_starts(entries: &[Entry], ranges: &[std::ops::Range<usize>], w
     starts
 }
 
-/// One source's statistics from its rows' sums, the rows added in order in f64 as
-/// [`crate::photometric_loss`] adds its rows: L_p,s = Σ υω·cost / |V|.
-pub(super) fn source_stats(mut stats: SourceStats, rows: &[NccRowSums]) -> SourceStats {
-    for r in rows {
-        stats.n_inside_source += r.inside as usize;
-        stats.n_valid += r.valid as usize;
-        stats.weighted_cost_sum += r.weighted as f64;
-        stats.cost_sum += r.cost as f64;
-    }
+/// One source's statistics from its totals: what the host counted of it (`counted`), else
+/// the visibility and candidate counts of the device's selection (at most `cap` sampled), and
+/// L_p,s = Σ υω·cost / |V|.
+pub(super) fn source_stats(counted: Option<SourceStats>, t: &NccTotals, cap: Option<usize>) -> SourceStats {
+    let mut stats = counted.unwrap_or_else(|| {
+        let visibility = crate::visibility::VisibilityStats::of_counts(t.upsilon as usize, t.omega_positive as usize, gs_gpu::wide_value(t.omega_sum));
+        super::select::selection_stats(visibility, t.candidates as usize, cap)
+    });
+    stats.n_inside_source = t.inside as usize;
+    stats.n_valid = t.valid as usize;
+    stats.weighted_cost_sum = gs_gpu::wide_value(t.weighted);
+    stats.cost_sum = gs_gpu::wide_value(t.cost);
     if stats.n_valid > 0 {
         stats.loss = stats.weighted_cost_sum / stats.n_valid as f64;
     }
@@ -95,7 +127,10 @@ mod tests {
         let src = reduce_kernel_source();
         gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
         gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!([gs_gpu::bytes_of::<NccRowSums>(1), gs_gpu::bytes_of::<PlaneGrad>(1)], [16, 16]);
+        assert_eq!([gs_gpu::bytes_of::<NccRowSums>(1), gs_gpu::bytes_of::<PlaneGrad>(1), gs_gpu::bytes_of::<NccTotals>(1)], [16, 16, 48]);
+        let src = totals_kernel_source();
+        gs_gpu::check_layouts(&generated_structs(), &src).unwrap();
+        gs_gpu::validate_kernel(&src).unwrap_or_else(|e| panic!("{e}"));
     }
 
     #[test]

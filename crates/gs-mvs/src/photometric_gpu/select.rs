@@ -165,7 +165,7 @@ impl PhotometricGpu {
         }
         let ranges: Vec<(u32, u32)> = (0..n).map(|k| ((k * slot) as u32, slot as u32)).collect();
         self.encode_patches(&mut enc, &frame, reference.plane, &ranges)?;
-        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), !capped);
+        let (read, layout) = self.read_sums(enc, &frame, kept.as_ref(), !capped)?;
         self.ctx.pop_error_scopes().map_err(gpu_error)?;
         let done = Done { counted, config: config.clone(), width: w, height: h };
         Ok(Some(PendingPhotometric(Pending::Device { read, layout, done, kept })))
@@ -214,7 +214,7 @@ impl PhotometricGpu {
                 vis_pair(&g, at, (s.plane_depth.width, s.plane_depth.height), (k * words) as u32)
             })
             .collect();
-        self.stage(&Inputs { frame: &frame, pairs: &pairs, rays: &rays }, reference.plane, &Entries::Device { slot }, true, !capped);
+        self.stage(&Inputs { frame: &frame, pairs: &pairs, rays: &rays }, reference.plane, &Entries::Device { slot }, true);
         let b = &self.bufs;
         self.pool.ensure(b.vis_pairs, bytes_of::<VisPair>(n));
         self.ctx.write_buffer(self.pool.buffer(b.vis_pairs), 0, bytemuck::cast_slice(&vis_pairs));
@@ -339,29 +339,26 @@ pub(super) fn vis_pair(g: &PairGeometry<f32>, depth_offset: u32, (width, height)
 /// visibility statistics (the rows' ω sums added in order in f64), its candidates and how many
 /// the cap lets through.
 pub(super) fn counted(rows: &[VisRow], config: &PhotometricConfig) -> SourceStats {
-    let v = visibility_stats(rows);
     let candidates: usize = rows.iter().map(|r| r.candidates as usize).sum();
-    let sampled = match config.max_pixels_per_source {
-        Some(cap) => candidates.min(cap),
-        _ => candidates,
-    };
-    SourceStats { visibility: v, n_candidates: candidates, n_sampled: sampled, ..Default::default() }
+    selection_stats(visibility_stats(rows), candidates, config.max_pixels_per_source)
+}
+
+/// A source's counts before its patches are evaluated: its visibility statistics and
+/// candidates, of which at most `cap` are sampled.
+pub(super) fn selection_stats(visibility: VisibilityStats, candidates: usize, cap: Option<usize>) -> SourceStats {
+    SourceStats { visibility, n_candidates: candidates, n_sampled: cap.map_or(candidates, |c| candidates.min(c)), ..Default::default() }
 }
 
 /// A source's visibility statistics from its rows' counts (the ω sums added in row order in
 /// f64), as [`crate::Visibility::stats`] counts them on the host.
-pub(crate) fn visibility_stats(rows: &[VisRow]) -> VisibilityStats {
-    let mut v = VisibilityStats::default();
-    let mut omega = 0.0f64;
+pub(super) fn visibility_stats(rows: &[VisRow]) -> VisibilityStats {
+    let (mut upsilon, mut positive, mut omega) = (0, 0, 0.0f64);
     for r in rows {
-        v.n_upsilon += r.upsilon as usize;
-        v.n_omega_positive += r.omega_positive as usize;
+        upsilon += r.upsilon as usize;
+        positive += r.omega_positive as usize;
         omega += r.omega_sum as f64;
     }
-    if v.n_upsilon > 0 {
-        v.mean_omega_over_upsilon = omega / v.n_upsilon as f64;
-    }
-    v
+    VisibilityStats::of_counts(upsilon, positive, omega)
 }
 
 /// The host's share of a capped selection, from each source's rows (`rows`: source-major, `h`

@@ -10,9 +10,8 @@ use gs_gpu::{BufId, DeviceImage, PassUniform, PendingRead};
 
 impl PhotometricGpu {
     /// Uploads an evaluation's inputs (the plane only when it is on the host; the entries only
-    /// when the host selected them) and sizes its buffers; `vis_back`: the readback carries the
-    /// device selection's row counts.
-    pub(super) fn stage(&mut self, inputs: &Inputs<'_>, plane: Plane<'_>, entries: &Entries<'_>, keep: bool, vis_back: bool) {
+    /// when the host selected them) and sizes its buffers.
+    pub(super) fn stage(&mut self, inputs: &Inputs<'_>, plane: Plane<'_>, entries: &Entries<'_>, keep: bool) {
         self.pool.begin_frame();
         let (b, frame) = (&self.bufs, inputs.frame);
         let texels = match plane {
@@ -32,13 +31,15 @@ impl PhotometricGpu {
             self.ctx.write_buffer(self.pool.buffer(id), 0, bytes);
         }
         let count = entries.count(frame.sources as usize) as u64;
-        let layout = Readback::of(frame, keep, vis_back);
+        let layout = Readback::of(frame, keep);
         let outputs = [
             (b.entries, 4 * count),
             (b.weights, 4 * count),
             (b.row_starts, gs_gpu::bytes_of::<u32>((frame.sources * (frame.height + 1)) as usize)),
             (b.results, std::mem::size_of::<NccResult>() as u64 * count),
-            (b.row_sums, layout.rows),
+            (b.row_sums, gs_gpu::bytes_of::<reduce::NccRowSums>((frame.sources * frame.height) as usize)),
+            (b.totals, layout.totals),
+            (b.vis_rows, gs_gpu::bytes_of::<select::VisRow>(1)),
             (b.scales, gs_gpu::bytes_of::<f32>(frame.sources as usize)),
             (b.grads, gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize)),
             (b.staging, layout.total()),
@@ -73,56 +74,51 @@ impl PhotometricGpu {
         Ok(())
     }
 
-    /// Copies what the host reads (the row sums, the selection's row counts when `vis_back`,
-    /// the gradient unless it is copied into `kept`) into the staging buffer, submits, and
-    /// requests the readback (one round trip).
-    pub(super) fn read_sums(&self, mut enc: gs_gpu::Encoder, frame: &NccFrame, kept: Option<&DeviceImage>, vis_back: bool) -> (PendingRead, Readback) {
+    /// Records each source's totals (with its rows' visibility counts when `vis_back`), copies
+    /// what the host reads (the totals, the gradient unless it is copied into `kept`) into the
+    /// staging buffer, submits, and requests the readback (one round trip).
+    pub(super) fn read_sums(&self, mut enc: gs_gpu::Encoder, frame: &NccFrame, kept: Option<&DeviceImage>, vis_back: bool) -> Result<(PendingRead, Readback)> {
         let (b, p) = (&self.bufs, &self.pool);
-        let layout = Readback::of(frame, kept.is_some(), vis_back);
+        let layout = Readback::of(frame, kept.is_some());
+        let binds = [b.row_sums, b.vis_rows, b.totals].map(|id| p.whole(id));
+        self.disp.make_room(&mut enc, 1);
+        self.disp.dispatch_1d(&mut enc, &self.totals, &binds, PassUniform { n: frame.sources, p1: vis_back as u32, ..Default::default() }).map_err(gpu_error)?;
         let staging = p.buffer(b.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(b.row_sums), 0, staging, 0, layout.rows);
-        if vis_back {
-            enc.encoder.copy_buffer_to_buffer(p.buffer(b.vis_rows), 0, staging, layout.rows, layout.vis);
-        }
+        enc.encoder.copy_buffer_to_buffer(p.buffer(b.totals), 0, staging, 0, layout.totals);
         let grad_bytes = gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize);
         match kept {
             Some(image) => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, image.buffer(), 0, grad_bytes),
-            None => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, layout.rows + layout.vis, grad_bytes),
+            None => enc.encoder.copy_buffer_to_buffer(p.buffer(b.grads), 0, staging, layout.totals, grad_bytes),
         }
         self.disp.submit(enc);
-        (self.ctx.request_read(staging, layout.total()), layout)
+        Ok((self.ctx.request_read(staging, layout.total()), layout))
     }
 }
 
-/// What an evaluation's readback holds, in order: each (source, row)'s sums, each (source,
-/// row)'s visibility counts when the host has not read them, and the gradient image unless it
-/// stays on the device.
+/// What an evaluation's readback holds, in order: each source's totals, and the gradient
+/// image unless it stays on the device.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Readback {
-    rows: u64,
-    vis: u64,
+    totals: u64,
     grads: u64,
 }
 
 impl Readback {
-    pub(super) fn of(frame: &NccFrame, keep: bool, vis_back: bool) -> Self {
-        let rows = (frame.sources * frame.height) as usize;
+    pub(super) fn of(frame: &NccFrame, keep: bool) -> Self {
         Self {
-            rows: gs_gpu::bytes_of::<reduce::NccRowSums>(rows),
-            vis: if vis_back { gs_gpu::bytes_of::<select::VisRow>(rows) } else { 0 },
+            totals: gs_gpu::bytes_of::<reduce::NccTotals>(frame.sources as usize),
             grads: if keep { 0 } else { gs_gpu::bytes_of::<reduce::PlaneGrad>(frame.pixels as usize) },
         }
     }
 
     pub(super) fn total(&self) -> u64 {
-        self.rows + self.vis + self.grads
+        self.totals + self.grads
     }
 
     /// The readback's parts.
-    pub(super) fn split(&self, m: &[u8]) -> (Vec<reduce::NccRowSums>, Vec<select::VisRow>, Vec<reduce::PlaneGrad>) {
-        let (rows, rest) = m.split_at(self.rows as usize);
-        let (vis, grads) = rest.split_at(self.vis as usize);
-        (bytemuck::pod_collect_to_vec(rows), bytemuck::pod_collect_to_vec(vis), bytemuck::pod_collect_to_vec(grads))
+    pub(super) fn split(&self, m: &[u8]) -> (Vec<reduce::NccTotals>, Vec<reduce::PlaneGrad>) {
+        let (totals, grads) = m.split_at(self.totals as usize);
+        (bytemuck::pod_collect_to_vec(totals), bytemuck::pod_collect_to_vec(grads))
     }
 }
 
