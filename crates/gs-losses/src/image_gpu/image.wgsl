@@ -319,8 +319,7 @@ fn row_sum(start: u32, count: u32) -> f32 {
 
 // After `loss_gradient`, one thread per image row: the sums of its SSIM values, its |a − b|
 // values and (when a guide was given) its pixels' |∇Ĩ − ∇I|, each along the row in order, written
-// after the planes. The host reads these three values a row, not every value, and adds the
-// rows in order in f64.
+// after the planes, for `image_totals`.
 @compute @workgroup_size(256)
 fn row_sums(ids: Ids) {
     let y = thread_1d(ids);
@@ -336,4 +335,26 @@ fn row_sums(ids: Ids) {
         edge = row_sum(plane_at(2u, y * frame.width), frame.width);
     }
     values[at + 2u] = edge;
+}
+
+// Last, one thread: the three sums of every row added in row order as double-f32 pairs
+// (`wide_add`), written after the rows' sums as (hi, lo) each. The host reads these six values
+// alone (`gs_gpu::wide_value`), not a value a row.
+@compute @workgroup_size(256)
+fn image_totals(ids: Ids) {
+    if (thread_1d(ids) != 0u) {
+        return;
+    }
+    let rows = plane_at(2u, frame.pixels);
+    var totals = array<vec2<f32>, 3>(vec2<f32>(0.0), vec2<f32>(0.0), vec2<f32>(0.0));
+    for (var y = 0u; y < frame.height; y++) {
+        for (var k = 0u; k < 3u; k++) {
+            totals[k] = wide_add(totals[k], values[rows + 3u * y + k]);
+        }
+    }
+    let at = rows + 3u * frame.height;
+    for (var k = 0u; k < 3u; k++) {
+        values[at + 2u * k] = totals[k].x;
+        values[at + 2u * k + 1u] = totals[k].y;
+    }
 }

@@ -1,8 +1,8 @@
 //! L_I on the device (behind the `wgpu` feature), the twin of [`crate::image_loss()`]: L1, D-SSIM
 //! and the edge term in one set of WGSL passes (`image.wgsl`) that writes ∂L_I/∂Ĩ and each
-//! value's or pixel's terms, and sums those along each image row in order (compensated f32);
-//! the host reads three sums a row and adds the rows in order in f64, so one input gives one
-//! result on one device. [`ImageLossGpu::ssim_backward`] is D-SSIM alone, the twin of
+//! value's or pixel's terms, sums those along each image row in order (compensated f32) and
+//! adds the rows in order (double-f32 pairs); the host reads the three totals alone, so one
+//! input gives one result on one device. [`ImageLossGpu::ssim_backward`] is D-SSIM alone, the twin of
 //! [`crate::ssim::ssim_backward`] over the whole image. Tolerances: `tests/image_gpu.rs`
 //! (docs/method.md §L_I, docs/architecture.md §GPU).
 
@@ -114,10 +114,12 @@ enum Grid {
     RangeTotal,
     /// One thread per image row.
     Rows,
+    /// One thread.
+    Total,
 }
 
 /// The passes in order, with their grids.
-const PASSES: [(&str, Grid); 9] = [
+const PASSES: [(&str, Grid); 10] = [
     ("blur_rows", Grid::Values),
     ("ssim_values", Grid::Values),
     ("blur_partials", Grid::Values),
@@ -127,10 +129,15 @@ const PASSES: [(&str, Grid); 9] = [
     ("edge_terms", Grid::EdgePixels),
     ("loss_gradient", Grid::Values),
     ("row_sums", Grid::Rows),
+    ("image_totals", Grid::Total),
 ];
 
 /// Sums a row that `row_sums` writes after the value planes: SSIM, |a − b|, |∇Ĩ − ∇I|.
 const ROW_SUMS: usize = 3;
+
+/// The image's totals of the three sums that `image_totals` writes after the rows' sums, each
+/// a double-f32 pair (`gs_gpu::wide_value`): what comes back.
+const TOTALS: usize = 2 * ROW_SUMS;
 
 /// Most workgroups of the range pass (each strides over the image).
 const RANGE_GROUPS: usize = 256;
@@ -280,7 +287,7 @@ impl ImageLossGpu {
 
     /// [`ImageLossGpu::start`] of a rendered image kept on this device (a render's colour that
     /// never came to the host): it is copied into the arena there, and the gradient stays there
-    /// ([`ImageLossGpu::finish_on_device`]); only the row sums come back. Images too large for
+    /// ([`ImageLossGpu::finish_on_device`]); only the totals (24 bytes) come back. Images too large for
     /// the device's bindings are read back and evaluated on the host, their gradient uploaded.
     pub fn start_on_device(&mut self, rendered: &DeviceImage, gt: &Image, guide: Option<&EdgeGuide>, view: Option<u64>, cfg: &ImageLossConfig) -> Result<PendingDeviceImageLoss> {
         if !rendered.is_on(&self.k.ctx) {
@@ -392,10 +399,10 @@ impl ImageLossGpu {
         };
         let bytes = bytes_of::<f32>(n);
         let pixel_bytes = bytes_of::<f32>(pixels);
-        // `values`: SSIM and |a − b| per value, |∇Ĩ − ∇I| per pixel, then the row sums, which
-        // alone come back with the gradient.
-        let sums_at = 2 * bytes + pixel_bytes;
-        let read = bytes_of::<f32>(ROW_SUMS * dims.height);
+        // `values`: SSIM and |a − b| per value, |∇Ĩ − ∇I| per pixel, the row sums, then their
+        // totals, which alone come back with the gradient.
+        let sums_at = 2 * bytes + pixel_bytes + bytes_of::<f32>(ROW_SUMS * dims.height);
+        let read = bytes_of::<f32>(TOTALS);
         // The gradient comes back after the sums unless it stays on the device.
         let grad_back = if grad_image.is_some() { 0 } else { bytes };
         let k = &mut self.k;
@@ -421,6 +428,7 @@ impl ImageLossGpu {
                 Grid::RangeGroups if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (groups as u32, 1)),
                 Grid::RangeTotal if frame.edge == 1 => k.disp.dispatch(&mut enc, kernel, &binds, per_pixel, (1, 1)),
                 Grid::Rows => k.disp.dispatch_1d(&mut enc, kernel, &binds, per_row),
+                Grid::Total => k.disp.dispatch_1d(&mut enc, kernel, &binds, PassUniform { n: 1, ..Default::default() }),
                 _ => Ok(()),
             }
             .map_err(gpu_error)?;
@@ -439,14 +447,14 @@ impl ImageLossGpu {
 
     /// The means and gradient of a submitted evaluation.
     fn collect(&mut self, s: Submitted) -> Result<Terms> {
-        let (n, pixels, height) = (s.dims.len(), s.dims.pixels(), s.dims.height);
+        let (n, pixels) = (s.dims.len(), s.dims.pixels());
         self.k
             .ctx
             .finish_read(s.read, |m| {
                 let all = bytemuck::cast_slice::<u8, f32>(m);
-                // The gradient follows the sums when it came back (else `grad` is empty).
-                let (sums, grad) = all.split_at(ROW_SUMS * height);
-                let rows = |k: usize| sums.chunks_exact(ROW_SUMS).map(|r| r[k] as f64).sum::<f64>();
+                // The gradient follows the totals when it came back (else `grad` is empty).
+                let (totals, grad) = all.split_at(TOTALS);
+                let rows = |k: usize| gs_gpu::wide_value([totals[2 * k], totals[2 * k + 1]]);
                 Terms {
                     ssim: rows(0) / n as f64,
                     l1: rows(1) / n as f64,

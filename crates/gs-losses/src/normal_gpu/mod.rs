@@ -1,8 +1,8 @@
 //! L_nc and L_ns on the device (behind the `wgpu` feature), the twin of
 //! [`crate::normal_losses`]: four WGSL passes (`normal.wgsl`) compute N̂, each pixel's values
 //! and ∂/∂N̂, ∂/∂Ñ, then the chain through N̂ into the plane depth z; a fifth sums each row's
-//! values in order (compensated f32), and the host reads those sums alone and adds the rows in
-//! order in f64, so one input gives one result on one device. Tolerances: `tests/normal_gpu.rs` (docs/method.md §L_nc, §L_ns; docs/architecture.md
+//! values in order (compensated f32) and a sixth adds the rows in order (double-f32 pairs),
+//! and the host reads those totals alone, so one input gives one result on one device. Tolerances: `tests/normal_gpu.rs` (docs/method.md §L_nc, §L_ns; docs/architecture.md
 //! §GPU).
 
 use crate::device::{LossKernels, gpu_error};
@@ -11,7 +11,7 @@ use crate::error::Result;
 use crate::image_loss::EdgeGuide;
 use crate::normal::{NORMALIZE_EPS, ray_x, ray_y};
 use crate::error::LossError;
-use crate::normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, check_inputs, check_view, smoothing_sum};
+use crate::normal_loss::{NormalLossConfig, NormalLossOutput, NsGate, NsPairs, check_inputs, check_view};
 use gs_core::{Image, Intrinsics};
 use gs_gpu::{Arena, Bind, Binding, DeviceImage, GpuContext, PassUniform, PendingRead, SURFACE_CHANNELS, SurfaceTexel};
 use std::borrow::Cow;
@@ -58,7 +58,8 @@ gs_gpu::wgsl_struct! {
 
 gs_gpu::wgsl_struct! {
     /// One pixel's loss terms (WGSL `struct PixelTerms`); after the pixels, one a row with the
-    /// row's sums (`nc`, the right and down pairs' sum in `ns_right`, `pairs`). 16 bytes.
+    /// row's sums (`nc`, the right and down pairs' sum in `ns_right`, `pairs`), then the
+    /// image's totals as two records (`normal_totals`: [`Totals`]). 16 bytes.
     pub(crate) struct PixelTerms as "PixelTerms" {
         /// δ·‖N̂ − Ñ‖₁.
         nc: f32,
@@ -103,8 +104,32 @@ fn generated_structs() -> [GeneratedStruct; 5] {
     ]
 }
 
-/// The passes in order: one thread per pixel, then (`row_sums`) one per row.
-const PASSES: [&str; 5] = ["depth_normals", "normal_terms", "normal_chain", "depth_gradient", "row_sums"];
+/// The passes in order: one thread per pixel, then (`row_sums`) one per row, then
+/// (`normal_totals`) one.
+const PASSES: [&str; 6] = ["depth_normals", "normal_terms", "normal_chain", "depth_gradient", "row_sums", "normal_totals"];
+
+/// The image's totals that `normal_totals` writes after the rows' sums, each a double-f32 pair
+/// (`gs_gpu::wide_value`) in two [`PixelTerms`] records: (L_nc's sum, L_ns's sum), then (the
+/// active pairs, 0). What comes back.
+struct Totals([PixelTerms; 2]);
+
+impl Totals {
+    const BYTES: u64 = 2 * std::mem::size_of::<PixelTerms>() as u64;
+
+    fn of(bytes: &[u8]) -> Self {
+        let r: &[PixelTerms] = bytemuck::cast_slice(bytes);
+        Self([r[0], r[1]])
+    }
+
+    /// L_nc, L_ns and the number of active pairs of `n` pixels.
+    fn terms(&self, n: usize) -> (f64, f64, usize) {
+        let [a, b] = &self.0;
+        let nc = gs_gpu::wide_value([a.nc, a.ns_right]);
+        let ns = gs_gpu::wide_value([a.ns_down, a.pairs]);
+        let pairs = gs_gpu::wide_value([b.nc, b.ns_right]);
+        (nc / n as f64, ns / n as f64, pairs as usize)
+    }
+}
 
 /// The kernels' whole WGSL source.
 pub fn normal_kernel_source() -> String {
@@ -186,7 +211,7 @@ impl NormalGpu {
 
     /// [`NormalGpu::start`] of a rendered surface kept on this device (a render's
     /// [`SurfaceTexel`]s, which never came to the host; A counts when `with_alpha`): N̂ and the
-    /// gradients stay on the device ([`NormalGpu::finish_on_device`]); only the row sums come
+    /// gradients stay on the device ([`NormalGpu::finish_on_device`]); only the totals (32 bytes) come
     /// back. A view too large for the device's bindings is refused.
     #[allow(clippy::too_many_arguments)]
     pub fn start_on_device(
@@ -211,7 +236,7 @@ impl NormalGpu {
         }
     }
 
-    /// One evaluation submitted (its readback requested: the rows' sums, and N̂ and the
+    /// One evaluation submitted (its readback requested: the totals, and N̂ and the
     /// gradients unless the surface is on the device, where they stay); `None` when the view
     /// does not fit the device's bindings or the arena.
     fn submit(&mut self, surface: Surface<'_>, guide: &EdgeGuide, intrinsics: &Intrinsics, view: Option<u64>, cfg: &NormalLossConfig) -> Result<Option<Submitted>> {
@@ -253,12 +278,12 @@ impl NormalGpu {
             Surface::Device { .. } => Some(KeptOnDevice::new(&self.k.ctx, (w, h))?),
             Surface::Host { .. } => None,
         };
-        // The readback: the rows' sums, then (unless kept on the device) N̂, ∂/∂Ñ and ∂/∂z.
+        // The readback: the totals, then (unless kept on the device) N̂, ∂/∂Ñ and ∂/∂z.
         let (vec3, terms, plane) = (bytes_of::<PixelVec3>(n), bytes_of::<PixelTerms>(n), bytes_of::<f32>(n));
-        let sums = bytes_of::<PixelTerms>(h);
+        let (rows, sums) = (bytes_of::<PixelTerms>(h), Totals::BYTES);
         let read = if kept.is_some() { sums } else { sums + 2 * vec3 + plane };
         let k = &mut self.k;
-        k.begin([bytes_of::<SurfaceTexel>(n), 4, vec3, terms + sums, vec3, vec3, bytes_of::<DiffGrad>(n), plane], read);
+        k.begin([bytes_of::<SurfaceTexel>(n), 4, vec3, terms + rows + sums, vec3, vec3, bytes_of::<DiffGrad>(n), plane], read);
         let [surface_buf, _, nhat, values, _, gnt, _, gz] = k.bufs;
         if let Surface::Host { plane_depth, normal, alpha } = surface {
             k.ctx.write_buffer(k.pool.buffer(surface_buf), 0, bytemuck::cast_slice(&surface_texels(plane_depth, normal, alpha)));
@@ -273,11 +298,15 @@ impl NormalGpu {
         let mut enc = k.disp.encoder();
         k.ctx.push_error_scopes();
         for (kernel, name) in k.kernels.iter().zip(PASSES) {
-            let threads = if name == "row_sums" { h } else { n };
+            let threads = match name {
+                "row_sums" => h,
+                "normal_totals" => 1,
+                _ => n,
+            };
             k.disp.dispatch_1d(&mut enc, kernel, &binds, PassUniform { n: threads as u32, ..Default::default() }).map_err(gpu_error)?;
         }
         let staging = p.buffer(k.staging);
-        enc.encoder.copy_buffer_to_buffer(p.buffer(values), terms, staging, 0, sums);
+        enc.encoder.copy_buffer_to_buffer(p.buffer(values), terms + rows, staging, 0, sums);
         match &kept {
             Some(kept) => {
                 for (id, image) in [(nhat, &kept.depth_normal), (gnt, &kept.grad_normal), (gz, &kept.grad_plane_depth)] {
@@ -304,19 +333,19 @@ impl NormalGpu {
             Pending::Host(out) => return Ok(out),
             Pending::Device(s) => s,
         };
-        let (nhat, rows, g_nt, g_z) = self
+        let (nhat, totals, g_nt, g_z) = self
             .k
             .ctx
             .finish_read(read, |m| {
-                let (rows, rest) = m.split_at(sums as usize);
+                let (totals, rest) = m.split_at(sums as usize);
                 let (nhat, rest) = rest.split_at(vec3 as usize);
                 let (g_nt, g_z) = rest.split_at(vec3 as usize);
                 // N̂ and ∂/∂Ñ: the records' components are the 3-channel images' values.
                 let f = |b: &[u8]| bytemuck::cast_slice::<u8, f32>(b).to_vec();
-                (f(nhat), bytemuck::cast_slice::<u8, PixelTerms>(rows).to_vec(), f(g_nt), f(g_z))
+                (f(nhat), Totals::of(totals), f(g_nt), f(g_z))
             })
             .map_err(gpu_error)?;
-        NormalLossOutput::assemble(&cfg, (w, h), term_sums(&rows, w * h), nhat, g_z, g_nt)
+        NormalLossOutput::assemble(&cfg, (w, h), totals.terms(w * h), nhat, g_z, g_nt)
     }
 
     /// The result of an evaluation started on the device: the values (one wait, unless an
@@ -324,8 +353,8 @@ impl NormalGpu {
     pub fn finish_on_device(&mut self, pending: PendingDeviceNormalLosses) -> Result<NormalLossOutput<DeviceImage>> {
         let Submitted { read, cfg, size: (w, h), kept, .. } = pending.0;
         let kept = kept.ok_or_else(|| LossError::Device("an evaluation on the device without its images".into()))?;
-        let rows = self.k.ctx.finish_read(read, |m| bytemuck::cast_slice::<u8, PixelTerms>(m).to_vec()).map_err(gpu_error)?;
-        let (l_nc, l_ns, active) = term_sums(&rows, w * h);
+        let totals = self.k.ctx.finish_read(read, Totals::of).map_err(gpu_error)?;
+        let (l_nc, l_ns, active) = totals.terms(w * h);
         Ok(NormalLossOutput {
             l_nc,
             l_ns,
@@ -370,7 +399,7 @@ struct Submitted {
     cfg: NormalLossConfig,
     /// The view's width and height.
     size: (usize, usize),
-    /// Bytes of N̂ (and of ∂/∂Ñ) and of the rows' sums in the readback.
+    /// Bytes of N̂ (and of ∂/∂Ñ) and of the totals in the readback.
     sizes: (u64, u64),
     /// N̂ and the gradients, when they stay on the device.
     kept: Option<KeptOnDevice>,
@@ -382,14 +411,6 @@ fn surface_texels(z: &Image, normal: &Image, alpha: Option<&Image>) -> Vec<Surfa
     let normals: &[[f32; 3]] = bytemuck::cast_slice(normal.data());
     let alpha = |p: usize| alpha.map_or(0.0, |a| a.data()[p]);
     z.data().iter().zip(normals).enumerate().map(|(p, (&z, &normal))| SurfaceTexel { z, normal, distance: 0.0, alpha: alpha(p) }).collect()
-}
-
-/// L_nc, L_ns and the number of active pairs of `n` pixels from the rows' sums (`row_sums`),
-/// the rows added in order in f64 as the reference adds its rows.
-fn term_sums(rows: &[PixelTerms], n: usize) -> (f64, f64, usize) {
-    let l_nc = rows.iter().map(|r| r.nc as f64).sum::<f64>() / n as f64;
-    let (ns_sum, active) = smoothing_sum(rows.iter().map(|r| (r.ns_right as f64, r.pairs as usize)).collect());
-    (l_nc, ns_sum / n as f64, active)
 }
 
 #[cfg(test)]

@@ -271,10 +271,9 @@ fn depth_gradient(ids: Ids) {
     gz[p] = s.x * ray_x(i) + s.y * ray_y(j) + s.z;
 }
 
-// Last pass, one thread per row: the row's L_nc values, its L_ns values (each pixel's right,
-// then down pair) and its active pairs, each summed along the row in order (`kahan_add`;
-// the counts are exact integers in f32), written as record n + y of `values`. The host reads
-// these records alone and adds the rows in order in f64.
+// One thread per row: the row's L_nc values, its L_ns values (each pixel's right, then down
+// pair) and its active pairs, each summed along the row in order (`kahan_add`; the counts are
+// exact integers in f32), written as record n + y of `values`, for `normal_totals`.
 @compute @workgroup_size(256)
 fn row_sums(ids: Ids) {
     let y = thread_1d(ids);
@@ -291,4 +290,26 @@ fn row_sums(ids: Ids) {
         pairs += t.pairs;
     }
     values[frame.n + y] = PixelTerms(nc.x, ns.x, 0.0, pairs);
+}
+
+// Last, one thread: the rows' sums added in row order as double-f32 pairs (`wide_add`),
+// written after them as two records: (L_nc's hi, lo, L_ns's hi, lo), (the active pairs' hi,
+// lo, 0, 0). The host reads these two records alone (`gs_gpu::wide_value`).
+@compute @workgroup_size(256)
+fn normal_totals(ids: Ids) {
+    if (thread_1d(ids) != 0u) {
+        return;
+    }
+    var nc = vec2<f32>(0.0);
+    var ns = vec2<f32>(0.0);
+    var pairs = vec2<f32>(0.0);
+    for (var y = 0u; y < frame.height; y++) {
+        let r = values[frame.n + y];
+        nc = wide_add(nc, r.nc);
+        ns = wide_add(ns, r.ns_right);
+        pairs = wide_add(pairs, r.pairs);
+    }
+    let at = frame.n + frame.height;
+    values[at] = PixelTerms(nc.x, nc.y, ns.x, ns.y);
+    values[at + 1u] = PixelTerms(pairs.x, pairs.y, 0.0, 0.0);
 }
