@@ -1,8 +1,9 @@
 #![cfg(feature = "wgpu")]
 //! Exposure compensation on the device (`ExposureGpu`) against its CPU reference
 //! (`apply_exposure`, `exposure_backward`), on an RGB image of odd size with varied colours,
-//! gains and biases. Tolerances (f32 on both sides; the device may fuse a multiply-add, and
-//! sums each row in compensated f32 where the host sums in f64): the corrected colour and
+//! gains and biases, and what comes back (the six totals). Tolerances (f32 on both sides; the
+//! device may fuse a multiply-add, and sums each row in compensated f32 and the rows as
+//! double-f32 pairs where the host sums in f64): the corrected colour and
 //! ∂L/∂c within 2 ulp-scale of each value (1e-6 relative to its magnitude), ∂L/∂(a, b) within
 //! 1e-5 relative. Without a wgpu adapter the tests print one SKIPPED line (a failure under
 //! `CI=true`).
@@ -44,7 +45,10 @@ fn the_device_corrects_and_back_propagates_as_the_host() {
         assert!(host_ge[k] != 0.0 && (x - y).abs() <= 1e-5 * y.abs(), "∂L/∂(a, b)[{k}]: {x} against {y}");
     }
     // The same inputs give the same bits.
+    let before = ctx.transfers();
     let (gc2, ge2) = gpu.backward(&dc, &e, &dg).unwrap();
+    let t = ctx.transfers() - before;
+    assert_eq!((t.syncs, t.bytes_down), (1, 64), "the six totals alone come back, as double-f32 pairs");
     assert_eq!((gc2.read(&ctx).unwrap(), ge2), (gc.read(&ctx).unwrap(), ge));
     // Refused with the problem named: a grey image, a gradient of another size.
     let grey = DeviceImage::new(&ctx, "grey", w, h, 1).unwrap();

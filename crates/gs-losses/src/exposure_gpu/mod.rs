@@ -2,7 +2,7 @@
 //! [`crate::exposure`]: a view's rendered colour kept on the device is corrected there
 //! (c' = exp(a)·c + b) for L_I on the device, and the backward chains L_I's gradient there
 //! (∂L/∂c = exp(a)·∂L/∂c') and sums each image row's share of ∂L/∂(a, b) in compensated f32,
-//! so that six values a row come back, which the host adds in order in f64 (`exposure.wgsl`).
+//! then the rows in order as double-f32 pairs, so that six totals come back (`exposure.wgsl`).
 //! The gains exp(a) are the host's. Tolerances: `tests/exposure_gpu.rs` (docs/architecture.md
 //! §GPU).
 
@@ -27,7 +27,8 @@ gs_gpu::wgsl_struct! {
 
 gs_gpu::wgsl_struct! {
     /// One image row's share of ∂L/∂(a, b) (WGSL `struct ExposureRow`): Σ ∂L/∂c'·exp(a)·c and
-    /// Σ ∂L/∂c' per channel. 32 bytes.
+    /// Σ ∂L/∂c' per channel; after the rows, the image's totals as two records, the pairs'
+    /// high parts, then their low parts (`exposure_totals`). 32 bytes.
     pub(crate) struct ExposureRow as "ExposureRow" {
         scaled: [f32; 4],
         plain: [f32; 4],
@@ -43,13 +44,14 @@ const BINDINGS: [Binding<'static>; 4] = [
 ];
 
 /// The passes, in `BINDINGS`' kernel order.
-const PASSES: [&str; 3] = ["exposure_apply", "exposure_chain", "exposure_rows"];
+const PASSES: [&str; 4] = ["exposure_apply", "exposure_chain", "exposure_rows", "exposure_totals"];
 
 /// The passes' indices in [`PASSES`]: the correction and the chained gradient (a thread a
-/// value), the row sums (a thread a row).
+/// value), the row sums (a thread a row), their totals (one thread).
 const APPLY: usize = 0;
 const CHAIN: usize = 1;
 const ROWS: usize = 2;
+const TOTALS: usize = 3;
 
 fn generated_structs() -> [GeneratedStruct; 2] {
     [GeneratedStruct::of::<ExposureFrame>(), GeneratedStruct::of::<ExposureRow>()]
@@ -105,23 +107,22 @@ impl ExposureGpu {
         }
         let chained = DeviceImage::new(&self.k.ctx, "exposure colour gradient", color.width(), color.height(), 3).map_err(gpu_error)?;
         let h = color.height();
-        let row_bytes = bytes_of::<ExposureRow>(h);
-        self.k.begin([4, 4, 4, row_bytes], row_bytes);
-        let rows: Vec<ExposureRow> = self.run(color, e, &[(CHAIN, grad_out, &chained), (ROWS, grad_out, &chained)], Some(row_bytes))?.unwrap_or_default();
-        let mut ge = [0.0f64; 6];
-        for r in &rows {
-            for ch in 0..3 {
-                ge[ch] += r.scaled[ch] as f64;
-                ge[3 + ch] += r.plain[ch] as f64;
-            }
-        }
+        let (row_bytes, total_bytes) = (bytes_of::<ExposureRow>(h), bytes_of::<ExposureRow>(2));
+        self.k.begin([4, 4, 4, row_bytes + total_bytes], total_bytes);
+        let passes = [(CHAIN, grad_out, &chained), (ROWS, grad_out, &chained), (TOTALS, grad_out, &chained)];
+        let totals = self.run(color, e, &passes, Some((row_bytes, total_bytes)))?.unwrap_or_default();
+        let [hi, lo] = [totals[0], totals[1]];
+        let ge: [f64; 6] = std::array::from_fn(|k| match k {
+            0..3 => gs_gpu::wide_value([hi.scaled[k], lo.scaled[k]]),
+            _ => gs_gpu::wide_value([hi.plain[k - 3], lo.plain[k - 3]]),
+        });
         Ok((chained, ge.map(|v| v as f32)))
     }
 
     /// Records `passes` (each: its index in [`PASSES`], the image bound as `grad` and the one
-    /// bound as `out`) on `color`'s correction by `e`, submits, and reads `rows` back when
-    /// `read` gives their bytes.
-    fn run(&mut self, color: &DeviceImage, e: &ExposureParams, passes: &[(usize, &DeviceImage, &DeviceImage)], read: Option<u64>) -> Result<Option<Vec<ExposureRow>>> {
+    /// bound as `out`) on `color`'s correction by `e`, submits, and reads back the records of
+    /// `rows` that `read` gives (their offset and bytes).
+    fn run(&mut self, color: &DeviceImage, e: &ExposureParams, passes: &[(usize, &DeviceImage, &DeviceImage)], read: Option<(u64, u64)>) -> Result<Option<Vec<ExposureRow>>> {
         let g = exposure_gains(e);
         let frame = ExposureFrame {
             gain: [g[0], g[1], g[2], 0.0],
@@ -137,20 +138,24 @@ impl ExposureGpu {
         let recorded = (|| {
             for &(pass, grad, out) in passes {
                 let binds = [Bind::whole(color.buffer()), Bind::whole(grad.buffer()), Bind::whole(out.buffer()), k.pool.whole(k.bufs[3])];
-                let n = if pass == ROWS { color.height() } else { color.len() } as u32;
+                let n = match pass {
+                    ROWS => color.height(),
+                    TOTALS => 1,
+                    _ => color.len(),
+                } as u32;
                 k.disp.dispatch_1d(&mut enc, &k.kernels[pass], &binds, PassUniform { n, ..Default::default() })?;
             }
             Ok::<_, gs_gpu::GpuError>(())
         })();
         let staging = k.pool.buffer(k.staging);
-        if let Some(bytes) = read {
-            enc.encoder.copy_buffer_to_buffer(k.pool.buffer(k.bufs[3]), 0, staging, 0, bytes);
+        if let Some((at, bytes)) = read {
+            enc.encoder.copy_buffer_to_buffer(k.pool.buffer(k.bufs[3]), at, staging, 0, bytes);
         }
         k.disp.submit(enc);
         k.ctx.pop_error_scopes().map_err(gpu_error)?;
         recorded.map_err(gpu_error)?;
         match read {
-            Some(bytes) => Ok(Some(k.ctx.read_mapped(staging, bytes, bytemuck::pod_collect_to_vec).map_err(gpu_error)?)),
+            Some((_, bytes)) => Ok(Some(k.ctx.read_mapped(staging, bytes, bytemuck::pod_collect_to_vec).map_err(gpu_error)?)),
             None => Ok(None),
         }
     }
