@@ -48,6 +48,7 @@ mod forward;
 mod readback;
 mod guess;
 mod kernels;
+mod adam_kernels;
 mod resident;
 mod resident_rows;
 mod split;
