@@ -6,7 +6,8 @@
 #      loss kernels' tests: gs-mvs photometric_gpu (L_p) and feature_gpu (L_f), gs-losses image_gpu (L_I) and
 #      normal_gpu (L_nc / L_ns), the resident model's Adam: gs-raster wgpu_resident, renders
 #      that guess their buffers: gs-raster wgpu_guessed_render, L_f's VGG16 maps: gs-features
-#      vgg_gpu, and both blend tile splits: gs-raster wgpu_tile_split);
+#      vgg_gpu, both blend tile splits: gs-raster wgpu_tile_split, density control: gs-train
+#      wgpu_densify, and gs-gpu's scan, sort and sums: gs-gpu device);
 #   3. the rasterizer bench at 1920×1080 with 100k and 1M Gaussians, wgpu and 16 CPU threads;
 #   4. the README job (built-in scene) twice on wgpu (are the model bytes the same?) and once
 #      on the CPU, with per-phase times, held-out PSNR and veils;
@@ -30,7 +31,12 @@ start=$(date +%s)
 W="${TMPDIR:-/tmp}/gpu-check-runs"
 rm -rf "$W" && mkdir -p "$W/bin"
 B="$W/bin"
-for f in .gpu/bin/*.gz; do gunzip -c "$f" > "$B/$(basename "$f" .gz)" && chmod +x "$B/$(basename "$f" .gz)"; done
+# The binaries: one solid xz archive (gpu-pack.sh), unpacked by Python's tarfile, else by tar.
+unpack='import sys, tarfile
+t = tarfile.open(sys.argv[1])
+t.extractall(sys.argv[2], **({"filter": "data"} if hasattr(tarfile, "data_filter") else {}))'
+{ command -v python3 >/dev/null && python3 -c "$unpack" .gpu/bin.tar.xz "$B"; } || tar -xJf .gpu/bin.tar.xz -C "$B"
+chmod +x "$B"/*
 summary="$OUT/gpu-check.md"
 export RAYON_NUM_THREADS="${RAYON_NUM_THREADS:-$(nproc)}"
 left() { echo $(( budget - ($(date +%s) - start) )); }
@@ -75,8 +81,11 @@ fi
 # The loss kernels and the resident model's Adam against their CPU twins (gs-mvs
 # photometric_gpu and feature_gpu, gs-losses image_gpu and normal_gpu, gs-raster wgpu_resident,
 # gs-features vgg_gpu), renders that guess their buffers against counted ones (gs-raster
-# wgpu_guessed_render), and both blend tile splits against the CPU (gs-raster wgpu_tile_split).
-for t in lp lf image normal resident guess vgg split; do
+# wgpu_guessed_render), both blend tile splits against the CPU (gs-raster wgpu_tile_split),
+# density control on the resident model against the host's rule (gs-train wgpu_densify: clone,
+# split, prune, the trim's counts, the capture path's test), and gs-gpu's scan, sort and
+# compensated sums (gs-gpu device).
+for t in lp lf image normal resident guess vgg split densify sums; do
   step ${t}_parity 30 env CI=true "$B/$t-parity" --test-threads 1 --nocapture; r=$?
   if [ -f "$OUT/${t}_parity.log" ]; then
     if [ $r = 0 ]; then r=passed; else r=FAILED; fi

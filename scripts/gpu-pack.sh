@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Packs what scripts/gpu-check.sh needs on a GPU machine that reaches no registry: stripped
 # release binaries (vagsl, the rasterizer bench, the wgpu parity tests of the rasterizer, L_p,
-# L_f, L_I, L_nc/L_ns and the resident model's Adam), the synth-bunny scene without its GT depth maps, and the Vulkan
+# L_f, L_I, L_nc/L_ns, the resident model's Adam, density control and gs-gpu's scan, sort and
+# sums) in one solid xz archive, the synth-bunny scene without its GT depth maps, and the Vulkan
 # loader's Debian packages. Run it here, in the repository root; it fills the ignored folders .gpu/ and .gl/, which travel with `carry`.
 #
 #   scripts/gpu-pack.sh [--baseline PATH_TO_OLD_VAGSL] [--baseline-bench OLD_RASTER_BENCH NAME]
 #
-# --baseline also packs an older vagsl binary (.gpu/bin/vagsl-baseline): gpu-check then runs
+# --baseline also packs an older vagsl binary (vagsl-baseline in the archive): gpu-check then runs
 # the README job with it beside the new one on the same machine. --baseline-bench packs an
 # older raster bench (plain or .gz, built from commit NAME): gpu-check runs its wgpu rows
 # right after the new ones, so a speed-up is a ratio measured on one machine.
@@ -44,6 +45,8 @@ resident_parity=$(exe test --release --test wgpu_resident --no-run)
 guess_parity=$(exe test --release --test wgpu_guessed_render --no-run)
 vgg_parity=$(exe test --release --test vgg_gpu --no-run)
 split_parity=$(exe test --release --test wgpu_tile_split --no-run)
+densify_parity=$(exe test --release --test wgpu_densify --no-run)
+sums_parity=$(exe test --release --test device --no-run)
 strip -o .gpu/bin/vagsl target/release/vagsl
 strip -o .gpu/bin/raster-bench "$raster"
 strip -o .gpu/bin/wgpu-parity "$parity"
@@ -55,12 +58,18 @@ strip -o .gpu/bin/resident-parity "$resident_parity"
 strip -o .gpu/bin/guess-parity "$guess_parity"
 strip -o .gpu/bin/vgg-parity "$vgg_parity"
 strip -o .gpu/bin/split-parity "$split_parity"
+strip -o .gpu/bin/densify-parity "$densify_parity"
+strip -o .gpu/bin/sums-parity "$sums_parity"
 [ -n "$baseline" ] && strip -o .gpu/bin/vagsl-baseline "$baseline"
 if [ -n "$bench_base" ]; then
   case "$bench_base" in *.gz) gunzip -c "$bench_base" > .gpu/bin/raster-bench-baseline ;; *) strip -o .gpu/bin/raster-bench-baseline "$bench_base" ;; esac
   echo "$bench_name" > .gpu/baseline
 fi
-gzip -f .gpu/bin/*   # the tree that travels is capped at 64 MiB: 35 -> 20 MB
+# The tree that travels (tracked files, .gpu, .gl) is capped at 64 MiB. The binaries share most
+# of their code (wgpu, naga, the crates), which one solid archive stores once: 93 MB stripped,
+# 41 MB gzipped one by one, 16 MB as one xz archive (stop 69).
+tar -C .gpu/bin -cf - . | xz -9e -T2 > .gpu/bin.tar.xz
+rm -rf .gpu/bin
 git rev-parse --short HEAD > .gpu/commit
 git status --porcelain --untracked-files=no | grep -q . && echo "+uncommitted" >> .gpu/commit
 
