@@ -459,13 +459,16 @@ pub struct BornParent {
     pub rotation: [f32; 4],
 }
 
-/// What the device's trim did ([`crate::Rasterizer::retain_observed_resident`]).
+/// What a removal by a mask made on the device did: the multi-view trim
+/// ([`crate::Rasterizer::retain_observed_resident`]) or the capture path's floater rule
+/// ([`crate::Rasterizer::retain_outside_resident`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TrimOnDevice {
     /// The Gaussians left (all of them where none was removed).
     Kept(usize),
-    /// No Gaussian was observed often enough: nothing changed (the caller keeps the most
-    /// opaque one, as the host's rule does, from [`crate::Rasterizer::read_view_counts`]).
+    /// The mask would keep no Gaussian: nothing changed (the caller keeps the most opaque
+    /// one, as the host's rule does; the trim's counts stay for it,
+    /// [`crate::Rasterizer::read_view_counts`]).
     NoneKept,
 }
 
