@@ -278,7 +278,7 @@ impl Rasterizer {
     /// ([`crate::WgpuRasterizer::mark_capsules_resident`]) and returns the rows f32 could not
     /// settle, with their means, for the host's test; `None`, with nothing marked, where the
     /// device does not take it. The CPU backend refuses.
-    pub fn mark_capsules_resident(&mut self, gaussians: &Gaussians, capsules: &[gs_core::Capsule]) -> Result<Option<Vec<(usize, [f32; 3])>>> {
+    pub fn mark_capsules_resident(&mut self, gaussians: &Gaussians, capsules: &[gs_core::Capsule]) -> Result<Option<crate::UnsureRows>> {
         match &mut self.inner {
             #[cfg(feature = "wgpu")]
             Inner::Wgpu(r) => r.mark_capsules_resident(gaussians, capsules),

@@ -87,7 +87,7 @@ pub use gpu::{
     hardware_adapter_available, probe_adapter,
 };
 pub use types::{
-    ALPHA_THRESHOLD, BornParent, DensifyCounts, TrimOnDevice, DensifyRule, DeviceStep, ForwardState, GaussianGradients, MAX_ALPHA, OBSERVE_T, OutputGradients,
+    ALPHA_THRESHOLD, BornParent, DensifyCounts, TrimOnDevice, UnsureRows, DensifyRule, DeviceStep, ForwardState, GaussianGradients, MAX_ALPHA, OBSERVE_T, OutputGradients,
     PLANE_DEPTH_EPS, RasterConfig, RasterError, RenderOutput, RenderRequest, RenderStats,
     Result, StepExtras, T_STOP, TILE_SIZE, adam_step,
 };

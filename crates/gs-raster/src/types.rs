@@ -459,6 +459,10 @@ pub struct BornParent {
     pub rotation: [f32; 4],
 }
 
+/// The rows of a resident model whose mark against capsules f32 could not settle, with their
+/// means ([`crate::Rasterizer::mark_capsules_resident`]): for the host's own test.
+pub type UnsureRows = Vec<(usize, [f32; 3])>;
+
 /// What a removal by a mask made on the device did: the multi-view trim
 /// ([`crate::Rasterizer::retain_observed_resident`]) or the capture path's floater rule
 /// ([`crate::Rasterizer::retain_outside_resident`]).

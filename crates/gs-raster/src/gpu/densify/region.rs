@@ -8,7 +8,7 @@
 
 use super::Densify;
 use crate::gpu::WgpuRasterizer;
-use crate::{RasterError, Result, TrimOnDevice};
+use crate::{RasterError, Result, TrimOnDevice, UnsureRows};
 use gs_core::sh::coeffs_for_degree;
 use gs_core::{Capsule, Gaussians};
 use gs_gpu::{Bind, PassUniform, bytes_of};
@@ -49,7 +49,7 @@ impl WgpuRasterizer {
     /// settle, with their means, for the host to test with [`Capsule::contains`] (usually
     /// none: then 4 bytes come back). `None`, with nothing marked, where the model's buffers
     /// do not fit one storage binding each.
-    pub fn mark_capsules_resident(&mut self, g: &Gaussians, capsules: &[Capsule]) -> Result<Option<Vec<(usize, [f32; 3])>>> {
+    pub fn mark_capsules_resident(&mut self, g: &Gaussians, capsules: &[Capsule]) -> Result<Option<UnsureRows>> {
         let Some(r) = self.model.residency().filter(|_| self.model.holds(g)) else {
             return Err(RasterError::Gpu("marking the capture path on the device needs the model resident".into()));
         };
@@ -103,7 +103,7 @@ impl WgpuRasterizer {
 
     /// Marks `n` Gaussians against `records`, scans the unsure ones and reads back how many
     /// there are, then (only where there are some) their rows and means.
-    fn mark_scoped(&mut self, n: u64, records: &[CapsuleRecord]) -> Result<Vec<(usize, [f32; 3])>> {
+    fn mark_scoped(&mut self, n: u64, records: &[CapsuleRecord]) -> Result<UnsureRows> {
         let d: &Densify = self.densify.as_ref().expect("made by the caller");
         let (capsules, marks, ranks, unsure, settled, dest) = (d.capsules, d.marks, d.ranks, d.unsure, d.settled, d.dest);
         crate::gpu::upload_with(&self.ctx, &mut self.pool, capsules, records.len(), |out: &mut [CapsuleRecord]| out.copy_from_slice(records));
@@ -121,7 +121,7 @@ impl WgpuRasterizer {
         let staging = p.buffer(self.bufs.staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(ranks), 4 * n, staging, 0, 4);
         d.disp.submit(enc);
-        let total = self.ctx.read_mapped(staging, 4, |b| bytemuck::pod_read_unaligned::<u32>(b))? as usize;
+        let total = self.ctx.read_mapped(staging, 4, bytemuck::pod_read_unaligned::<u32>)? as usize;
         if total == 0 {
             return Ok(Vec::new());
         }

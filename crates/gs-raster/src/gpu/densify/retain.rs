@@ -75,7 +75,7 @@ impl WgpuRasterizer {
         let staging = p.buffer(self.bufs.staging);
         enc.encoder.copy_buffer_to_buffer(p.buffer(d.dest), 4 * n, staging, 0, 4);
         d.disp.submit(enc);
-        Ok(self.ctx.read_mapped(staging, 4, |b| bytemuck::pod_read_unaligned::<u32>(b))? as usize)
+        Ok(self.ctx.read_mapped(staging, 4, bytemuck::pod_read_unaligned::<u32>)? as usize)
     }
 
     /// After [`Self::scan_mask`] found `kept` survivors of `n` rows: where none survives,
