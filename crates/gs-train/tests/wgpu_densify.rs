@@ -323,7 +323,7 @@ fn the_device_removes_what_lies_in_front_of_the_path_as_the_host_does() {
         .collect();
     let refs: Vec<&Camera> = cams.iter().collect();
     let path = CapturePath::new(&refs, 1.0, &[]);
-    let (mut g, adam, mut st) = model(3000, 1, 31);
+    let (mut g, mut adam, mut st) = model(3000, 1, 31);
     // Rows on the boundaries, each within 1e-6 of the capsule's size from it: a link's side
     // (half of them just inside), and a camera's image plane.
     let mut edges = Vec::new();
@@ -343,17 +343,7 @@ fn the_device_removes_what_lies_in_front_of_the_path_as_the_host_does() {
         g.push(p.as_vec3().to_array(), [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 0.5, sh);
     }
     let n = g.len();
-    let adam = {
-        let mut a = Adam::new(AdamConfig::default());
-        for p in Param::ALL {
-            a.add_group(p.name(), 1e-3, n, p.row_width()).unwrap();
-        }
-        for (group, old) in a.groups.iter_mut().zip(&adam.groups) {
-            group.m[..old.m.len()].copy_from_slice(&old.m);
-            group.v[..old.v.len()].copy_from_slice(&old.v);
-        }
-        a
-    };
+    adam.extend_rows(edges.len());
     st.visible_count.resize(n, 2);
     st.grad_sum.resize(n, 1e-4);
     st.abs_grad_sum.resize(n, 2e-4);

@@ -3,8 +3,8 @@
 //! (`align.wgsl`) evaluates every (reference pixel, source) pair — the term υω·|1 − cos| and
 //! its derivative with respect to the reference plane depth — and the reduction
 //! (`reduce.wgsl`, [`reduce`]) sums each source's rows and adds its share of the gradient
-//! image, sources in order, so that one record a (source, row) and one value a pixel come
-//! back. [`FeatureGpu::loss`] takes υ/ω from the host's own code; [`FeatureGpu::start_on_device`]
+//! image, sources in order, then (`totals.wgsl`) adds each source's rows, so that one record a
+//! source and one value a pixel come back. [`FeatureGpu::loss`] takes υ/ω from the host's own code; [`FeatureGpu::start_on_device`]
 //! reads those L_p made on the device for the same views in the same step, and the rendered
 //! surface's plane depth, and keeps the gradient image there ([`on_device`]). One input gives
 //! one result on one device (docs/method.md §L_f, docs/architecture.md §GPU).

@@ -2,8 +2,8 @@
 //! plane depth is the rendered surface's z, υω of each (source, pixel) is the record L_p made
 //! on the device for the same views in the same step ([`DeviceVisibility`]), and the gradient
 //! image stays on the device, to be added, times λ4, into the geometry gradient the backward
-//! reads ([`FeatureGpu::add_gradient`]). Only each (source, row)'s sums and L_p's row counts
-//! (for the visibility statistics) come back: no depth goes to the host, no weight comes up.
+//! reads ([`FeatureGpu::add_gradient`]). Only each source's totals, with those of L_p's row
+//! counts (the visibility statistics), come back: no depth goes to the host, no weight comes up.
 
 use super::reduce::AlignTotals;
 use super::{AlignFrame, AlignPair, AlignResult, FeatureGpu, align_frame, gpu_error, pair_record};

@@ -1,7 +1,8 @@
 //! L_f's sums on the device (`reduce.wgsl`): each source's row statistics, its scale
 //! 1 / (|V|·N) and its share of the gradient image, from the pair results that stay on the
-//! device. The host reads one record a (source, row) and one value a pixel instead of one
-//! record a (source, pixel) (docs/architecture.md §GPU).
+//! device, and (`totals.wgsl`) each source's totals of its rows. The host reads one record a
+//! source and one value a pixel instead of one record a (source, pixel) (docs/architecture.md
+//! §GPU).
 
 use super::{AlignFrame, AlignResult};
 use gs_gpu::{Binding, GeneratedStruct};

@@ -1,6 +1,6 @@
 // L_f's sums on the device, after `align_pair` (docs/method.md §L_f): the twin of the host's
-// `add_source`, one source at a time (`pass_.p1`), so that only the row sums and the gradient
-// image come back, not every pair's result.
+// `add_source`, one source at a time (`pass_.p1`), so that only each source's totals of the
+// row sums (totals.wgsl) and the gradient image come back, not every pair's result.
 // - `align_rows`, one thread per row of the source: its pairs in V and the sums of υω·|1 − cos|
 //   and of cos over its terms in order (`kahan_add`).
 // - `align_scale`, one thread: 1 / (|V|·N) of the source (0 without pairs in V).

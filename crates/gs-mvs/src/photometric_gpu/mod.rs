@@ -1,8 +1,9 @@
 //! L_p on the device (behind the `wgpu` feature), the twin of [`crate::photometric`]: one WGSL
 //! kernel (`ncc.wgsl`) evaluates every selected (pixel, source) patch — its NCC cost and the
 //! gradient with respect to the rendered plane (Ñ, D) — and three more (`reduce.wgsl`) sum
-//! them in fixed orders into each (source, row)'s statistics and the gradient image, which
-//! alone come back. For a reference whose plane is on the host, υ/ω and the seeded pixel
+//! them in fixed orders into each (source, row)'s statistics and the gradient image; a last
+//! (`totals.wgsl`) adds each source's rows, and those totals and the gradient alone come
+//! back. For a reference whose plane is on the host, υ/ω and the seeded pixel
 //! selection run on the host with the reference's own code, so the two executors choose the
 //! same patches and differ only in the patch arithmetic and the f32 sums; for a reference whose
 //! plane is on the device they run there too ([`select`]: the same rules and draw, υ/ω within
@@ -349,7 +350,7 @@ impl PhotometricGpu {
     /// gs-gpu `PlaneGrad`s, for the rasterizer's backward there): neither crosses to the host,
     /// nor do υ/ω and the selected patches, which are made on the device from the surface's
     /// plane depth and the sources' (`keys` holds the sources' depths by version; a
-    /// [`SourceDepth::Held`] one is there already). Only each (source, row)'s sums come back,
+    /// [`SourceDepth::Held`] one is there already). Only each source's totals come back,
     /// and, when a source may exceed the sampling cap, its candidate counts first (one more
     /// wait). With [`ViewKeys::keep_reference_depth`] the reference's depth stays in the arena.
     /// [`PhotometricGpu::finish_on_device`] reads it.

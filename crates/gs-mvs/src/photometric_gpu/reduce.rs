@@ -1,6 +1,7 @@
 //! L_p's sums on the device (`reduce.wgsl`): the per-row statistics, 1/|V| of each source and
-//! the gradient image, from the patch results that stay on the device. The host reads one
-//! record a (source, row) and one a pixel instead of one a patch (docs/architecture.md §GPU).
+//! the gradient image, from the patch results that stay on the device, and (`totals.wgsl`)
+//! each source's totals of its rows. The host reads one record a source and one a pixel
+//! instead of one a patch (docs/architecture.md §GPU).
 
 use super::select::VisRow;
 use super::{Entry, NccFrame, NccResult};

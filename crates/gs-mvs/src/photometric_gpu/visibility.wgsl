@@ -5,8 +5,8 @@
 //   host's arithmetic in the host's order; the pixel is a candidate when it lies a half patch
 //   inside the image and υω > 0.
 // - `visibility_rows`, one thread per (source, row): the row's counts of υ, ω > 0 and candidates and its
-//   sum of ω over υ (compensated f32, in order), which the host adds in f64 and the selection
-//   reads.
+//   sum of ω over υ (compensated f32, in order), which the totals (totals.wgsl) or, under the
+//   sampling cap, the host add up, and which the selection reads.
 //
 // Generated before this file: `struct NccFrame` (binding 0), `struct VisPair`,
 // `struct SurfaceTexel`, `struct VisTexel`, `struct VisRow`, the storage bindings `vis_pairs`,
